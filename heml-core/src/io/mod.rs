@@ -1,0 +1,272 @@
+//! Mesh input/output: readers for the tetrahedral mesh formats soft-tissue users
+//! actually have (Gmsh, VTK legacy and XML, TetGen, Medit), writers for the same
+//! formats (so every reader is round-trip tested), VTU frames and `.pvd` series for
+//! ParaView.
+//!
+//! Design choices, and why:
+//! * **Hand-written parsers.** Every error must name the file and the line, and no
+//!   input may make the reader panic; owning the parsers makes both easy to
+//!   guarantee and to test (see `tests/mesh_io.rs`, which fuzzes truncations).
+//! * **Only linear tetrahedra are simulated.** Lower-dimensional elements (points,
+//!   lines, triangles, quads: typically boundary surfaces) are skipped and counted
+//!   in [`MeshData::skipped`]. Other *volume* elements (hexahedra, prisms,
+//!   pyramids, quadratic tets…) are rejected with an error: dropping them silently
+//!   would remove material from the body.
+//! * **Every writer is atomic** ([`atomic`]): output goes to a temporary file in the
+//!   same directory that is renamed over the target, so a crash or an error never
+//!   leaves a half-written file behind.
+
+pub mod atomic;
+mod cursor;
+pub mod gmsh;
+pub mod medit;
+pub mod pvd;
+pub mod tetgen;
+mod vtk_binary;
+mod vtk_cells;
+pub mod vtk_legacy;
+pub mod vtu;
+mod vtu_write;
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::error::{HemlError, Result};
+use crate::mesh::TetMesh;
+use crate::Vec3;
+
+pub use pvd::{read_pvd, PvdWriter};
+pub use vtu::{write_vtu, VtuEncoding, VtuFrame};
+
+/// The raw content of a mesh file, before validation: what a reader found.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeshData {
+    /// Node positions, densely indexed from 0.
+    pub nodes: Vec<Vec3>,
+    /// Tetrahedra as indices into `nodes`, in file order and orientation.
+    pub tets: Vec<[usize; 4]>,
+    /// One region tag per tet (0 where the file has none).
+    pub tags: Vec<i32>,
+    /// Non-tetrahedral elements that were skipped: element type name → count.
+    pub skipped: BTreeMap<String, usize>,
+}
+
+impl MeshData {
+    /// Validates the data into a [`TetMesh`] (index checks, degenerate tets rejected,
+    /// negative tets reoriented).
+    pub fn into_mesh(self) -> Result<TetMesh> {
+        TetMesh::with_tags(self.nodes, self.tets, self.tags)
+    }
+
+    /// The arrays of an existing mesh (for the writers).
+    pub fn from_mesh(mesh: &TetMesh) -> Self {
+        MeshData {
+            nodes: mesh.nodes().to_vec(),
+            tets: mesh.tets().iter().map(|t| t.map(|i| i as usize)).collect(),
+            tags: mesh.tags().to_vec(),
+            skipped: BTreeMap::new(),
+        }
+    }
+
+    /// Counts one skipped element of type `name`.
+    pub(crate) fn skip(&mut self, name: impl Into<String>) {
+        *self.skipped.entry(name.into()).or_insert(0) += 1;
+    }
+}
+
+/// A mesh file format (and version, where it matters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MeshFormat {
+    /// Gmsh `.msh` version 2.2 (2.x), ASCII.
+    Gmsh22,
+    /// Gmsh `.msh` version 4.1, ASCII.
+    Gmsh41,
+    /// VTK legacy `.vtk` UNSTRUCTURED_GRID.
+    VtkLegacy,
+    /// VTK XML `.vtu` UnstructuredGrid.
+    Vtu,
+    /// TetGen `.node` + `.ele` pair.
+    TetGen,
+    /// Medit / INRIA `.mesh` (ASCII).
+    Medit,
+}
+
+impl fmt::Display for MeshFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            MeshFormat::Gmsh22 => "Gmsh msh 2.2 ASCII",
+            MeshFormat::Gmsh41 => "Gmsh msh 4.1 ASCII",
+            MeshFormat::VtkLegacy => "VTK legacy",
+            MeshFormat::Vtu => "VTK XML (vtu)",
+            MeshFormat::TetGen => "TetGen node/ele",
+            MeshFormat::Medit => "Medit mesh",
+        })
+    }
+}
+
+/// File extensions understood by [`read_mesh`] and [`write_mesh`].
+pub const SUPPORTED_EXTENSIONS: &[&str] = &["msh", "vtk", "vtu", "node", "ele", "mesh"];
+
+/// What [`read_mesh`] found, for logs and for users to check their input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReadReport {
+    /// The file read (for TetGen, the path given).
+    pub path: PathBuf,
+    /// The detected format.
+    pub format: MeshFormat,
+    /// Number of nodes.
+    pub n_nodes: usize,
+    /// Number of tetrahedra.
+    pub n_tets: usize,
+    /// Non-tet elements skipped: element type name → count.
+    pub skipped: BTreeMap<String, usize>,
+    /// Tets whose node order was swapped to make their rest volume positive.
+    pub reoriented: usize,
+    /// Nodes that belong to no tet (they get no mass).
+    pub unreferenced_nodes: usize,
+}
+
+impl fmt::Display for ReadReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}: {}, {} nodes, {} tets",
+            self.path.display(),
+            self.format,
+            self.n_nodes,
+            self.n_tets
+        )?;
+        if !self.skipped.is_empty() {
+            let s: Vec<String> = self.skipped.iter().map(|(k, v)| format!("{v} {k}")).collect();
+            write!(f, ", skipped {}", s.join(", "))?;
+        }
+        if self.reoriented > 0 {
+            write!(f, ", {} tets reoriented", self.reoriented)?;
+        }
+        if self.unreferenced_nodes > 0 {
+            write!(f, ", {} unreferenced nodes", self.unreferenced_nodes)?;
+        }
+        Ok(())
+    }
+}
+
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default()
+}
+
+fn unknown_extension(path: &Path, verb: &str) -> HemlError {
+    HemlError::Invalid(format!(
+        "cannot {verb} '{}': unknown mesh extension '{}'; supported: {}",
+        path.display(),
+        extension(path),
+        SUPPORTED_EXTENSIONS
+            .iter()
+            .map(|e| format!(".{e}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
+}
+
+/// Reads a file whole, mapping failures to [`HemlError::Io`] with its path.
+pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| HemlError::io(path, e))
+}
+
+/// Reads the raw content of a mesh file, choosing the reader by extension.
+pub fn read_mesh_data(path: &Path) -> Result<(MeshData, MeshFormat)> {
+    match extension(path).as_str() {
+        "msh" => gmsh::read(path),
+        "vtk" => vtk_legacy::read(path).map(|d| (d, MeshFormat::VtkLegacy)),
+        "vtu" => vtu::read(path).map(|d| (d, MeshFormat::Vtu)),
+        "node" | "ele" => tetgen::read(path).map(|d| (d, MeshFormat::TetGen)),
+        "mesh" => medit::read(path).map(|d| (d, MeshFormat::Medit)),
+        _ => Err(unknown_extension(path, "read")),
+    }
+}
+
+/// Reads a tetrahedral mesh, choosing the format by extension, and validates it.
+///
+/// ```
+/// use heml_core::io::{read_mesh, write_mesh};
+/// use heml_core::mesh::generate::{box_mesh, HexSplit};
+///
+/// let dir = std::env::temp_dir().join(format!("heml-doc-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir).unwrap();
+/// let path = dir.join("cube.msh");
+/// let cube = box_mesh([1.0, 1.0, 1.0], [2, 2, 2], HexSplit::Six).unwrap();
+/// write_mesh(&path, &cube).unwrap();
+///
+/// let (mesh, report) = read_mesh(&path).unwrap();
+/// assert_eq!(mesh.n_tets(), 48);
+/// assert_eq!(report.n_nodes, 27);
+/// println!("{report}"); // ".../cube.msh: Gmsh msh 4.1 ASCII, 27 nodes, 48 tets"
+/// # std::fs::remove_dir_all(&dir).unwrap();
+/// ```
+pub fn read_mesh(path: &Path) -> Result<(TetMesh, ReadReport)> {
+    let (data, format) = read_mesh_data(path)?;
+    let skipped = data.skipped.clone();
+    let mesh = data.into_mesh().map_err(|e| match e {
+        HemlError::Mesh(msg) => HemlError::Mesh(format!("{}: {msg}", path.display())),
+        other => other,
+    })?;
+    let report = ReadReport {
+        path: path.to_path_buf(),
+        format,
+        n_nodes: mesh.n_nodes(),
+        n_tets: mesh.n_tets(),
+        skipped,
+        reoriented: mesh.reoriented_count(),
+        unreferenced_nodes: mesh.unreferenced_nodes().len(),
+    };
+    Ok((mesh, report))
+}
+
+/// Writes `mesh` in the format given by the extension of `path` (`.msh` is written
+/// as Gmsh 4.1 ASCII, `.vtu` as base64 binary; `.node`/`.ele` write both TetGen
+/// files).
+pub fn write_mesh(path: &Path, mesh: &TetMesh) -> Result<()> {
+    let format = match extension(path).as_str() {
+        "msh" => MeshFormat::Gmsh41,
+        "vtk" => MeshFormat::VtkLegacy,
+        "vtu" => MeshFormat::Vtu,
+        "node" | "ele" => MeshFormat::TetGen,
+        "mesh" => MeshFormat::Medit,
+        _ => return Err(unknown_extension(path, "write")),
+    };
+    write_mesh_as(path, mesh, format)
+}
+
+/// Writes `mesh` to `path` in an explicit format (e.g. Gmsh 2.2 for older tools).
+pub fn write_mesh_as(path: &Path, mesh: &TetMesh, format: MeshFormat) -> Result<()> {
+    match format {
+        MeshFormat::Gmsh22 => gmsh::write(path, mesh, gmsh::Version::V22),
+        MeshFormat::Gmsh41 => gmsh::write(path, mesh, gmsh::Version::V41),
+        MeshFormat::VtkLegacy => vtk_legacy::write(path, mesh),
+        MeshFormat::Vtu => write_vtu(path, &VtuFrame::from_mesh(mesh)),
+        MeshFormat::TetGen => tetgen::write(path, mesh),
+        MeshFormat::Medit => medit::write(path, mesh),
+    }
+}
+
+/// Converts a region attribute read as a float (TetGen, VTK float arrays) into a
+/// tag, refusing values that are not integers in `i32` range.
+pub(crate) fn float_to_tag(v: f64) -> Option<i32> {
+    (v.is_finite() && v.fract() == 0.0 && v >= i32::MIN as f64 && v <= i32::MAX as f64).then_some(v as i32)
+}
+
+/// Names of cell arrays that hold region tags in files written by common tools, in
+/// order of preference (compared case-insensitively).
+pub(crate) const TAG_ARRAY_NAMES: &[&str] = &[
+    "tag",
+    "gmsh:physical",
+    "medit:ref",
+    "cellentityids",
+    "materialids",
+    "material",
+    "region",
+    "gmsh:geometrical",
+];

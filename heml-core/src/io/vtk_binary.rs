@@ -1,0 +1,208 @@
+//! The binary data encoding of VTK XML files: a size header (UInt32 or UInt64)
+//! followed by the data, optionally zlib-compressed in blocks, optionally base64
+//! encoded. Shared by the `.vtu` reader and writer.
+//!
+//! Uncompressed: `[nbytes] data`. Compressed: `[nblocks, block_size,
+//! last_block_size, csize_0 … csize_{n-1}]` then the compressed blocks, where a
+//! `last_block_size` of 0 means the last block is full. Inline base64 data is
+//! written by VTK with the header and the data encoded *separately* when
+//! compressed (and jointly when not), so the decoder accepts both.
+
+use std::io::Read;
+
+use base64::engine::general_purpose::STANDARD;
+use base64::Engine;
+
+/// Width of the integers in the size header (`header_type` attribute).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum HeaderType {
+    U32,
+    U64,
+}
+
+impl HeaderType {
+    pub fn size(self) -> usize {
+        match self {
+            HeaderType::U32 => 4,
+            HeaderType::U64 => 8,
+        }
+    }
+}
+
+/// How the decoder reads numbers (byte order of the file).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Layout {
+    pub header: HeaderType,
+    pub little_endian: bool,
+    pub compressed: bool,
+}
+
+impl Layout {
+    fn word(&self, b: &[u8]) -> Option<usize> {
+        let v = match self.header {
+            HeaderType::U32 => {
+                let a: [u8; 4] = b.get(..4)?.try_into().ok()?;
+                u64::from(if self.little_endian {
+                    u32::from_le_bytes(a)
+                } else {
+                    u32::from_be_bytes(a)
+                })
+            }
+            HeaderType::U64 => {
+                let a: [u8; 8] = b.get(..8)?.try_into().ok()?;
+                if self.little_endian {
+                    u64::from_le_bytes(a)
+                } else {
+                    u64::from_be_bytes(a)
+                }
+            }
+        };
+        usize::try_from(v).ok()
+    }
+
+    /// Decodes header + data from raw bytes; returns the data bytes and how many
+    /// input bytes were used.
+    pub fn decode_raw(&self, b: &[u8]) -> Result<(Vec<u8>, usize), String> {
+        let h = self.header.size();
+        let short = || "binary data is shorter than its header announces".to_string();
+        if !self.compressed {
+            let n = self.word(b).ok_or_else(short)?;
+            let end = h.checked_add(n).ok_or_else(short)?;
+            let data = b.get(h..end).ok_or_else(short)?;
+            return Ok((data.to_vec(), end));
+        }
+        let nblocks = self.word(b).ok_or_else(short)?;
+        let bs = self.word(b.get(h..).unwrap_or_default()).ok_or_else(short)?;
+        let last = self.word(b.get(2 * h..).unwrap_or_default()).ok_or_else(short)?;
+        let header_len = nblocks
+            .checked_add(3)
+            .and_then(|k| k.checked_mul(h))
+            .ok_or_else(short)?;
+        if header_len > b.len() {
+            return Err(short());
+        }
+        let mut out = Vec::new();
+        let mut pos = header_len;
+        for k in 0..nblocks {
+            let csize = self.word(&b[(3 + k) * h..]).ok_or_else(short)?;
+            let end = pos.checked_add(csize).ok_or_else(short)?;
+            let block = b.get(pos..end).ok_or_else(short)?;
+            let want = if k + 1 == nblocks && last != 0 { last } else { bs };
+            let before = out.len();
+            // `take` bounds the output: a corrupt or hostile block cannot inflate
+            // beyond the size its header declares.
+            flate2::read::ZlibDecoder::new(block)
+                .take(want as u64 + 1)
+                .read_to_end(&mut out)
+                .map_err(|e| format!("zlib block {k} cannot be decompressed: {e}"))?;
+            if out.len() - before != want {
+                return Err(format!(
+                    "zlib block {k} inflates to {} bytes, its header says {want}",
+                    out.len() - before
+                ));
+            }
+            pos = end;
+        }
+        Ok((out, pos))
+    }
+
+    /// Decodes base64 text (whitespace allowed) holding header + data.
+    pub fn decode_base64(&self, text: &[u8]) -> Result<Vec<u8>, String> {
+        let clean: Vec<u8> = text.iter().copied().filter(|b| !b.is_ascii_whitespace()).collect();
+        // Jointly encoded (or separately encoded without padding in between).
+        if let Ok(all) = STANDARD.decode(&clean) {
+            if let Ok((data, _)) = self.decode_raw(&all) {
+                return Ok(data);
+            }
+        }
+        // Header encoded on its own: find its length from its first words.
+        let h = self.header.size();
+        let header_len = if self.compressed {
+            // the first 3 words are 3h bytes = 4h base64 characters, a whole number of groups
+            let first = clean.get(..4 * h).ok_or("base64 data too short for its header")?;
+            let first = STANDARD.decode(first).map_err(|e| format!("invalid base64: {e}"))?;
+            let nblocks = self.word(&first).ok_or("base64 data too short for its header")?;
+            nblocks
+                .checked_add(3)
+                .and_then(|k| k.checked_mul(h))
+                .ok_or("corrupt header")?
+        } else {
+            h
+        };
+        let split = header_len.div_ceil(3).checked_mul(4).ok_or("corrupt header")?;
+        let head = clean.get(..split).ok_or("base64 data too short for its header")?;
+        let mut raw = STANDARD
+            .decode(head)
+            .map_err(|e| format!("invalid base64 in the header: {e}"))?;
+        raw.extend(
+            STANDARD
+                .decode(&clean[split..])
+                .map_err(|e| format!("invalid base64: {e}"))?,
+        );
+        self.decode_raw(&raw).map(|(d, _)| d)
+    }
+}
+
+/// Encodes `data` for an inline binary DataArray (UInt64 header), optionally
+/// zlib-compressed in 32 KiB blocks.
+pub(crate) fn encode_base64(data: &[u8], compress: bool) -> String {
+    if !compress {
+        let mut raw = Vec::with_capacity(8 + data.len());
+        raw.extend_from_slice(&(data.len() as u64).to_le_bytes());
+        raw.extend_from_slice(data);
+        return STANDARD.encode(raw);
+    }
+    const BLOCK: usize = 1 << 15;
+    let blocks: Vec<&[u8]> = data.chunks(BLOCK).collect();
+    let compressed: Vec<Vec<u8>> = blocks
+        .iter()
+        .map(|b| {
+            let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
+            // writing into a Vec cannot fail
+            let _ = std::io::Write::write_all(&mut e, b);
+            e.finish().unwrap_or_default()
+        })
+        .collect();
+    let mut header = Vec::new();
+    for w in [blocks.len(), BLOCK, blocks.last().map_or(0, |b| b.len())] {
+        header.extend_from_slice(&(w as u64).to_le_bytes());
+    }
+    for c in &compressed {
+        header.extend_from_slice(&(c.len() as u64).to_le_bytes());
+    }
+    let body: Vec<u8> = compressed.concat();
+    let mut s = STANDARD.encode(header);
+    s.push_str(&STANDARD.encode(body));
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_round_trip_plain_and_zlib() {
+        let data: Vec<u8> = (0..100_000u32).flat_map(|i| (i % 251).to_le_bytes()).collect();
+        for compress in [false, true] {
+            let s = encode_base64(&data, compress);
+            let layout = Layout {
+                header: HeaderType::U64,
+                little_endian: true,
+                compressed: compress,
+            };
+            assert_eq!(layout.decode_base64(s.as_bytes()).unwrap(), data);
+        }
+    }
+
+    #[test]
+    fn corrupt_data_is_an_error_not_a_panic() {
+        let layout = Layout {
+            header: HeaderType::U32,
+            little_endian: true,
+            compressed: true,
+        };
+        assert!(layout.decode_base64(b"AQAAAACAAAD4EAAA+Q8AAA==eJw9").is_err());
+        assert!(layout.decode_base64(b"!!!!").is_err());
+        assert!(layout.decode_raw(&[255, 255, 255, 255, 0, 0]).is_err());
+    }
+}

@@ -1,0 +1,130 @@
+//! What VTK legacy and VTK XML files share: cell type codes, the choice of the cell
+//! array that holds region tags, and the assembly of tets from a cell list.
+
+use std::collections::BTreeMap;
+
+use super::{float_to_tag, MeshData, TAG_ARRAY_NAMES};
+use crate::error::{HemlError, Result};
+use crate::Vec3;
+
+/// VTK cell type of a linear tetrahedron.
+pub(crate) const VTK_TETRA: u8 = 10;
+
+enum CellKind {
+    Tet,
+    Skip(&'static str),
+    Volume(&'static str),
+}
+
+fn cell_kind(t: i64) -> CellKind {
+    match t {
+        10 => CellKind::Tet,
+        1 | 2 => CellKind::Skip("vertex"),
+        3 | 4 | 21 | 35 | 68 => CellKind::Skip("line"),
+        5 | 6 | 7 | 22 | 34 | 36 | 69 => CellKind::Skip("triangle/polygon"),
+        8 | 9 | 23 | 28 | 30 | 70 => CellKind::Skip("quad"),
+        11 | 12 | 25 | 29 | 33 | 72 => CellKind::Volume("hexahedron/voxel"),
+        13 | 26 | 31 | 32 | 73 => CellKind::Volume("wedge"),
+        14 | 27 | 37 | 74 => CellKind::Volume("pyramid"),
+        24 | 71 => CellKind::Volume("quadratic/Lagrange tetrahedron"),
+        15 | 16 | 42 => CellKind::Volume("polyhedron/prism"),
+        _ => CellKind::Skip("other"),
+    }
+}
+
+/// One single-component cell array, as read.
+pub(crate) struct CellArray {
+    pub name: String,
+    pub values: Vec<f64>,
+    /// Whether the file declared an integer type.
+    pub integer: bool,
+}
+
+/// The cell array holding region tags: the first whose name is a known tag name
+/// (see [`TAG_ARRAY_NAMES`]), else the first integer-typed one, else none.
+pub(crate) fn choose_tags(arrays: &[CellArray], n_cells: usize) -> Option<&CellArray> {
+    let fits: Vec<&CellArray> = arrays.iter().filter(|a| a.values.len() == n_cells).collect();
+    TAG_ARRAY_NAMES
+        .iter()
+        .find_map(|want| fits.iter().find(|a| a.name.eq_ignore_ascii_case(want)))
+        .or_else(|| fits.iter().find(|a| a.integer))
+        .copied()
+}
+
+/// Cells given as `offsets` (n_cells + 1 entries starting at 0) into
+/// `connectivity`, with `types`; the tets are kept, lower-dimensional cells
+/// counted, other volume cells rejected. `err` builds an error at the right place.
+pub(crate) fn assemble(
+    nodes: Vec<Vec3>,
+    offsets: &[usize],
+    connectivity: &[f64],
+    types: &[f64],
+    tags: Option<&CellArray>,
+    err: &dyn Fn(String) -> HemlError,
+) -> Result<MeshData> {
+    let n_cells = offsets.len().saturating_sub(1);
+    if types.len() != n_cells {
+        return Err(err(format!("{} cell types for {n_cells} cells", types.len())));
+    }
+    let mut data = MeshData {
+        nodes,
+        tets: Vec::new(),
+        tags: Vec::new(),
+        skipped: BTreeMap::new(),
+    };
+    for c in 0..n_cells {
+        let (a, b) = (offsets[c], offsets[c + 1]);
+        if a > b || b > connectivity.len() {
+            return Err(err(format!(
+                "cell {c}: offsets {a}..{b} do not fit the {} connectivity entries",
+                connectivity.len()
+            )));
+        }
+        let ty = types[c];
+        if ty.fract() != 0.0 {
+            return Err(err(format!("cell {c}: cell type {ty} is not an integer")));
+        }
+        match cell_kind(ty as i64) {
+            CellKind::Tet => {
+                if b - a != 4 {
+                    return Err(err(format!("cell {c} is a tetrahedron (type 10) with {} nodes", b - a)));
+                }
+                let mut t = [0usize; 4];
+                for (k, &v) in connectivity[a..b].iter().enumerate() {
+                    t[k] = node_index(v, data.nodes.len()).ok_or_else(|| {
+                        err(format!(
+                            "cell {c} refers to node {v}, but there are {} points",
+                            data.nodes.len()
+                        ))
+                    })?;
+                }
+                data.tets.push(t);
+                let tag = match tags {
+                    Some(arr) => {
+                        let v = arr.values[c];
+                        float_to_tag(v).ok_or_else(|| {
+                            err(format!(
+                                "cell {c}: tag array '{}' holds {v}, not an i32 integer",
+                                arr.name
+                            ))
+                        })?
+                    }
+                    None => 0,
+                };
+                data.tags.push(tag);
+            }
+            CellKind::Skip(name) => data.skip(name),
+            CellKind::Volume(name) => {
+                return Err(err(format!(
+                    "cell {c} has VTK type {ty} ({name}), a volume cell HEML cannot simulate; only linear \
+                     tetrahedra (type 10) are supported"
+                )))
+            }
+        }
+    }
+    Ok(data)
+}
+
+fn node_index(v: f64, n: usize) -> Option<usize> {
+    (v.fract() == 0.0 && v >= 0.0 && v < n as f64).then_some(v as usize)
+}

@@ -1,0 +1,398 @@
+//! VTK legacy `.vtk` files, `DATASET UNSTRUCTURED_GRID`, ASCII or BINARY.
+//!
+//! Both cell layouts are read: the classic `CELLS n size` list of
+//! `count i0 i1 …` records and the VTK ≥ 5.1 `OFFSETS`/`CONNECTIVITY` pair. Region
+//! tags come from a `CELL_DATA` array (`SCALARS` or `FIELD`): one named like a tag
+//! (`tag`, `gmsh:physical`, `CellEntityIds`, `MaterialIds`, …), else the first
+//! integer array; all other attribute data is parsed and ignored. Binary files
+//! are big-endian, as the format prescribes.
+
+use std::path::Path;
+
+use super::atomic::write_atomic;
+use super::cursor::{capacity, shorten, Cursor};
+use super::read_bytes;
+use super::vtk_cells::{assemble, choose_tags, CellArray, VTK_TETRA};
+use super::MeshData;
+use crate::error::Result;
+use crate::mesh::TetMesh;
+use crate::Vec3;
+
+/// Reads a legacy VTK unstructured grid.
+pub fn read(path: &Path) -> Result<MeshData> {
+    let bytes = read_bytes(path)?;
+    parse(path, &bytes)
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Section {
+    None,
+    Point,
+    Cell,
+}
+
+/// Parses the bytes of a legacy VTK file (`path` is used in error messages).
+pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
+    let mut c = Cursor::new(path, bytes, None);
+    let (head, ln) = c.raw_line()?.ok_or_else(|| c.err_at(1, "empty file"))?;
+    if !head.to_ascii_lowercase().starts_with("# vtk datafile") {
+        return Err(c.err_at(
+            ln,
+            format!("expected '# vtk DataFile Version x.y', found '{}'", shorten(head)),
+        ));
+    }
+    c.raw_line()?.ok_or_else(|| c.eof("the title line"))?;
+    let (mode, ln) = c.raw_line()?.ok_or_else(|| c.eof("ASCII or BINARY"))?;
+    let binary = match mode.to_ascii_uppercase().as_str() {
+        "ASCII" => false,
+        "BINARY" => true,
+        _ => return Err(c.err_at(ln, format!("expected ASCII or BINARY, found '{}'", shorten(mode)))),
+    };
+    let mut r = Reader { c, binary };
+
+    let mut points: Option<Vec<Vec3>> = None;
+    let mut cells: Option<(Vec<usize>, Vec<f64>, usize)> = None; // offsets, connectivity, line
+    let mut types: Option<Vec<f64>> = None;
+    let mut cell_arrays: Vec<CellArray> = Vec::new();
+    let mut section = Section::None;
+    let mut section_len = 0usize;
+    let mut dataset = false;
+
+    while let Some((kw, ln)) = r.c.token()? {
+        let kw_upper = kw.to_ascii_uppercase();
+        match kw_upper.as_str() {
+            "DATASET" => {
+                let (kind, ln) = r.c.expect_line("the dataset type")?;
+                if !kind.eq_ignore_ascii_case("UNSTRUCTURED_GRID") {
+                    return Err(r.c.err_at(
+                        ln,
+                        format!(
+                            "dataset type {} is not supported; expected UNSTRUCTURED_GRID",
+                            shorten(kind)
+                        ),
+                    ));
+                }
+                dataset = true;
+            }
+            "POINTS" => {
+                let args = r.args(2, "POINTS n type")?;
+                let n = r.count(&args[0], ln)?;
+                let n3 = n
+                    .checked_mul(3)
+                    .ok_or_else(|| r.c.err_at(ln, "point count overflows"))?;
+                let v = r.values(n3, &args[1], ln, "point coordinates")?;
+                points = Some(v.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect());
+            }
+            "CELLS" => {
+                let args = r.args(2, "CELLS n size")?;
+                let a = r.count(&args[0], ln)?;
+                let b = r.count(&args[1], ln)?;
+                if r.c.peek_is("OFFSETS") {
+                    // VTK 5 layout: `a` offsets, `b` connectivity entries
+                    r.expect_kw("OFFSETS")?;
+                    let (ty, tl) = r.c.expect_line("the OFFSETS type")?;
+                    let offs = r.values(a, ty, tl, "cell offsets")?;
+                    r.expect_kw("CONNECTIVITY")?;
+                    let (ty, tl) = r.c.expect_line("the CONNECTIVITY type")?;
+                    let conn = r.values(b, ty, tl, "cell connectivity")?;
+                    let mut offsets = Vec::with_capacity(offs.len());
+                    for &o in &offs {
+                        if !(o.fract() == 0.0 && o >= 0.0 && o <= conn.len() as f64) {
+                            return Err(r.c.err_at(
+                                tl,
+                                format!("cell offset {o} outside the connectivity (size {})", conn.len()),
+                            ));
+                        }
+                        offsets.push(o as usize);
+                    }
+                    if offsets.first().is_some_and(|&o| o != 0) {
+                        return Err(r.c.err_at(tl, "the first cell offset must be 0"));
+                    }
+                    cells = Some((offsets, conn, ln));
+                } else {
+                    let list = r.values(b, "int", ln, "cell list")?;
+                    let mut offsets = Vec::with_capacity(capacity(a + 1, list.len() + 1));
+                    let mut conn = Vec::with_capacity(list.len());
+                    let mut pos = 0usize;
+                    offsets.push(0);
+                    for cell in 0..a {
+                        let k = list.get(pos).copied().ok_or_else(|| {
+                            r.c.err_at(
+                                ln,
+                                format!("CELLS announces {a} cells in {b} numbers but they run out at cell {cell}"),
+                            )
+                        })?;
+                        if !(k.fract() == 0.0 && k >= 0.0 && k < (list.len() - pos) as f64) {
+                            return Err(r.c.err_at(ln, format!("cell {cell} has an invalid node count {k}")));
+                        }
+                        let k = k as usize;
+                        conn.extend_from_slice(&list[pos + 1..pos + 1 + k]);
+                        pos += 1 + k;
+                        offsets.push(conn.len());
+                    }
+                    if pos != list.len() {
+                        return Err(r.c.err_at(
+                            ln,
+                            format!("CELLS size {b} does not match the {a} cells listed ({pos} numbers)"),
+                        ));
+                    }
+                    cells = Some((offsets, conn, ln));
+                }
+            }
+            "CELL_TYPES" => {
+                let args = r.args(1, "CELL_TYPES n")?;
+                let n = r.count(&args[0], ln)?;
+                types = Some(r.values(n, "int", ln, "cell types")?);
+            }
+            "CELL_DATA" | "POINT_DATA" => {
+                let args = r.args(1, "CELL_DATA n")?;
+                section_len = r.count(&args[0], ln)?;
+                section = if kw_upper == "CELL_DATA" {
+                    Section::Cell
+                } else {
+                    Section::Point
+                };
+            }
+            "SCALARS" => {
+                let args = r.args(2, "SCALARS name type [components]")?;
+                let ncomp = match args.get(2) {
+                    Some(s) => r.count(s, ln)?,
+                    None => 1,
+                };
+                if r.c.peek_is("LOOKUP_TABLE") {
+                    r.c.token()?;
+                    r.c.expect_line("the lookup table name")?;
+                }
+                let n = section_len
+                    .checked_mul(ncomp)
+                    .ok_or_else(|| r.c.err_at(ln, "array size overflows"))?;
+                let values = r.values(n, &args[1], ln, "scalar values")?;
+                if section == Section::Cell && ncomp == 1 {
+                    cell_arrays.push(CellArray {
+                        name: args[0].clone(),
+                        values,
+                        integer: is_integer(&args[1]),
+                    });
+                }
+            }
+            "FIELD" => {
+                let args = r.args(2, "FIELD name n_arrays")?;
+                let n_arrays = r.count(&args[1], ln)?;
+                for _ in 0..n_arrays {
+                    let (name, aln) = r.c.expect_token("a field array name")?;
+                    let name = name.to_string();
+                    let a = r.args(3, "array components tuples type")?;
+                    let ncomp = r.count(&a[0], aln)?;
+                    let ntup = r.count(&a[1], aln)?;
+                    let n = ncomp
+                        .checked_mul(ntup)
+                        .ok_or_else(|| r.c.err_at(aln, "array size overflows"))?;
+                    let values = r.values(n, &a[2], aln, "field values")?;
+                    r.skip_metadata()?;
+                    if section == Section::Cell && ncomp == 1 {
+                        cell_arrays.push(CellArray {
+                            name,
+                            values,
+                            integer: is_integer(&a[2]),
+                        });
+                    }
+                }
+            }
+            "VECTORS"
+            | "NORMALS"
+            | "TENSORS"
+            | "TENSORS6"
+            | "TEXTURE_COORDINATES"
+            | "COLOR_SCALARS"
+            | "LOOKUP_TABLE" => {
+                if section == Section::None {
+                    return Err(r.c.err_at(ln, format!("{kw} outside CELL_DATA/POINT_DATA")));
+                }
+                let (per, ty) = match kw_upper.as_str() {
+                    "VECTORS" | "NORMALS" => (3, r.args(2, "name type")?[1].clone()),
+                    "TENSORS" => (9, r.args(2, "name type")?[1].clone()),
+                    "TENSORS6" => (6, r.args(2, "name type")?[1].clone()),
+                    "TEXTURE_COORDINATES" => {
+                        let a = r.args(3, "name dim type")?;
+                        (r.count(&a[1], ln)?, a[2].clone())
+                    }
+                    "COLOR_SCALARS" => {
+                        let a = r.args(2, "name n_values")?;
+                        (
+                            r.count(&a[1], ln)?,
+                            if r.binary {
+                                "unsigned_char".into()
+                            } else {
+                                "float".into()
+                            },
+                        )
+                    }
+                    _ => {
+                        // a lookup table definition: name size, then 4·size colours
+                        let a = r.args(2, "name size")?;
+                        let size = r.count(&a[1], ln)?;
+                        let n = size.checked_mul(4).ok_or_else(|| r.c.err_at(ln, "size overflows"))?;
+                        r.values(n, if r.binary { "unsigned_char" } else { "float" }, ln, "lookup table")?;
+                        continue;
+                    }
+                };
+                let n = section_len
+                    .checked_mul(per)
+                    .ok_or_else(|| r.c.err_at(ln, "array size overflows"))?;
+                r.values(n, &ty, ln, "attribute values")?;
+            }
+            "METADATA" => r.skip_metadata_body()?,
+            _ => return Err(r.c.err_at(ln, format!("unexpected keyword '{}'", shorten(kw)))),
+        }
+    }
+    let c = &r.c;
+    if !dataset {
+        return Err(c.err("missing 'DATASET UNSTRUCTURED_GRID'"));
+    }
+    let points = points.ok_or_else(|| c.err("missing POINTS section"))?;
+    let (offsets, conn, cells_line) = cells.ok_or_else(|| c.err("missing CELLS section"))?;
+    let types = types.ok_or_else(|| c.err("missing CELL_TYPES section"))?;
+    let n_cells = offsets.len().saturating_sub(1);
+    let tags = choose_tags(&cell_arrays, n_cells);
+    assemble(points, &offsets, &conn, &types, tags, &|msg| c.err_at(cells_line, msg))
+}
+
+fn is_integer(ty: &str) -> bool {
+    !matches!(ty.to_ascii_lowercase().as_str(), "float" | "double")
+}
+
+/// The cursor plus the ASCII/BINARY switch.
+struct Reader<'a> {
+    c: Cursor<'a>,
+    binary: bool,
+}
+
+impl Reader<'_> {
+    /// The rest of the keyword's line, split; at least `min` fields.
+    fn args(&mut self, min: usize, form: &str) -> Result<Vec<String>> {
+        let (line, ln) = self.c.expect_line(form)?;
+        let f: Vec<String> = line.split_ascii_whitespace().map(str::to_string).collect();
+        if f.len() < min {
+            return Err(self
+                .c
+                .err_at(ln, format!("expected '{form}', found '{}'", shorten(line))));
+        }
+        Ok(f)
+    }
+
+    fn count(&self, tok: &str, ln: usize) -> Result<usize> {
+        super::cursor::parse_at(self.c.file(), ln, tok, "a non-negative count")
+    }
+
+    fn expect_kw(&mut self, kw: &str) -> Result<()> {
+        let (t, ln) = self.c.expect_token(kw)?;
+        if !t.eq_ignore_ascii_case(kw) {
+            return Err(self.c.err_at(ln, format!("expected {kw}, found '{}'", shorten(t))));
+        }
+        Ok(())
+    }
+
+    /// `n` values of VTK type `ty`, as text tokens or big-endian binary.
+    fn values(&mut self, n: usize, ty: &str, ln: usize, what: &str) -> Result<Vec<f64>> {
+        let ty = ty.to_ascii_lowercase();
+        let size = match ty.as_str() {
+            "char" | "unsigned_char" => 1,
+            "short" | "unsigned_short" => 2,
+            "int" | "unsigned_int" | "float" => 4,
+            "long" | "unsigned_long" | "double" | "vtktypeint64" | "vtktypeuint64" | "vtkidtype" => 8,
+            _ => return Err(self.c.err_at(ln, format!("unsupported data type '{}'", shorten(&ty)))),
+        };
+        let mut out = Vec::with_capacity(capacity(n, self.c.remaining()));
+        if self.binary {
+            let len = n
+                .checked_mul(size)
+                .ok_or_else(|| self.c.err_at(ln, "array size overflows"))?;
+            let raw = self.c.bytes(len, what)?;
+            for b in raw.chunks_exact(size) {
+                out.push(be_value(&ty, b));
+            }
+        } else {
+            for _ in 0..n {
+                let (tok, tl) = self.c.expect_token(what)?;
+                let v: f64 = super::cursor::parse_at(self.c.file(), tl, tok, &format!("a number in the {what}"))?;
+                out.push(v);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Skips an optional METADATA block after an array.
+    fn skip_metadata(&mut self) -> Result<()> {
+        if self.c.peek_is("METADATA") {
+            self.c.token()?;
+            self.skip_metadata_body()?;
+        }
+        Ok(())
+    }
+
+    /// METADATA runs up to the next blank line.
+    fn skip_metadata_body(&mut self) -> Result<()> {
+        self.c.skip_rest_of_line();
+        while let Some((line, _)) = self.c.raw_line()? {
+            if line.is_empty() {
+                break;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn be_value(ty: &str, b: &[u8]) -> f64 {
+    let a8 = |b: &[u8]| {
+        let mut a = [0u8; 8];
+        a.copy_from_slice(&b[..8]);
+        a
+    };
+    let a4 = |b: &[u8]| {
+        let mut a = [0u8; 4];
+        a.copy_from_slice(&b[..4]);
+        a
+    };
+    match ty {
+        "char" => b[0] as i8 as f64,
+        "unsigned_char" => b[0] as f64,
+        "short" => i16::from_be_bytes([b[0], b[1]]) as f64,
+        "unsigned_short" => u16::from_be_bytes([b[0], b[1]]) as f64,
+        "int" => i32::from_be_bytes(a4(b)) as f64,
+        "unsigned_int" => u32::from_be_bytes(a4(b)) as f64,
+        "float" => f32::from_be_bytes(a4(b)) as f64,
+        "double" => f64::from_be_bytes(a8(b)),
+        "unsigned_long" | "vtktypeuint64" => u64::from_be_bytes(a8(b)) as f64,
+        _ => i64::from_be_bytes(a8(b)) as f64,
+    }
+}
+
+/// Writes `mesh` as an ASCII legacy VTK file (classic cell layout, readable by
+/// every VTK version), with the tags as the integer cell scalar `tag`.
+pub fn write(path: &Path, mesh: &TetMesh) -> Result<()> {
+    use std::io::Write;
+    write_atomic(path, |w| {
+        writeln!(
+            w,
+            "# vtk DataFile Version 3.0\nHEML tetrahedral mesh\nASCII\nDATASET UNSTRUCTURED_GRID"
+        )?;
+        writeln!(w, "POINTS {} double", mesh.n_nodes())?;
+        for p in mesh.nodes() {
+            writeln!(w, "{:e} {:e} {:e}", p.x, p.y, p.z)?;
+        }
+        let m = mesh.n_tets();
+        writeln!(w, "CELLS {m} {}", 5 * m)?;
+        for t in mesh.tets() {
+            writeln!(w, "4 {} {} {} {}", t[0], t[1], t[2], t[3])?;
+        }
+        writeln!(w, "CELL_TYPES {m}")?;
+        for _ in 0..m {
+            writeln!(w, "{VTK_TETRA}")?;
+        }
+        writeln!(w, "CELL_DATA {m}\nSCALARS tag int 1\nLOOKUP_TABLE default")?;
+        for t in mesh.tags() {
+            writeln!(w, "{t}")?;
+        }
+        Ok(())
+    })
+}

@@ -1,0 +1,458 @@
+//! VTK XML `.vtu` (UnstructuredGrid) files: reading, plus the [`VtuFrame`] writer
+//! re-exported from `vtu_write`.
+//!
+//! Read: DataArrays in `ascii`, inline `binary` (base64) and `appended` form (raw
+//! or base64 encoding), uncompressed or `vtkZLibDataCompressor`, header type UInt32
+//! or UInt64, either byte order, several Pieces (concatenated). Region tags come
+//! from a CellData array named like a tag (`tag`, `gmsh:physical`,
+//! `CellEntityIds`, `MaterialIds`, …), else the first integer cell array. Other
+//! compressors (LZ4, LZMA) are refused with a clear error.
+
+use std::path::Path;
+
+use quick_xml::events::{BytesStart, Event};
+use quick_xml::Reader;
+
+use super::cursor::{line_of, shorten};
+use super::read_bytes;
+use super::vtk_binary::{HeaderType, Layout};
+use super::vtk_cells::{assemble, choose_tags, CellArray};
+use super::MeshData;
+use crate::error::{HemlError, Result};
+use crate::Vec3;
+
+pub use super::vtu_write::{write_vtu, VtuEncoding, VtuFrame};
+
+/// Reads a `.vtu` unstructured grid.
+pub fn read(path: &Path) -> Result<MeshData> {
+    let bytes = read_bytes(path)?;
+    parse(path, &bytes)
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Parent {
+    Other,
+    Points,
+    Cells,
+    CellData,
+}
+
+/// A DataArray as declared, with its inline text.
+struct ArraySpec {
+    name: String,
+    ty: String,
+    components: usize,
+    format: String,
+    offset: Option<usize>,
+    text_start: usize,
+    text_end: usize,
+    line: usize,
+}
+
+#[derive(Default)]
+struct Piece {
+    n_points: usize,
+    n_cells: usize,
+    line: usize,
+    points: Option<ArraySpec>,
+    connectivity: Option<ArraySpec>,
+    offsets: Option<ArraySpec>,
+    types: Option<ArraySpec>,
+    cell_arrays: Vec<ArraySpec>,
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    bytes: &'a [u8],
+    layout: Layout,
+    /// Appended data (after the `_` marker) and whether it is base64.
+    appended: Option<(&'a [u8], bool)>,
+    /// All appended offsets, sorted, to find where a base64 array ends.
+    appended_offsets: Vec<usize>,
+}
+
+impl Ctx<'_> {
+    fn err(&self, line: usize, msg: impl Into<String>) -> HemlError {
+        HemlError::Parse {
+            file: self.path.to_path_buf(),
+            line,
+            msg: msg.into(),
+        }
+    }
+}
+
+fn attr(e: &BytesStart<'_>, key: &str) -> Option<String> {
+    e.attributes()
+        .flatten()
+        .find(|a| a.key.as_ref() == key.as_bytes())
+        .map(|a| String::from_utf8_lossy(&a.value).into_owned())
+}
+
+/// Parses the bytes of a `.vtu` file (`path` is used in error messages).
+pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
+    let perr = |line: usize, msg: String| HemlError::Parse {
+        file: path.to_path_buf(),
+        line,
+        msg,
+    };
+    // Raw appended data is not XML: cut it off before handing the text to the parser.
+    let (xml, appended_tag) = match find(bytes, b"<AppendedData") {
+        Some(i) => (&bytes[..i], Some(i)),
+        None => (bytes, None),
+    };
+    let appended = match appended_tag {
+        Some(i) => {
+            let tag_end = bytes[i..].iter().position(|&b| b == b'>').map(|p| i + p);
+            let tag_end = tag_end.ok_or_else(|| perr(line_of(bytes, i), "unterminated <AppendedData> tag".into()))?;
+            let tag = String::from_utf8_lossy(&bytes[i..tag_end]).to_ascii_lowercase();
+            let base64 = !tag.contains("\"raw\"");
+            let us = bytes[tag_end..]
+                .iter()
+                .position(|&b| b == b'_')
+                .map(|p| tag_end + p + 1);
+            let us = us.ok_or_else(|| perr(line_of(bytes, i), "appended data lacks its '_' start marker".into()))?;
+            let mut data = &bytes[us..];
+            if base64 {
+                if let Some(end) = find(data, b"</AppendedData") {
+                    data = &data[..end];
+                }
+            }
+            Some((data, base64))
+        }
+        None => None,
+    };
+
+    let mut reader = Reader::from_reader(xml);
+    let mut layout = Layout {
+        header: HeaderType::U32,
+        little_endian: true,
+        compressed: false,
+    };
+    let mut seen_root = false;
+    let mut pieces: Vec<Piece> = Vec::new();
+    let mut parent = Parent::Other;
+    let mut current: Option<ArraySpec> = None;
+
+    loop {
+        let ev = reader.read_event().map_err(|e| {
+            let pos = reader.error_position() as usize;
+            perr(line_of(bytes, pos), format!("malformed XML: {e}"))
+        })?;
+        let pos = reader.buffer_position() as usize;
+        let (start, empty) = match ev {
+            Event::Start(e) => (Some(e), false),
+            Event::Empty(e) => (Some(e), true),
+            Event::End(e) => {
+                match e.local_name().as_ref() {
+                    b"DataArray" => {
+                        if let Some(mut spec) = current.take() {
+                            // the text is everything between the start tag and `</DataArray`
+                            let end = xml[..pos].iter().rposition(|&b| b == b'<').unwrap_or(pos);
+                            spec.text_end = end.max(spec.text_start);
+                            store(&mut pieces, parent, spec, &perr)?;
+                        }
+                    }
+                    b"Points" | b"Cells" | b"CellData" | b"PointData" | b"FieldData" => parent = Parent::Other,
+                    _ => {}
+                }
+                (None, false)
+            }
+            Event::Eof => break,
+            _ => (None, false),
+        };
+        if let Some(e) = start {
+            let line = line_of(bytes, pos);
+            match e.local_name().as_ref() {
+                b"VTKFile" => {
+                    seen_root = true;
+                    let ty = attr(&e, "type").unwrap_or_default();
+                    if ty != "UnstructuredGrid" {
+                        return Err(perr(
+                            line,
+                            format!(
+                                "VTKFile type '{}' is not supported; expected UnstructuredGrid",
+                                shorten(&ty)
+                            ),
+                        ));
+                    }
+                    layout.little_endian = attr(&e, "byte_order").as_deref() != Some("BigEndian");
+                    layout.header = match attr(&e, "header_type").as_deref() {
+                        None | Some("UInt32") => HeaderType::U32,
+                        Some("UInt64") => HeaderType::U64,
+                        Some(other) => return Err(perr(line, format!("unsupported header_type '{}'", shorten(other)))),
+                    };
+                    layout.compressed = match attr(&e, "compressor").as_deref() {
+                            None | Some("") => false,
+                            Some("vtkZLibDataCompressor") => true,
+                            Some(other) => {
+                                return Err(perr(
+                                    line,
+                                    format!("compressor '{}' is not supported (only vtkZLibDataCompressor); re-save with zlib or no compression", shorten(other)),
+                                ))
+                            }
+                        };
+                }
+                b"Piece" => {
+                    let get = |k: &str| -> Result<usize> {
+                        let v = attr(&e, k).ok_or_else(|| perr(line, format!("<Piece> lacks {k}")))?;
+                        v.trim()
+                            .parse()
+                            .map_err(|_| perr(line, format!("<Piece> {k}='{}' is not a count", shorten(&v))))
+                    };
+                    pieces.push(Piece {
+                        n_points: get("NumberOfPoints")?,
+                        n_cells: get("NumberOfCells")?,
+                        line,
+                        ..Piece::default()
+                    });
+                }
+                b"Points" => parent = Parent::Points,
+                b"Cells" => parent = Parent::Cells,
+                b"CellData" => parent = Parent::CellData,
+                b"PointData" | b"FieldData" => parent = Parent::Other,
+                b"DataArray" => {
+                    let components = match attr(&e, "NumberOfComponents") {
+                        Some(v) => v
+                            .trim()
+                            .parse()
+                            .map_err(|_| perr(line, format!("NumberOfComponents='{}' is not a count", shorten(&v))))?,
+                        None => 1,
+                    };
+                    let offset = match attr(&e, "offset") {
+                        Some(v) => Some(
+                            v.trim()
+                                .parse()
+                                .map_err(|_| perr(line, format!("offset='{}' is not a count", shorten(&v))))?,
+                        ),
+                        None => None,
+                    };
+                    let spec = ArraySpec {
+                        name: attr(&e, "Name").unwrap_or_default(),
+                        ty: attr(&e, "type").unwrap_or_default(),
+                        components,
+                        format: attr(&e, "format").unwrap_or_else(|| "ascii".into()),
+                        offset,
+                        text_start: pos,
+                        text_end: pos,
+                        line,
+                    };
+                    if empty {
+                        store(&mut pieces, parent, spec, &perr)?;
+                    } else {
+                        current = Some(spec);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    if !seen_root {
+        return Err(perr(1, "no <VTKFile> element (not a VTK XML file?)".into()));
+    }
+    if pieces.is_empty() {
+        return Err(perr(
+            line_of(bytes, xml.len()),
+            "no <Piece> in the UnstructuredGrid (file truncated?)".into(),
+        ));
+    }
+    let mut appended_offsets: Vec<usize> = pieces
+        .iter()
+        .flat_map(|p| {
+            [&p.points, &p.connectivity, &p.offsets, &p.types]
+                .into_iter()
+                .flatten()
+                .chain(p.cell_arrays.iter())
+        })
+        .filter_map(|s| s.offset)
+        .collect();
+    appended_offsets.sort_unstable();
+    let ctx = Ctx {
+        path,
+        bytes,
+        layout,
+        appended,
+        appended_offsets,
+    };
+
+    let mut out = MeshData::default();
+    for piece in &pieces {
+        let data = read_piece(&ctx, piece)?;
+        let base = out.nodes.len();
+        out.nodes.extend(data.nodes);
+        out.tets.extend(data.tets.into_iter().map(|t| t.map(|i| i + base)));
+        out.tags.extend(data.tags);
+        for (k, v) in data.skipped {
+            *out.skipped.entry(k).or_insert(0) += v;
+        }
+    }
+    Ok(out)
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+fn store(
+    pieces: &mut [Piece],
+    parent: Parent,
+    spec: ArraySpec,
+    perr: &dyn Fn(usize, String) -> HemlError,
+) -> Result<()> {
+    let Some(piece) = pieces.last_mut() else {
+        return Err(perr(spec.line, "<DataArray> outside a <Piece>".into()));
+    };
+    match parent {
+        Parent::Points => piece.points = Some(spec),
+        Parent::Cells => match spec.name.as_str() {
+            "connectivity" => piece.connectivity = Some(spec),
+            "offsets" => piece.offsets = Some(spec),
+            "types" => piece.types = Some(spec),
+            _ => {}
+        },
+        Parent::CellData => piece.cell_arrays.push(spec),
+        Parent::Other => {}
+    }
+    Ok(())
+}
+
+fn read_piece(ctx: &Ctx<'_>, p: &Piece) -> Result<MeshData> {
+    let missing = |what: &str| ctx.err(p.line, format!("<Piece> has no {what} DataArray (file truncated?)"));
+    let pts_spec = p.points.as_ref().ok_or_else(|| missing("Points"))?;
+    if pts_spec.components != 3 {
+        return Err(ctx.err(
+            pts_spec.line,
+            format!("Points have {} components, expected 3", pts_spec.components),
+        ));
+    }
+    let n3 = p
+        .n_points
+        .checked_mul(3)
+        .ok_or_else(|| ctx.err(p.line, "NumberOfPoints overflows"))?;
+    let pts = values(ctx, pts_spec, Some(n3))?;
+    let nodes: Vec<Vec3> = pts.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+    let conn_spec = p.connectivity.as_ref().ok_or_else(|| missing("connectivity"))?;
+    let off_spec = p.offsets.as_ref().ok_or_else(|| missing("offsets"))?;
+    let types_spec = p.types.as_ref().ok_or_else(|| missing("types"))?;
+    let conn = values(ctx, conn_spec, None)?;
+    let offs = values(ctx, off_spec, Some(p.n_cells))?;
+    let types = values(ctx, types_spec, Some(p.n_cells))?;
+    // VTK XML offsets are the *end* of each cell; prepend the start of the first.
+    let mut offsets = Vec::with_capacity(offs.len() + 1);
+    offsets.push(0usize);
+    for (c, &o) in offs.iter().enumerate() {
+        if !(o.fract() == 0.0 && o >= 0.0 && o <= conn.len() as f64) {
+            return Err(ctx.err(
+                off_spec.line,
+                format!(
+                    "offset {o} of cell {c} is outside the connectivity (size {})",
+                    conn.len()
+                ),
+            ));
+        }
+        offsets.push(o as usize);
+    }
+    let mut arrays = Vec::new();
+    for s in p.cell_arrays.iter().filter(|s| s.components == 1) {
+        arrays.push(CellArray {
+            name: s.name.clone(),
+            values: values(ctx, s, Some(p.n_cells))?,
+            integer: s.ty.contains("Int"),
+        });
+    }
+    let tags = choose_tags(&arrays, p.n_cells);
+    assemble(nodes, &offsets, &conn, &types, tags, &|msg| {
+        ctx.err(conn_spec.line, msg)
+    })
+}
+
+/// Decodes one DataArray to f64 values, checking the count when it is known.
+fn values(ctx: &Ctx<'_>, s: &ArraySpec, expected: Option<usize>) -> Result<Vec<f64>> {
+    let e = |msg: String| ctx.err(s.line, format!("DataArray '{}': {msg}", s.name));
+    let size = type_size(&s.ty).ok_or_else(|| e(format!("unsupported type '{}'", shorten(&s.ty))))?;
+    let text = &ctx.bytes[s.text_start..s.text_end];
+    let out: Vec<f64> = match s.format.as_str() {
+        "ascii" => {
+            let text = std::str::from_utf8(text).map_err(|_| e("invalid UTF-8 in ascii data".into()))?;
+            let mut v = Vec::new();
+            for (k, tok) in text.split_ascii_whitespace().enumerate() {
+                let x: f64 = tok
+                    .parse()
+                    .map_err(|_| e(format!("value {k} '{}' is not a number", shorten(tok))))?;
+                v.push(x);
+            }
+            v
+        }
+        "binary" => {
+            let raw = ctx.layout.decode_base64(text).map_err(e)?;
+            numbers(&raw, &s.ty, size, ctx.layout.little_endian).map_err(e)?
+        }
+        "appended" => {
+            let (data, base64) = ctx
+                .appended
+                .ok_or_else(|| e("format 'appended' but the file has no <AppendedData>".into()))?;
+            let off = s
+                .offset
+                .ok_or_else(|| e("format 'appended' without an offset".into()))?;
+            let start = data
+                .get(off..)
+                .ok_or_else(|| e(format!("offset {off} is past the end of the appended data")))?;
+            let raw = if base64 {
+                let next = ctx.appended_offsets.iter().copied().find(|&o| o > off);
+                let len = next.map_or(start.len(), |n| (n - off).min(start.len()));
+                ctx.layout.decode_base64(&start[..len]).map_err(e)?
+            } else {
+                ctx.layout.decode_raw(start).map_err(e)?.0
+            };
+            numbers(&raw, &s.ty, size, ctx.layout.little_endian).map_err(e)?
+        }
+        other => return Err(e(format!("unknown format '{}'", shorten(other)))),
+    };
+    if let Some(n) = expected {
+        if out.len() != n {
+            return Err(e(format!("holds {} values, expected {n}", out.len())));
+        }
+    }
+    Ok(out)
+}
+
+fn type_size(ty: &str) -> Option<usize> {
+    Some(match ty {
+        "Int8" | "UInt8" => 1,
+        "Int16" | "UInt16" => 2,
+        "Int32" | "UInt32" | "Float32" => 4,
+        "Int64" | "UInt64" | "Float64" => 8,
+        _ => return None,
+    })
+}
+
+fn numbers(raw: &[u8], ty: &str, size: usize, le: bool) -> std::result::Result<Vec<f64>, String> {
+    if !raw.chunks_exact(size).remainder().is_empty() {
+        return Err(format!("{} bytes is not a whole number of {ty} values", raw.len()));
+    }
+    let mut out = Vec::with_capacity(raw.len() / size);
+    for b in raw.chunks_exact(size) {
+        let mut a = [0u8; 8];
+        if le {
+            a[..size].copy_from_slice(b);
+        } else {
+            for (k, &x) in b.iter().rev().enumerate() {
+                a[k] = x;
+            }
+        }
+        // `a` now holds the value little-endian in its first `size` bytes
+        let v = match ty {
+            "Int8" => a[0] as i8 as f64,
+            "UInt8" => a[0] as f64,
+            "Int16" => i16::from_le_bytes([a[0], a[1]]) as f64,
+            "UInt16" => u16::from_le_bytes([a[0], a[1]]) as f64,
+            "Int32" => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            "UInt32" => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            "Float32" => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            "Int64" => i64::from_le_bytes(a) as f64,
+            "UInt64" => u64::from_le_bytes(a) as f64,
+            _ => f64::from_le_bytes(a),
+        };
+        out.push(v);
+    }
+    Ok(out)
+}

@@ -1,0 +1,115 @@
+//! The contract between a declared law and the force kernels.
+//!
+//! A law is written once, as a strain-energy expression, and `#[heml::material]`
+//! generates the impls of these traits. The kernels in [`crate::force`] and
+//! [`crate::fem`] are generic over them, so every law gets its own monomorphised
+//! hot loop and no per-tetrahedron dynamic dispatch.
+
+/// One parameter of a law (a field of the declaring struct).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamInfo {
+    /// Field name, which is also the key used in parameter maps and scene files.
+    pub name: &'static str,
+    /// The field's doc comment, trimmed (empty when there is none).
+    pub doc: &'static str,
+    /// Whether negative values are physically meaningful (`#[param(signed)]`).
+    /// Unsigned parameters must be `>= 0`; every parameter must be finite.
+    pub signed: bool,
+}
+
+/// How many arithmetic operations a generated kernel performs, counted on the
+/// simplified expression graph (used by `heml validate`'s operation-count table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct OpCount {
+    /// Additions and subtractions (negations included).
+    pub add: u32,
+    /// Multiplications.
+    pub mul: u32,
+    /// Divisions.
+    pub div: u32,
+    /// Calls to `ln`, `exp`, `sqrt`, `powf`, `powi`, `abs`.
+    pub func: u32,
+}
+
+/// Which kind of energy a law declares.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LawKind {
+    /// Energy density w(I1, I2, J) per unit rest volume ([`InvariantLaw`]).
+    Invariant,
+    /// Energy w(l, L) of each tetrahedron edge ([`LinkLaw`]).
+    Link,
+}
+
+/// What every law knows about itself, whatever its kind.
+pub trait MaterialInfo: Sized + Copy + Send + Sync + std::fmt::Debug + 'static {
+    /// Registry name, e.g. `"neo_hookean"`.
+    const NAME: &'static str;
+    /// The parameters, in field order.
+    const PARAMS: &'static [ParamInfo];
+    /// The energy expression exactly as written in the declaration.
+    const ENERGY: &'static str;
+    /// The struct's doc comment (formula and reference).
+    const DOC: &'static str;
+    /// Parameter values in [`Self::PARAMS`] order.
+    fn to_params(&self) -> Vec<f64>;
+    /// Builds the law from values in [`Self::PARAMS`] order.
+    ///
+    /// The caller guarantees `values.len() == PARAMS.len()`; range checks are done by
+    /// [`crate::params::Params`] before this is called.
+    fn from_params(values: &[f64]) -> Self;
+}
+
+/// Value and gradient of an invariant energy density.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Derivs {
+    /// w(I1, I2, J).
+    pub w: f64,
+    /// (∂w/∂I1, ∂w/∂I2, ∂w/∂J).
+    pub d: [f64; 3],
+}
+
+/// A hyperelastic law given by an energy density per unit rest volume,
+/// w(I1, I2, J), with I1 = tr C, I2 = ½(tr² C − tr C²), J = det F.
+///
+/// The `_ext` functions evaluate the second-order Taylor extension of w in J about
+/// `j0` (holding I1 and I2), used below `j0` so that laws with `ln J` or `J^(-2/3)`
+/// stay finite for inverted elements (DESIGN §1). The extension is built
+/// symbolically, so its I1/I2 derivatives are exact.
+pub trait InvariantLaw: MaterialInfo {
+    /// Whether w depends on I2 (else the 6×6 `Mtr` product and storage are skipped).
+    const USES_I2: bool;
+    /// Whether w depends on J (else the volume term and its cross products are skipped).
+    const USES_J: bool;
+    /// Whether the J0 extension applies. False for laws finite for J <= 0 that opt out,
+    /// and for laws that do not use J.
+    const INVERSION_FIX: bool;
+    /// Operation count of [`Self::dw`] (value and gradient).
+    const OPS: OpCount;
+
+    /// w(I1, I2, J).
+    fn w(&self, i1: f64, i2: f64, j: f64) -> f64;
+    /// w and its gradient.
+    fn dw(&self, i1: f64, i2: f64, j: f64) -> Derivs;
+    /// The symmetric 3×3 matrix of second derivatives, index order (I1, I2, J).
+    fn d2w(&self, i1: f64, i2: f64, j: f64) -> [[f64; 3]; 3];
+    /// The Taylor extension's value.
+    fn w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> f64;
+    /// The Taylor extension's value and gradient.
+    fn dw_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs;
+    /// The Taylor extension's second derivatives.
+    fn d2w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> [[f64; 3]; 3];
+}
+
+/// A law given by an energy per tetrahedron edge, w(l, L), with `l` the current and
+/// `L` the rest **squared** length of the edge — e.g. the mass–spring law
+/// ½k(√l − √L)². Not an invariant law: there is no P1 FEM equivalent.
+pub trait LinkLaw: MaterialInfo {
+    /// Operation count of [`Self::dw`].
+    const OPS: OpCount;
+    /// w(l, L).
+    fn w(&self, l: f64, rest_l: f64) -> f64;
+    /// (w, ∂w/∂l).
+    fn dw(&self, l: f64, rest_l: f64) -> (f64, f64);
+    /// ∂²w/∂l².
+    fn d2w(&self, l: f64, rest_l: f64) -> f64;
+}

@@ -1,0 +1,243 @@
+//! Tetrahedral meshes: validated at construction, every rest tetrahedron positively
+//! oriented (reordered at load) and non-degenerate.
+
+pub mod generate;
+
+use crate::error::{HemlError, Result};
+use crate::Vec3;
+
+/// How far below `l_max³` six times a tet's volume may fall before the tet counts
+/// as degenerate. Real organ meshes have slivers with radius ratio ~0.01, whose
+/// 6·vol/l_max³ is ~1e-3; 1e-12 only catches flat or collapsed elements, whose
+/// rest-state inverse would be meaningless.
+pub const DEGENERACY_TOLERANCE: f64 = 1e-12;
+
+/// A linear tetrahedral mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TetMesh {
+    nodes: Vec<Vec3>,
+    tets: Vec<[u32; 4]>,
+    tags: Vec<i32>,
+    reoriented: usize,
+}
+
+impl TetMesh {
+    /// Builds a mesh, every tet tagged 0. See [`TetMesh::with_tags`].
+    pub fn new(nodes: Vec<Vec3>, tets: Vec<[usize; 4]>) -> Result<Self> {
+        let n = tets.len();
+        Self::with_tags(nodes, tets, vec![0; n])
+    }
+
+    /// Builds a mesh from plain arrays.
+    ///
+    /// ```
+    /// use heml_core::TetMesh;
+    /// let mesh = TetMesh::from_arrays(
+    ///     &[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]],
+    ///     &[[0, 1, 2, 3]],
+    /// ).unwrap();
+    /// assert!((mesh.total_volume() - 1.0 / 6.0).abs() < 1e-15);
+    /// ```
+    pub fn from_arrays(nodes: &[[f64; 3]], tets: &[[usize; 4]]) -> Result<Self> {
+        Self::new(nodes.iter().map(|p| Vec3::from(*p)).collect(), tets.to_vec())
+    }
+
+    /// Builds a mesh with a region tag per tet (e.g. Gmsh physical groups).
+    ///
+    /// Checks that coordinates are finite, that indices are in range and distinct
+    /// within a tet, and that no rest tet is degenerate (all offending ids are
+    /// reported). Negatively oriented tets are reordered (nodes 2 and 3 swapped) so
+    /// that every rest volume is positive; [`TetMesh::reoriented_count`] tells how many.
+    pub fn with_tags(nodes: Vec<Vec3>, tets: Vec<[usize; 4]>, tags: Vec<i32>) -> Result<Self> {
+        if tags.len() != tets.len() {
+            return Err(HemlError::SizeMismatch {
+                what: "tet tags",
+                got: tags.len(),
+                expected: tets.len(),
+            });
+        }
+        if nodes.len() > u32::MAX as usize {
+            return Err(HemlError::Mesh(format!(
+                "{} nodes exceed the supported 2^32 - 1",
+                nodes.len()
+            )));
+        }
+        if let Some(i) = nodes.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(HemlError::Mesh(format!(
+                "node {i} has a non-finite coordinate {:?}",
+                nodes[i].as_slice()
+            )));
+        }
+        let mut out = Vec::with_capacity(tets.len());
+        let mut degenerate = Vec::new();
+        let mut reoriented = 0;
+        for (t, tet) in tets.iter().enumerate() {
+            if let Some(&bad) = tet.iter().find(|&&i| i >= nodes.len()) {
+                return Err(HemlError::Mesh(format!(
+                    "tet {t} refers to node {bad}, but the mesh has {} nodes (ids 0..{})",
+                    nodes.len(),
+                    nodes.len().saturating_sub(1)
+                )));
+            }
+            let mut idx = tet.map(|i| i as u32);
+            let six_vol = signed_six_volume(&nodes, &idx);
+            let lmax = max_edge_length(&nodes, &idx);
+            if six_vol.abs() <= DEGENERACY_TOLERANCE * lmax.powi(3) || lmax == 0.0 {
+                degenerate.push(t);
+                continue;
+            }
+            if six_vol < 0.0 {
+                idx.swap(2, 3);
+                reoriented += 1;
+            }
+            out.push(idx);
+        }
+        if !degenerate.is_empty() {
+            let shown: Vec<String> = degenerate.iter().take(20).map(|t| t.to_string()).collect();
+            return Err(HemlError::Mesh(format!(
+                "{} degenerate rest tet(s) (zero volume or repeated nodes): ids {}{}",
+                degenerate.len(),
+                shown.join(", "),
+                if degenerate.len() > 20 { ", …" } else { "" }
+            )));
+        }
+        Ok(TetMesh {
+            nodes,
+            tets: out,
+            tags,
+            reoriented,
+        })
+    }
+
+    /// Rest positions of the nodes.
+    pub fn nodes(&self) -> &[Vec3] {
+        &self.nodes
+    }
+    /// Node indices of each tet, positively oriented.
+    pub fn tets(&self) -> &[[u32; 4]] {
+        &self.tets
+    }
+    /// Region tag of each tet.
+    pub fn tags(&self) -> &[i32] {
+        &self.tags
+    }
+    /// Number of nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+    /// Number of tets.
+    pub fn n_tets(&self) -> usize {
+        self.tets.len()
+    }
+    /// How many tets were reordered at construction because their input orientation
+    /// was negative.
+    pub fn reoriented_count(&self) -> usize {
+        self.reoriented
+    }
+
+    /// The four rest positions of tet `t`.
+    pub fn tet_points(&self, t: usize) -> [Vec3; 4] {
+        self.tets[t].map(|i| self.nodes[i as usize])
+    }
+
+    /// Rest volume of tet `t` (positive).
+    pub fn tet_volume(&self, t: usize) -> f64 {
+        signed_six_volume(&self.nodes, &self.tets[t]) / 6.0
+    }
+
+    /// Total rest volume.
+    pub fn total_volume(&self) -> f64 {
+        (0..self.n_tets()).map(|t| self.tet_volume(t)).sum()
+    }
+
+    /// Lumped masses m_i = Σ ρ·Vol_k / 4 over the tets k around node i.
+    pub fn lumped_masses(&self, density: f64) -> Vec<f64> {
+        let mut m = vec![0.0; self.n_nodes()];
+        for t in 0..self.n_tets() {
+            let share = density * self.tet_volume(t) / 4.0;
+            for &i in &self.tets[t] {
+                m[i as usize] += share;
+            }
+        }
+        m
+    }
+
+    /// Nodes that belong to no tet (they get no mass and no elastic force).
+    pub fn unreferenced_nodes(&self) -> Vec<usize> {
+        let mut used = vec![false; self.n_nodes()];
+        for tet in &self.tets {
+            for &i in tet {
+                used[i as usize] = true;
+            }
+        }
+        used.iter().enumerate().filter(|(_, u)| !**u).map(|(i, _)| i).collect()
+    }
+
+    /// Axis-aligned bounding box (min, max) of the rest nodes.
+    pub fn bounding_box(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::repeat(f64::INFINITY);
+        let mut hi = Vec3::repeat(f64::NEG_INFINITY);
+        for p in &self.nodes {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        (lo, hi)
+    }
+
+    /// Indices of the tets whose tag is `tag`.
+    pub fn tets_with_tag(&self, tag: i32) -> Vec<usize> {
+        (0..self.n_tets()).filter(|&t| self.tags[t] == tag).collect()
+    }
+
+    /// The distinct tags, sorted.
+    pub fn distinct_tags(&self) -> Vec<i32> {
+        let mut t = self.tags.clone();
+        t.sort_unstable();
+        t.dedup();
+        t
+    }
+}
+
+fn signed_six_volume(nodes: &[Vec3], idx: &[u32; 4]) -> f64 {
+    let p = idx.map(|i| nodes[i as usize]);
+    (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0])))
+}
+
+fn max_edge_length(nodes: &[Vec3], idx: &[u32; 4]) -> f64 {
+    let p = idx.map(|i| nodes[i as usize]);
+    crate::rest::EDGES
+        .iter()
+        .map(|&(a, b)| (p[b] - p[a]).norm())
+        .fold(0.0, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reorients_negative_tets() {
+        let m = TetMesh::from_arrays(
+            &[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]],
+            &[[0, 2, 1, 3]],
+        )
+        .unwrap();
+        assert_eq!(m.reoriented_count(), 1);
+        assert!(m.tet_volume(0) > 0.0);
+    }
+
+    #[test]
+    fn rejects_bad_indices_and_degenerate_tets_with_ids() {
+        let nodes = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.], [1., 1., 0.]];
+        let e = TetMesh::from_arrays(&nodes, &[[0, 1, 2, 7]]).unwrap_err().to_string();
+        assert!(e.contains("tet 0") && e.contains("node 7"), "{e}");
+        let e = TetMesh::from_arrays(&nodes, &[[0, 1, 2, 3], [0, 1, 2, 4], [0, 0, 2, 3]])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("2 degenerate") && e.contains("ids 1, 2"), "{e}");
+        let e = TetMesh::from_arrays(&[[0., f64::NAN, 0.]], &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("node 0"), "{e}");
+    }
+}

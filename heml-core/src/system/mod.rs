@@ -1,0 +1,640 @@
+//! Simulation state: positions, velocities, lumped masses, elastic regions (with
+//! optional Prony visco-elasticity), constraints, loads, Rayleigh damping, energies,
+//! the stable time-step estimate and the [`Integrator`] trait with its registry.
+//!
+//! A [`System`] is built with [`System::builder`]; integrators (crate
+//! `heml-integrators`, found by name with [`find_integrator`]) advance it with
+//! [`Integrator::step`]. Everything an integrator should not re-implement —
+//! constraints, loads, damping, Prony updates, NaN detection with rollback, the
+//! time-step policy — lives here.
+//!
+//! # Example
+//!
+//! With the `heml` facade the law and the integrator are looked up by name
+//! (`System::builder(mesh).material("neo_hookean", params)?…` and
+//! `find_integrator("velocity_verlet")?.instantiate()`). `heml-core` alone knows no
+//! laws or integrators, so this example declares a spring law by hand and steps with
+//! the system's primitives, which is also how a custom integrator is written:
+//!
+//! ```
+//! use heml_core::mesh::generate::{box_mesh, HexSplit};
+//! use heml_core::system::{Ramp, System};
+//! use heml_core::{material::Link, Vec3};
+//! # use heml_core::{law::*};
+//! # #[derive(Debug, Clone, Copy)] struct Spring { k: f64 }
+//! # impl MaterialInfo for Spring {
+//! #     const NAME: &'static str = "doc_spring"; const PARAMS: &'static [ParamInfo] = &[];
+//! #     const ENERGY: &'static str = ""; const DOC: &'static str = "";
+//! #     fn to_params(&self) -> Vec<f64> { vec![self.k] }
+//! #     fn from_params(v: &[f64]) -> Self { Spring { k: v[0] } }
+//! # }
+//! # impl LinkLaw for Spring {
+//! #     const OPS: OpCount = OpCount { add: 0, mul: 0, div: 0, func: 0 };
+//! #     fn w(&self, l: f64, r: f64) -> f64 { 0.5 * self.k * (l.sqrt() - r.sqrt()).powi(2) }
+//! #     fn dw(&self, l: f64, r: f64) -> (f64, f64) { (self.w(l, r), 0.5 * self.k * (1.0 - (r / l).sqrt())) }
+//! #     fn d2w(&self, l: f64, r: f64) -> f64 { 0.25 * self.k * r.sqrt() / (l * l.sqrt()) }
+//! # }
+//!
+//! // a 0.1 m cube, clamped at x = 0, its far face pulled 1 cm over 0.1 s, under gravity
+//! let mesh = box_mesh([0.1, 0.1, 0.1], [2, 2, 2], HexSplit::Six)?;
+//! let far: Vec<usize> = (0..mesh.n_nodes()).filter(|&i| mesh.nodes()[i].x > 0.1 - 1e-9).collect();
+//! let mut sys = System::builder(mesh)
+//!     .material_law(Box::new(Link(Spring { k: 500.0 })))
+//!     .density(1000.0)
+//!     .gravity(Vec3::new(0.0, 0.0, -9.81))
+//!     .fix_where(|p| p.x < 1e-9)
+//!     .prescribe(&far, Vec3::new(0.01, 0.0, 0.0), Ramp::Linear { duration: 0.1 })
+//!     .rayleigh(5.0, 0.0)
+//!     .build()?;
+//! let dt = 0.5 * sys.stable_dt();
+//! while sys.time() < 0.2 {
+//!     // one symplectic Euler step: v += dt·f/m, then x += dt·v
+//!     sys.begin_step(dt)?;
+//!     sys.compute_forces()?;
+//!     sys.kick(dt);
+//!     sys.drift(dt);
+//!     let stats = sys.finish_step()?;
+//!     assert!(stats.max_speed.is_finite());
+//! }
+//! assert!((sys.positions()[far[0]].x - sys.rest_positions()[far[0]].x - 0.01).abs() < 1e-12);
+//! // the clamp at x = 0 holds the stretched cube back: its reactions point along −x
+//! let clamp: f64 = sys.constraints().fixed.iter().map(|&i| sys.reactions()[i].x).sum();
+//! assert!(clamp < 0.0);
+//! # Ok::<(), heml_core::HemlError>(())
+//! ```
+
+mod builder;
+mod constraints;
+mod energy;
+mod integrator;
+mod prony;
+mod stability;
+
+#[cfg(test)]
+mod tests;
+
+pub use builder::SystemBuilder;
+pub use constraints::{Constraints, Prescribed, Ramp};
+pub use energy::{Energies, StepStats};
+pub use integrator::{find_integrator, integrators, Integrator, IntegratorEntry};
+pub use prony::{relaxation, validate_prony, PronyTerm};
+pub use stability::{
+    lame_at_rest, power_iteration_time_step, stable_time_step, wave_speed_time_step, TimeStepPolicy, DEFAULT_SAFETY,
+    WAVE_FACTOR,
+};
+
+use crate::error::{HemlError, Result};
+use crate::force::ElasticForces;
+use crate::material::Material;
+use crate::mesh::TetMesh;
+use crate::Vec3;
+use prony::PronyState;
+
+/// Rayleigh damping coefficients: force −α m_i v_i − β K v.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Rayleigh {
+    /// Mass-proportional coefficient α (1/s).
+    pub alpha: f64,
+    /// Stiffness-proportional coefficient β (s).
+    pub beta: f64,
+}
+
+/// One material region: a law over the tets of a tag (or over all the tets).
+pub struct Region {
+    pub(crate) tag: Option<i32>,
+    pub(crate) material: Box<dyn Material>,
+    pub(crate) field: Box<dyn ElasticForces>,
+    pub(crate) density: f64,
+    pub(crate) prony: Option<PronyState>,
+}
+
+impl std::fmt::Debug for Region {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Region")
+            .field("tag", &self.tag)
+            .field("material", &self.material)
+            .field("tets", &self.field.n_tets())
+            .field("density", &self.density)
+            .field("prony", &self.prony())
+            .finish()
+    }
+}
+
+impl Region {
+    /// The mesh tag it covers (`None`: the tets no tagged region claims).
+    pub fn tag(&self) -> Option<i32> {
+        self.tag
+    }
+    /// Its law.
+    pub fn material(&self) -> &dyn Material {
+        &*self.material
+    }
+    /// Its elastic force field.
+    pub fn field(&self) -> &dyn ElasticForces {
+        &*self.field
+    }
+    /// Its density.
+    pub fn density(&self) -> f64 {
+        self.density
+    }
+    /// Its Prony series (empty when purely elastic).
+    pub fn prony(&self) -> &[PronyTerm] {
+        self.prony.as_ref().map_or(&[], |p| &p.terms)
+    }
+}
+
+/// The state saved by [`System::begin_step`] and restored on failure.
+#[derive(Debug, Default)]
+struct Snapshot {
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    t: f64,
+    step: u64,
+    prony: Vec<Option<PronyState>>,
+}
+
+/// A simulated body: state, masses, regions, constraints, loads and damping.
+#[derive(Debug)]
+pub struct System {
+    mesh: TetMesh,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    mass: Vec<f64>,
+    /// 1/m for free nodes, 0 for constrained ones.
+    inv_mass: Vec<f64>,
+    force: Vec<Vec3>,
+    reaction: Vec<Vec3>,
+    reaction_total: Vec3,
+    regions: Vec<Region>,
+    constraints: Constraints,
+    constrained_ids: Vec<usize>,
+    gravity: Vec3,
+    nodal: Vec<(usize, Vec3)>,
+    damping: Rayleigh,
+    t: f64,
+    step: u64,
+    /// Forces in `force` belong to the current positions, velocities and time.
+    forces_current: bool,
+    /// Elastic energy at the current positions, when known.
+    elastic_energy: Option<f64>,
+    stable_dt: f64,
+    safety: f64,
+    policy: TimeStepPolicy,
+    warned: bool,
+    warnings: Vec<String>,
+    in_step: Option<(f64, f64)>,
+    snapshot: Snapshot,
+    energy_every: u64,
+    /// Bounding-box diagonal (sets the finite-difference step of the stiffness damping).
+    length_scale: f64,
+    scratch: Vec<Vec3>,
+    elastic: Vec<Vec3>,
+}
+
+impl System {
+    /// Starts describing a system on `mesh`.
+    pub fn builder(mesh: TetMesh) -> SystemBuilder {
+        SystemBuilder::new(mesh)
+    }
+
+    // ----- read access -------------------------------------------------------------
+
+    /// The mesh (rest configuration).
+    pub fn mesh(&self) -> &TetMesh {
+        &self.mesh
+    }
+    /// Rest positions.
+    pub fn rest_positions(&self) -> &[Vec3] {
+        self.mesh.nodes()
+    }
+    /// Current positions.
+    pub fn positions(&self) -> &[Vec3] {
+        &self.x
+    }
+    /// Current velocities.
+    pub fn velocities(&self) -> &[Vec3] {
+        &self.v
+    }
+    /// Displacements x − X.
+    pub fn displacements(&self) -> Vec<Vec3> {
+        self.x.iter().zip(self.mesh.nodes()).map(|(x, p)| x - p).collect()
+    }
+    /// Lumped masses.
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
+    }
+    /// Total mass.
+    pub fn total_mass(&self) -> f64 {
+        self.mass.iter().sum()
+    }
+    /// Forces of the last [`System::compute_forces`] (zero on constrained nodes).
+    pub fn forces(&self) -> &[Vec3] {
+        &self.force
+    }
+    /// Reaction forces of the last force evaluation: on each constrained node, minus
+    /// the sum of the elastic (viscous-elastic), external and damping forces acting on
+    /// it — the force the support exerts. The inertia of the constrained node's own
+    /// lumped mass is not included (it vanishes for fixed nodes and at rest). Zero on
+    /// free nodes.
+    pub fn reactions(&self) -> &[Vec3] {
+        &self.reaction
+    }
+    /// Sum of [`System::reactions`].
+    pub fn total_reaction(&self) -> Vec3 {
+        self.reaction_total
+    }
+    /// Time.
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+    /// Number of completed steps.
+    pub fn step_count(&self) -> u64 {
+        self.step
+    }
+    /// Material regions.
+    pub fn regions(&self) -> &[Region] {
+        &self.regions
+    }
+    /// Constraints.
+    pub fn constraints(&self) -> &Constraints {
+        &self.constraints
+    }
+    /// Whether node `i` moves freely (not fixed, not prescribed).
+    pub fn is_free(&self, i: usize) -> bool {
+        !self.constraints.is_constrained(i)
+    }
+    /// Gravity acceleration.
+    pub fn gravity(&self) -> Vec3 {
+        self.gravity
+    }
+    /// Constant nodal forces (node, force).
+    pub fn nodal_forces(&self) -> &[(usize, Vec3)] {
+        &self.nodal
+    }
+    /// Rayleigh damping.
+    pub fn damping(&self) -> Rayleigh {
+        self.damping
+    }
+    /// The stable time-step estimate computed at build time (see [`stable_time_step`]).
+    pub fn stable_dt(&self) -> f64 {
+        self.stable_dt
+    }
+    /// Safety factor applied to the critical time step.
+    pub fn safety(&self) -> f64 {
+        self.safety
+    }
+    /// What happens when a step exceeds [`System::stable_dt`].
+    pub fn time_step_policy(&self) -> TimeStepPolicy {
+        self.policy
+    }
+    /// Sets the time-step policy.
+    pub fn set_time_step_policy(&mut self, policy: TimeStepPolicy) {
+        self.policy = policy;
+    }
+    /// Warnings issued so far (also printed to stderr).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+    /// Whether [`System::forces`] belong to the current state (lets velocity Verlet
+    /// reuse the forces of the end of its previous step).
+    pub fn forces_current(&self) -> bool {
+        self.forces_current
+    }
+
+    // ----- user edits --------------------------------------------------------------
+
+    /// Mutable positions (e.g. an initial deformation). Constrained nodes are reset
+    /// by the next constraint application.
+    pub fn positions_mut(&mut self) -> &mut [Vec3] {
+        self.invalidate();
+        &mut self.x
+    }
+    /// Mutable velocities (e.g. an initial velocity field).
+    pub fn velocities_mut(&mut self) -> &mut [Vec3] {
+        self.invalidate();
+        &mut self.v
+    }
+    /// Mutable positions and velocities together (for custom integrators).
+    pub fn kinematics_mut(&mut self) -> (&mut [Vec3], &mut [Vec3]) {
+        self.invalidate();
+        (&mut self.x, &mut self.v)
+    }
+
+    fn invalidate(&mut self) {
+        self.forces_current = false;
+        self.elastic_energy = None;
+    }
+
+    /// Imposes the constraints at time `t`: fixed nodes at rest with zero velocity,
+    /// prescribed nodes at X + r(t)·u with velocity r'(t)·u.
+    pub fn apply_constraints(&mut self, t: f64) {
+        if self.constraints.apply(t, self.mesh.nodes(), &mut self.x, &mut self.v) {
+            self.invalidate();
+        }
+    }
+
+    // ----- stepping primitives (see `integrator`) ----------------------------------
+
+    /// Starts a step of size `dt`: checks it (finite, > 0), applies the
+    /// [`TimeStepPolicy`] against [`System::stable_dt`], and saves the state that a
+    /// failed step rolls back to.
+    pub fn begin_step(&mut self, dt: f64) -> Result<()> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(HemlError::Invalid(format!(
+                "time step dt = {dt} must be a finite number > 0"
+            )));
+        }
+        if dt > self.stable_dt {
+            let msg = format!(
+                "time step dt = {dt:e} exceeds the stable estimate {:e} (see stable_time_step); \
+                 the explicit integration may blow up",
+                self.stable_dt
+            );
+            match self.policy {
+                TimeStepPolicy::Ignore => {}
+                TimeStepPolicy::Refuse => return Err(HemlError::Invalid(msg)),
+                TimeStepPolicy::Warn => {
+                    if !self.warned {
+                        self.warned = true;
+                        self.warn(msg);
+                    }
+                }
+            }
+        }
+        let s = &mut self.snapshot;
+        s.x.clone_from(&self.x);
+        s.v.clone_from(&self.v);
+        s.t = self.t;
+        s.step = self.step;
+        s.prony.resize_with(self.regions.len(), || None);
+        for (dst, r) in s.prony.iter_mut().zip(&self.regions) {
+            match (&r.prony, dst) {
+                (Some(p), Some(d)) => p.save_into(d),
+                (Some(p), d) => *d = Some(p.clone()),
+                (None, d) => *d = None,
+            }
+        }
+        self.in_step = Some((self.t, dt));
+        Ok(())
+    }
+
+    /// Restores the state saved by [`System::begin_step`].
+    fn rollback(&mut self) {
+        if self.in_step.take().is_none() {
+            return;
+        }
+        let s = &self.snapshot;
+        self.x.clone_from(&s.x);
+        self.v.clone_from(&s.v);
+        self.t = s.t;
+        self.step = s.step;
+        for (r, saved) in self.regions.iter_mut().zip(&s.prony) {
+            if let (Some(p), Some(saved)) = (&mut r.prony, saved) {
+                saved.save_into(p);
+            }
+        }
+        self.invalidate();
+    }
+
+    /// The step being attempted, for error messages.
+    fn attempted_step(&self) -> u64 {
+        self.step + u64::from(self.in_step.is_some())
+    }
+
+    /// Computes the total force on every node at the current positions, velocities
+    /// and time into [`System::forces`]: elastic forces of every region (viscous-
+    /// elastic f − Σγ_i for regions with a Prony series, whose internal variables
+    /// advance once per new time), gravity m_i g, nodal forces, Rayleigh damping
+    /// −α m_i v_i − β K v. The stiffness term is a directional finite difference of
+    /// the elastic forces, K v ≈ −(f(x + εv) − f(x))/ε with ε·max|v| = 1e-7 × the
+    /// bounding-box diagonal (an O(ε) truncation error, far below the damping model's
+    /// own accuracy; it costs one more force evaluation per call). Forces on
+    /// constrained nodes are recorded as [`System::reactions`] and then zeroed.
+    ///
+    /// A non-finite force is an error naming the step and the first bad node; inside
+    /// a step the system then rolls back to its state before the step.
+    pub fn compute_forces(&mut self) -> Result<()> {
+        match self.compute_forces_inner() {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                self.rollback();
+                Err(e)
+            }
+        }
+    }
+
+    fn compute_forces_inner(&mut self) -> Result<()> {
+        let zero = Vec3::zeros();
+        let stiffness = self.damping.beta > 0.0;
+        self.force.fill(zero);
+        if stiffness {
+            self.elastic.fill(zero);
+        }
+        let mut energy = 0.0;
+        for r in &mut self.regions {
+            if r.prony.is_none() && !stiffness {
+                energy += r.field.add_forces(&self.x, &mut self.force)?;
+                continue;
+            }
+            self.scratch.fill(zero);
+            energy += r.field.add_forces(&self.x, &mut self.scratch)?;
+            if stiffness {
+                for (e, s) in self.elastic.iter_mut().zip(&self.scratch) {
+                    *e += s;
+                }
+            }
+            if let Some(p) = &mut r.prony {
+                p.apply(self.t, &mut self.scratch)?;
+            }
+            for (f, s) in self.force.iter_mut().zip(&self.scratch) {
+                *f += s;
+            }
+        }
+        if self.gravity != zero {
+            for (f, m) in self.force.iter_mut().zip(&self.mass) {
+                *f += self.gravity * *m;
+            }
+        }
+        for &(i, fi) in &self.nodal {
+            self.force[i] += fi;
+        }
+        if self.damping.alpha > 0.0 {
+            for ((f, m), v) in self.force.iter_mut().zip(&self.mass).zip(&self.v) {
+                *f -= v * (self.damping.alpha * m);
+            }
+        }
+        if stiffness {
+            self.add_stiffness_damping()?;
+        }
+        let mut total = zero;
+        for &i in &self.constrained_ids {
+            self.reaction[i] = -self.force[i];
+            total += self.reaction[i];
+            self.force[i] = zero;
+        }
+        self.reaction_total = total;
+        if let Some(i) = self.force.iter().position(|f| !f.iter().all(|c| c.is_finite())) {
+            return Err(HemlError::Numerical(format!(
+                "step {}: non-finite force {:?} at node {i} (t = {}); {}",
+                self.attempted_step(),
+                self.force[i].as_slice(),
+                self.t,
+                self.kept_state()
+            )));
+        }
+        self.elastic_energy = Some(energy);
+        self.forces_current = true;
+        Ok(())
+    }
+
+    /// Adds β (f(x + εv) − f(x))/ε = −β K v to the forces (`self.elastic` holds f(x)).
+    fn add_stiffness_damping(&mut self) -> Result<()> {
+        let vmax = self.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        if !(vmax > 0.0 && vmax.is_finite()) {
+            return Ok(());
+        }
+        let eps = 1e-7 * self.length_scale / vmax;
+        let xp: Vec<Vec3> = self.x.iter().zip(&self.v).map(|(x, v)| x + v * eps).collect();
+        self.scratch.fill(Vec3::zeros());
+        for r in &self.regions {
+            r.field.add_forces(&xp, &mut self.scratch)?;
+        }
+        let c = self.damping.beta / eps;
+        for ((f, fp), f0) in self.force.iter_mut().zip(&self.scratch).zip(&self.elastic) {
+            *f += (fp - f0) * c;
+        }
+        Ok(())
+    }
+
+    /// v += h·f/m on free nodes (constrained nodes have zero force and no inverse
+    /// mass). Uses the forces of the last [`System::compute_forces`].
+    pub fn kick(&mut self, h: f64) {
+        for ((v, f), im) in self.v.iter_mut().zip(&self.force).zip(&self.inv_mass) {
+            *v += f * (h * im);
+        }
+    }
+
+    /// x += h·v on every node (constrained nodes are reset by the next constraint
+    /// application).
+    pub fn drift(&mut self, h: f64) {
+        for (x, v) in self.x.iter_mut().zip(&self.v) {
+            *x += v * h;
+        }
+        self.invalidate();
+    }
+
+    /// Moves the clock to the end of the current step and imposes the constraints
+    /// there (call it after the position update when forces are needed at the new
+    /// time within the same step, as velocity Verlet does).
+    pub fn advance_time(&mut self) -> Result<()> {
+        let Some((t0, dt)) = self.in_step else {
+            return Err(HemlError::Invalid(
+                "advance_time called outside begin_step/finish_step".into(),
+            ));
+        };
+        if self.t != t0 + dt {
+            self.t = t0 + dt;
+            self.invalidate();
+        }
+        self.apply_constraints(self.t);
+        Ok(())
+    }
+
+    /// Ends the step: time t + dt, constraints imposed, step counted, NaN/∞ check
+    /// (on failure: an error naming the step and the first bad node, and the state of
+    /// the previous step restored), statistics.
+    pub fn finish_step(&mut self) -> Result<StepStats> {
+        self.advance_time()?;
+        let (_, dt) = self.in_step.unwrap_or_default();
+        let bad = first_non_finite(&self.x)
+            .map(|i| ("position", i, self.x[i]))
+            .or_else(|| first_non_finite(&self.v).map(|i| ("velocity", i, self.v[i])));
+        if let Some((what, i, value)) = bad {
+            let msg = format!(
+                "step {}: non-finite {what} {:?} at node {i} (t = {}); {}",
+                self.step + 1,
+                value.as_slice(),
+                self.t,
+                self.kept_state()
+            );
+            self.rollback();
+            return Err(HemlError::Numerical(msg));
+        }
+        self.in_step = None;
+        self.step += 1;
+        let energies = if self.step.checked_rem(self.energy_every) == Some(0) {
+            Some(self.energies()?)
+        } else {
+            None
+        };
+        Ok(StepStats {
+            step: self.step,
+            time: self.t,
+            dt,
+            max_speed: self.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
+            reaction: self.reaction_total,
+            energies,
+        })
+    }
+
+    fn kept_state(&self) -> String {
+        match self.in_step {
+            Some((t0, _)) => format!("the system keeps its last good state (step {}, t = {t0})", self.step),
+            None => "outside a step".into(),
+        }
+    }
+
+    // ----- energies ------------------------------------------------------------------
+
+    /// Elastic energy at the current positions (reused from the last force evaluation
+    /// when the positions have not changed since).
+    pub fn elastic_energy(&self) -> Result<f64> {
+        match self.elastic_energy {
+            Some(e) => Ok(e),
+            None => self.regions.iter().map(|r| r.field.energy(&self.x)).sum(),
+        }
+    }
+
+    /// Kinetic, elastic, gravity and load energies of the current state.
+    pub fn energies(&self) -> Result<Energies> {
+        let kinetic = 0.5
+            * self
+                .mass
+                .iter()
+                .zip(&self.v)
+                .map(|(m, v)| m * v.norm_squared())
+                .sum::<f64>();
+        let rest = self.mesh.nodes();
+        let gravity = -self
+            .mass
+            .iter()
+            .zip(self.x.iter().zip(rest))
+            .map(|(m, (x, p))| m * self.gravity.dot(&(x - p)))
+            .sum::<f64>();
+        let loads = -self
+            .nodal
+            .iter()
+            .map(|(i, f)| f.dot(&(self.x[*i] - rest[*i])))
+            .sum::<f64>();
+        Ok(Energies::new(kinetic, self.elastic_energy()?, gravity, loads))
+    }
+
+    fn warn(&mut self, msg: String) {
+        eprintln!("heml warning: {msg}");
+        self.warnings.push(msg);
+    }
+
+    /// Sum of the elastic forces (no Prony, loads or damping) of the regions selected
+    /// by `keep`, at positions `x`, into `out` (overwritten).
+    pub(crate) fn elastic_forces_at(&self, x: &[Vec3], out: &mut [Vec3], keep: impl Fn(&Region) -> bool) -> Result<()> {
+        out.fill(Vec3::zeros());
+        for r in self.regions.iter().filter(|r| keep(r)) {
+            r.field.add_forces(x, out)?;
+        }
+        Ok(())
+    }
+}
+
+fn first_non_finite(a: &[Vec3]) -> Option<usize> {
+    a.iter().position(|p| !p.iter().all(|c| c.is_finite()))
+}

@@ -1,0 +1,206 @@
+//! Emission of straight-line Rust from the graph.
+//!
+//! Every reachable operation becomes one `let tN: f64 = ...;` in id order (a
+//! topological order, see [`crate::expr`]); leaves (variables, parameters,
+//! constants) are inlined at their uses. Several outputs evaluated in one block
+//! share all their common sub-expressions.
+
+use crate::expr::{Graph, Id, Node, Var};
+use proc_macro2::{Ident, Literal, Span, TokenStream};
+use quote::{format_ident, quote};
+
+/// A straight-line block: the `let`s, then one expression per requested root.
+pub struct Block {
+    /// The `let tN: f64 = ...;` statements.
+    pub lets: TokenStream,
+    /// One expression (a temporary or a leaf) per root, in order.
+    pub outputs: Vec<TokenStream>,
+}
+
+/// How the generated code refers to the variables and parameters.
+pub struct Names<'a> {
+    /// Field names, in parameter order (read as `self.<name>`).
+    pub params: &'a [Ident],
+}
+
+impl Names<'_> {
+    /// The argument name of `var` in the generated functions, prefixed with `_`
+    /// when unused so that unused arguments do not warn.
+    pub fn arg(var: Var, used: bool) -> Ident {
+        let name = match var {
+            Var::I1 => "i1",
+            Var::I2 => "i2",
+            Var::J => "j",
+            Var::J0 => "j0",
+            Var::LinkL => "l",
+            Var::RestL => "rest_l",
+        };
+        if used {
+            Ident::new(name, Span::call_site())
+        } else {
+            format_ident!("_{}", name)
+        }
+    }
+}
+
+/// Emits the block computing `roots`.
+pub fn block(g: &Graph, names: &Names, roots: &[Id]) -> Block {
+    let live = g.reachable(roots);
+    let mut lets = TokenStream::new();
+    for (id, _) in live.iter().enumerate().filter(|(_, &l)| l) {
+        if let Some(value) = operation(g, names, id) {
+            let t = temp(id);
+            lets.extend(quote!(let #t: f64 = #value;));
+        }
+    }
+    let outputs = roots.iter().map(|&r| output(g, names, r)).collect();
+    Block { lets, outputs }
+}
+
+fn temp(id: Id) -> Ident {
+    format_ident!("t{}", id)
+}
+
+fn is_leaf(node: Node) -> bool {
+    matches!(node, Node::Const(_) | Node::Var(_) | Node::Param(_))
+}
+
+/// A leaf or temporary as an operand (negative constants parenthesised).
+fn operand(g: &Graph, names: &Names, id: Id) -> TokenStream {
+    match g.node(id) {
+        Node::Const(bits) => {
+            let v = f64::from_bits(bits);
+            if v.is_finite() && v.is_sign_negative() {
+                let lit = Literal::f64_suffixed(-v);
+                quote!((-#lit))
+            } else {
+                constant(v)
+            }
+        }
+        Node::Var(v) => {
+            let ident = Names::arg(v, true);
+            quote!(#ident)
+        }
+        Node::Param(i) => {
+            let ident = &names.params[i];
+            quote!(self.#ident)
+        }
+        _ => {
+            let t = temp(id);
+            quote!(#t)
+        }
+    }
+}
+
+/// A root as a complete expression (no parentheses around a negative constant).
+fn output(g: &Graph, names: &Names, id: Id) -> TokenStream {
+    match g.as_const(id) {
+        Some(v) => constant(v),
+        None => operand(g, names, id),
+    }
+}
+
+fn constant(v: f64) -> TokenStream {
+    if v.is_nan() {
+        quote!(f64::NAN)
+    } else if v == f64::INFINITY {
+        quote!(f64::INFINITY)
+    } else if v == f64::NEG_INFINITY {
+        quote!(f64::NEG_INFINITY)
+    } else if v.is_sign_negative() {
+        let lit = Literal::f64_suffixed(-v);
+        quote!(-#lit)
+    } else {
+        let lit = Literal::f64_suffixed(v);
+        quote!(#lit)
+    }
+}
+
+/// The right-hand side of `let tN`, or `None` for a leaf.
+fn operation(g: &Graph, names: &Names, id: Id) -> Option<TokenStream> {
+    let node = g.node(id);
+    if is_leaf(node) {
+        return None;
+    }
+    let o = |a: Id| operand(g, names, a);
+    Some(match node {
+        Node::Add(a, b) => {
+            let (a, b) = (o(a), o(b));
+            quote!(#a + #b)
+        }
+        Node::Sub(a, b) => {
+            let (a, b) = (o(a), o(b));
+            quote!(#a - #b)
+        }
+        Node::Mul(a, b) => {
+            let (a, b) = (o(a), o(b));
+            quote!(#a * #b)
+        }
+        Node::Div(a, b) => {
+            let (a, b) = (o(a), o(b));
+            quote!(#a / #b)
+        }
+        Node::Neg(a) => {
+            let a = o(a);
+            quote!(-#a)
+        }
+        Node::Ln(a) => method(o(a), "ln"),
+        Node::Exp(a) => method(o(a), "exp"),
+        Node::Sqrt(a) => method(o(a), "sqrt"),
+        Node::Abs(a) => method(o(a), "abs"),
+        Node::Signum(a) => method(o(a), "signum"),
+        Node::Powi(a, n) => {
+            let a = o(a);
+            let lit = Literal::u32_unsuffixed(n.unsigned_abs());
+            if n < 0 {
+                quote!(#a.powi(-#lit))
+            } else {
+                quote!(#a.powi(#lit))
+            }
+        }
+        Node::Powf(a, b) => {
+            let (a, b) = (o(a), o(b));
+            quote!(#a.powf(#b))
+        }
+        Node::Const(_) | Node::Var(_) | Node::Param(_) => return None,
+    })
+}
+
+fn method(receiver: TokenStream, name: &str) -> TokenStream {
+    let m = Ident::new(name, Span::call_site());
+    quote!(#receiver.#m())
+}
+
+/// Operation counts of the block computing `roots` (as `heml_core::law::OpCount`).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct OpTally {
+    /// Additions, subtractions, negations.
+    pub add: u32,
+    /// Multiplications.
+    pub mul: u32,
+    /// Divisions.
+    pub div: u32,
+    /// Function calls.
+    pub func: u32,
+}
+
+/// Counts the operations needed to evaluate `roots` together.
+pub fn count_ops(g: &Graph, roots: &[Id]) -> OpTally {
+    let mut t = OpTally::default();
+    for (id, _) in g.reachable(roots).iter().enumerate().filter(|(_, &l)| l) {
+        match g.node(id) {
+            Node::Const(_) | Node::Var(_) | Node::Param(_) => {}
+            Node::Add(..) | Node::Sub(..) | Node::Neg(_) => t.add += 1,
+            Node::Mul(..) => t.mul += 1,
+            Node::Div(..) => t.div += 1,
+            Node::Ln(_)
+            | Node::Exp(_)
+            | Node::Sqrt(_)
+            | Node::Powi(..)
+            | Node::Powf(..)
+            | Node::Abs(_)
+            | Node::Signum(_) => t.func += 1,
+        }
+    }
+    t
+}

@@ -1,0 +1,222 @@
+//! The items the macro emits around the struct: the `MaterialInfo` impl, the
+//! `InvariantLaw` or `LinkLaw` impl with the generated kernels, and the registry
+//! entry. `core` is the path to heml-core as seen from the calling crate.
+
+use crate::attr::{Declaration, Kind, Options};
+use crate::codegen::{self, count_ops, Names, OpTally};
+use crate::expr::{Id, Var};
+use crate::kernels::{Derivatives, InvariantKernels, LinkKernels};
+use proc_macro2::TokenStream;
+use quote::quote;
+
+/// Lints that straight-line generated arithmetic may trip and that say nothing
+/// about the user's code (long literals from constant folding, `let t = ..; t`).
+fn allows() -> TokenStream {
+    quote! {
+        #[allow(
+            unused_parens,
+            clippy::approx_constant,
+            clippy::excessive_precision,
+            clippy::let_and_return,
+            clippy::neg_multiply,
+            clippy::double_neg,
+            clippy::identity_op,
+            clippy::too_many_lines,
+            clippy::unreadable_literal,
+            clippy::many_single_char_names,
+            clippy::suboptimal_flops,
+            clippy::similar_names
+        )]
+    }
+}
+
+/// `impl MaterialInfo`.
+pub fn material_info(core: &TokenStream, opts: &Options, decl: &Declaration) -> TokenStream {
+    let ty = &decl.item.ident;
+    let name = &opts.name;
+    let energy = &decl.energy_text;
+    let doc = &decl.doc;
+    let infos = decl.params.iter().map(|p| {
+        let name = p.ident.to_string();
+        let (doc, signed) = (&p.doc, p.signed);
+        quote!(#core::law::ParamInfo { name: #name, doc: #doc, signed: #signed })
+    });
+    let fields: Vec<_> = decl.params.iter().map(|p| &p.ident).collect();
+    let indices = 0..fields.len();
+    let values = if fields.is_empty() {
+        quote!(_values)
+    } else {
+        quote!(values)
+    };
+    quote! {
+        impl #core::law::MaterialInfo for #ty {
+            const NAME: &'static str = #name;
+            const PARAMS: &'static [#core::law::ParamInfo] = &[#(#infos),*];
+            const ENERGY: &'static str = #energy;
+            const DOC: &'static str = #doc;
+            fn to_params(&self) -> ::std::vec::Vec<f64> {
+                ::std::vec![#(self.#fields),*]
+            }
+            fn from_params(#values: &[f64]) -> Self {
+                Self { #(#fields: #values[#indices]),* }
+            }
+        }
+    }
+}
+
+fn op_count(core: &TokenStream, t: OpTally) -> TokenStream {
+    let OpTally { add, mul, div, func } = t;
+    quote!(#core::law::OpCount { add: #add, mul: #mul, div: #div, func: #func })
+}
+
+/// The three functions (value, value + gradient, Hessian) of one set of derivatives,
+/// named `w`, `dw`, `d2w` plus `suffix`, with the extra `j0` argument for the extension.
+fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &Derivatives, ext: bool) -> TokenStream {
+    let g = &k.graph;
+    let suffix = if ext { "_ext" } else { "" };
+    let fn_w = quote::format_ident!("w{}", suffix);
+    let fn_dw = quote::format_ident!("dw{}", suffix);
+    let fn_d2w = quote::format_ident!("d2w{}", suffix);
+    let args = |roots: &[Id]| {
+        let [i1, i2, j] = [Var::I1, Var::I2, Var::J].map(|v| Names::arg(v, g.uses(roots, v)));
+        let j0 = Names::arg(Var::J0, g.uses(roots, Var::J0));
+        if ext {
+            quote!(#i1: f64, #i2: f64, #j: f64, #j0: f64)
+        } else {
+            quote!(#i1: f64, #i2: f64, #j: f64)
+        }
+    };
+
+    let roots = [d.w];
+    let (a, b) = (args(&roots), codegen::block(g, names, &roots));
+    let (lets, w) = (b.lets, &b.outputs[0]);
+    let w_fn = quote! {
+        #[inline(always)]
+        fn #fn_w(&self, #a) -> f64 { #lets #w }
+    };
+
+    let roots = d.value_and_grad();
+    let (a, b) = (args(&roots), codegen::block(g, names, &roots));
+    let (lets, o) = (b.lets, &b.outputs);
+    let (w, w1, w2, wj) = (&o[0], &o[1], &o[2], &o[3]);
+    let dw_fn = quote! {
+        #[inline(always)]
+        fn #fn_dw(&self, #a) -> #core::law::Derivs {
+            #lets
+            #core::law::Derivs { w: #w, d: [#w1, #w2, #wj] }
+        }
+    };
+
+    let roots: Vec<Id> = d.hess.iter().flatten().copied().collect();
+    let (a, b) = (args(&roots), codegen::block(g, names, &roots));
+    let (lets, h) = (b.lets, &b.outputs);
+    let rows = h.chunks(3).map(|r| quote!([#(#r),*]));
+    let d2w_fn = quote! {
+        #[inline]
+        fn #fn_d2w(&self, #a) -> [[f64; 3]; 3] {
+            #lets
+            [#(#rows),*]
+        }
+    };
+    quote!(#w_fn #dw_fn #d2w_fn)
+}
+
+/// `impl InvariantLaw`.
+pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernels) -> TokenStream {
+    let ty = &decl.item.ident;
+    let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
+    let names = Names { params: &fields };
+    let plain = invariant_fns(core, k, &names, &k.plain, false);
+    let ext = match &k.ext {
+        Some(d) => invariant_fns(core, k, &names, d, true),
+        None => quote! {
+            #[inline(always)]
+            fn w_ext(&self, i1: f64, i2: f64, j: f64, _j0: f64) -> f64 {
+                <Self as #core::law::InvariantLaw>::w(self, i1, i2, j)
+            }
+            #[inline(always)]
+            fn dw_ext(&self, i1: f64, i2: f64, j: f64, _j0: f64) -> #core::law::Derivs {
+                <Self as #core::law::InvariantLaw>::dw(self, i1, i2, j)
+            }
+            #[inline]
+            fn d2w_ext(&self, i1: f64, i2: f64, j: f64, _j0: f64) -> [[f64; 3]; 3] {
+                <Self as #core::law::InvariantLaw>::d2w(self, i1, i2, j)
+            }
+        },
+    };
+    let (uses_i2, uses_j, fix) = (k.uses_i2, k.uses_j, k.ext.is_some());
+    let ops = op_count(core, count_ops(&k.graph, &k.plain.value_and_grad()));
+    let allows = allows();
+    quote! {
+        #allows
+        impl #core::law::InvariantLaw for #ty {
+            const USES_I2: bool = #uses_i2;
+            const USES_J: bool = #uses_j;
+            const INVERSION_FIX: bool = #fix;
+            const OPS: #core::law::OpCount = #ops;
+            #plain
+            #ext
+        }
+    }
+}
+
+/// `impl LinkLaw`.
+pub fn link_law(core: &TokenStream, decl: &Declaration, k: &LinkKernels) -> TokenStream {
+    let ty = &decl.item.ident;
+    let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
+    let names = Names { params: &fields };
+    let g = &k.graph;
+    let args = |roots: &[Id]| {
+        let [l, rest] = [Var::LinkL, Var::RestL].map(|v| Names::arg(v, g.uses(roots, v)));
+        quote!(#l: f64, #rest: f64)
+    };
+    let block = |roots: &[Id]| codegen::block(g, &names, roots);
+
+    let (a, b) = (args(&[k.w]), block(&[k.w]));
+    let (lets, w) = (b.lets, &b.outputs[0]);
+    let w_fn = quote!(#[inline(always)] fn w(&self, #a) -> f64 { #lets #w });
+
+    let roots = [k.w, k.dw];
+    let (a, b) = (args(&roots), block(&roots));
+    let (lets, w, dw) = (b.lets, &b.outputs[0], &b.outputs[1]);
+    let dw_fn = quote!(#[inline(always)] fn dw(&self, #a) -> (f64, f64) { #lets (#w, #dw) });
+
+    let (a, b) = (args(&[k.d2w]), block(&[k.d2w]));
+    let (lets, d2w) = (b.lets, &b.outputs[0]);
+    let d2w_fn = quote!(#[inline] fn d2w(&self, #a) -> f64 { #lets #d2w });
+
+    let ops = op_count(core, count_ops(g, &roots));
+    let allows = allows();
+    quote! {
+        #allows
+        impl #core::law::LinkLaw for #ty {
+            const OPS: #core::law::OpCount = #ops;
+            #w_fn
+            #dw_fn
+            #d2w_fn
+        }
+    }
+}
+
+/// The `inventory` registration.
+pub fn registration(core: &TokenStream, decl: &Declaration, kind: Kind) -> TokenStream {
+    let ty = &decl.item.ident;
+    let (kind, build) = match kind {
+        Kind::Invariant => (quote!(Invariant), quote!(build_invariant)),
+        Kind::Link => (quote!(Link), quote!(build_link)),
+    };
+    let info = quote!(<#ty as #core::law::MaterialInfo>);
+    quote! {
+        #core::__private::inventory::submit! {
+            #core::registry::MaterialEntry {
+                name: #info::NAME,
+                params: #info::PARAMS,
+                energy: #info::ENERGY,
+                doc: #info::DOC,
+                kind: #core::law::LawKind::#kind,
+                module: ::core::module_path!(),
+                build: #core::material::#build::<#ty>,
+            }
+        }
+    }
+}

@@ -1,0 +1,604 @@
+//! The expression graph: a hash-consed DAG of scalar operations.
+//!
+//! Every node is interned, so building the same sub-expression twice yields the
+//! same [`Id`] — common sub-expression elimination comes for free, across w and
+//! all of its derivatives. The smart constructors ([`Graph::add`], [`Graph::mul`],
+//! …) simplify while building (constant folding, neutral and absorbing elements,
+//! sign normalisation, canonical operand order of commutative operations), so the
+//! derivative graphs never accumulate the `0 * x + 1 * y` debris of naive
+//! differentiation.
+//!
+//! Children are always created before their parents, hence a node's id is larger
+//! than its children's ids and id order is a topological order (used by codegen).
+
+use std::collections::HashMap;
+
+/// Index of a node in a [`Graph`].
+pub type Id = usize;
+
+/// The independent variables an energy may depend on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Var {
+    /// First invariant, tr C.
+    I1,
+    /// Second invariant, ½(tr²C − tr C²).
+    I2,
+    /// Volume ratio det F.
+    J,
+    /// Expansion point of the inversion extension (a runtime argument).
+    J0,
+    /// Current squared edge length (link laws).
+    LinkL,
+    /// Rest squared edge length (link laws).
+    RestL,
+}
+
+/// One operation. Constants are stored as bits so that nodes can be hashed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Node {
+    /// A literal, as `f64::to_bits`.
+    Const(u64),
+    /// An independent variable.
+    Var(Var),
+    /// The law's parameter number `n` (field order).
+    Param(usize),
+    /// a + b.
+    Add(Id, Id),
+    /// a − b.
+    Sub(Id, Id),
+    /// a · b.
+    Mul(Id, Id),
+    /// a / b.
+    Div(Id, Id),
+    /// −a.
+    Neg(Id),
+    /// ln a.
+    Ln(Id),
+    /// exp a.
+    Exp(Id),
+    /// √a.
+    Sqrt(Id),
+    /// aⁿ for an integer n.
+    Powi(Id, i32),
+    /// a^b.
+    Powf(Id, Id),
+    /// |a|.
+    Abs(Id),
+    /// sign of a (derivative of |a|).
+    Signum(Id),
+}
+
+/// A hash-consed expression DAG.
+#[derive(Debug, Default, Clone)]
+pub struct Graph {
+    nodes: Vec<Node>,
+    index: HashMap<Node, Id>,
+    /// For each base, the first non-integer constant power of it that was built
+    /// (`base -> (exponent, node)`): later powers of the same base are expressed
+    /// through it when they differ by an integer or an integer factor.
+    anchors: HashMap<Id, (f64, Id)>,
+}
+
+impl Graph {
+    /// An empty graph.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The node behind `id`.
+    pub fn node(&self, id: Id) -> Node {
+        self.nodes[id]
+    }
+
+    /// Number of distinct nodes created so far.
+    #[cfg(test)]
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// The value of `id` if it is a constant.
+    pub fn as_const(&self, id: Id) -> Option<f64> {
+        match self.nodes[id] {
+            Node::Const(bits) => Some(f64::from_bits(bits)),
+            _ => None,
+        }
+    }
+
+    fn is_const(&self, id: Id, value: f64) -> bool {
+        self.as_const(id) == Some(value)
+    }
+
+    /// Interns `node` without simplification.
+    fn intern(&mut self, node: Node) -> Id {
+        if let Some(&id) = self.index.get(&node) {
+            return id;
+        }
+        let id = self.nodes.len();
+        self.nodes.push(node);
+        self.index.insert(node, id);
+        id
+    }
+
+    /// A literal. `-0.0` is normalised to `0.0` so that zero tests are uniform.
+    pub fn constant(&mut self, value: f64) -> Id {
+        let value = if value == 0.0 { 0.0 } else { value };
+        self.intern(Node::Const(value.to_bits()))
+    }
+
+    /// An independent variable.
+    pub fn var(&mut self, var: Var) -> Id {
+        self.intern(Node::Var(var))
+    }
+
+    /// Parameter number `index`.
+    pub fn param(&mut self, index: usize) -> Id {
+        self.intern(Node::Param(index))
+    }
+
+    /// Commutative operands in canonical (id) order, so `a+b` and `b+a` share a node.
+    fn ordered(a: Id, b: Id) -> (Id, Id) {
+        if a <= b {
+            (a, b)
+        } else {
+            (b, a)
+        }
+    }
+
+    /// a + b.
+    pub fn add(&mut self, a: Id, b: Id) -> Id {
+        match (self.as_const(a), self.as_const(b), self.node(a), self.node(b)) {
+            (Some(x), Some(y), ..) => self.constant(x + y),
+            (Some(0.0), ..) => b,
+            (_, Some(0.0), ..) => a,
+            (.., Node::Neg(y)) => self.sub(a, y),
+            (_, _, Node::Neg(x), _) => self.sub(b, x),
+            _ if a == b => {
+                let two = self.constant(2.0);
+                self.mul(two, a)
+            }
+            _ => {
+                let (a, b) = Self::ordered(a, b);
+                self.intern(Node::Add(a, b))
+            }
+        }
+    }
+
+    /// a − b.
+    pub fn sub(&mut self, a: Id, b: Id) -> Id {
+        if a == b {
+            return self.constant(0.0);
+        }
+        match (self.as_const(a), self.as_const(b), self.node(a), self.node(b)) {
+            (Some(x), Some(y), ..) => self.constant(x - y),
+            (_, Some(0.0), ..) => a,
+            (Some(0.0), ..) => self.neg(b),
+            (.., Node::Neg(y)) => self.add(a, y),
+            (_, _, Node::Neg(x), _) => {
+                let sum = self.add(x, b);
+                self.neg(sum)
+            }
+            _ => self.intern(Node::Sub(a, b)),
+        }
+    }
+
+    /// a · b.
+    pub fn mul(&mut self, a: Id, b: Id) -> Id {
+        if let (Some(x), Some(y)) = (self.as_const(a), self.as_const(b)) {
+            return self.constant(x * y);
+        }
+        // One constant factor: absorb, drop, or merge it into the other side.
+        let constant_side = match (self.as_const(a), self.as_const(b)) {
+            (Some(c), None) => Some((c, b)),
+            (None, Some(c)) => Some((c, a)),
+            _ => None,
+        };
+        if let Some((c, x)) = constant_side {
+            if c == 0.0 {
+                return self.constant(0.0);
+            }
+            if c == 1.0 {
+                return x;
+            }
+            if c == -1.0 {
+                return self.neg(x);
+            }
+            match self.node(x) {
+                Node::Neg(y) => {
+                    let k = self.constant(-c);
+                    return self.mul(k, y);
+                }
+                Node::Mul(p, q) => {
+                    if let Some(cp) = self.as_const(p) {
+                        let k = self.constant(c * cp);
+                        return self.mul(k, q);
+                    }
+                    if let Some(cq) = self.as_const(q) {
+                        let k = self.constant(c * cq);
+                        return self.mul(k, p);
+                    }
+                }
+                _ => {}
+            }
+        }
+        // Constant factors move outwards, so that they meet and fold:
+        // (c1·x)·(c2·y) = (c1·c2)·(x·y).
+        if let Some((c, x)) = self.split_const_factor(a) {
+            let m = self.mul(x, b);
+            let k = self.constant(c);
+            return self.mul(k, m);
+        }
+        if let Some((c, y)) = self.split_const_factor(b) {
+            let m = self.mul(a, y);
+            let k = self.constant(c);
+            return self.mul(k, m);
+        }
+        match (self.node(a), self.node(b)) {
+            (Node::Neg(x), Node::Neg(y)) => self.mul(x, y),
+            (Node::Neg(x), _) => {
+                let m = self.mul(x, b);
+                self.neg(m)
+            }
+            (_, Node::Neg(y)) => {
+                let m = self.mul(a, y);
+                self.neg(m)
+            }
+            _ => {
+                let (a, b) = Self::ordered(a, b);
+                self.intern(Node::Mul(a, b))
+            }
+        }
+    }
+
+    /// `(c, x)` when `id` is the product `c·x` of a constant and something else.
+    fn split_const_factor(&self, id: Id) -> Option<(f64, Id)> {
+        match self.node(id) {
+            Node::Mul(p, q) => match (self.as_const(p), self.as_const(q)) {
+                (Some(c), None) => Some((c, q)),
+                (None, Some(c)) => Some((c, p)),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
+    /// a / b.
+    pub fn div(&mut self, a: Id, b: Id) -> Id {
+        if let (Some(x), Some(y)) = (self.as_const(a), self.as_const(b)) {
+            return self.constant(x / y);
+        }
+        if self.is_const(a, 0.0) {
+            return self.constant(0.0);
+        }
+        if a == b {
+            return self.constant(1.0);
+        }
+        if let Some(c) = self.as_const(b) {
+            if c == 1.0 {
+                return a;
+            }
+            if c == -1.0 {
+                return self.neg(a);
+            }
+            // Division by a power of two is an exact multiplication (and cheaper).
+            let r = 1.0 / c;
+            if r.is_finite() && r * c == 1.0 && (r.to_bits() & ((1u64 << 52) - 1)) == 0 {
+                let k = self.constant(r);
+                return self.mul(k, a);
+            }
+        }
+        if let Some((c, x)) = self.split_const_factor(a) {
+            let q = self.div(x, b);
+            let k = self.constant(c);
+            return self.mul(k, q);
+        }
+        match (self.node(a), self.node(b)) {
+            (Node::Neg(x), Node::Neg(y)) => self.div(x, y),
+            (Node::Neg(x), _) => {
+                let q = self.div(x, b);
+                self.neg(q)
+            }
+            (_, Node::Neg(y)) => {
+                let q = self.div(a, y);
+                self.neg(q)
+            }
+            _ => self.intern(Node::Div(a, b)),
+        }
+    }
+
+    /// −a.
+    pub fn neg(&mut self, a: Id) -> Id {
+        if let Some(x) = self.as_const(a) {
+            return self.constant(-x);
+        }
+        match self.node(a) {
+            Node::Neg(x) => x,
+            Node::Sub(x, y) => self.sub(y, x),
+            Node::Mul(p, q) if self.as_const(p).is_some() || self.as_const(q).is_some() => {
+                let (c, x) = match self.as_const(p) {
+                    Some(c) => (c, q),
+                    None => (self.as_const(q).unwrap_or(1.0), p),
+                };
+                let k = self.constant(-c);
+                self.mul(k, x)
+            }
+            _ => self.intern(Node::Neg(a)),
+        }
+    }
+
+    /// ln a.
+    pub fn ln(&mut self, a: Id) -> Id {
+        match (self.as_const(a), self.node(a)) {
+            (Some(x), _) => self.constant(x.ln()),
+            (_, Node::Exp(x)) => x,
+            _ => self.intern(Node::Ln(a)),
+        }
+    }
+
+    /// exp a.
+    pub fn exp(&mut self, a: Id) -> Id {
+        match self.as_const(a) {
+            Some(x) => self.constant(x.exp()),
+            None => self.intern(Node::Exp(a)),
+        }
+    }
+
+    /// √a.
+    pub fn sqrt(&mut self, a: Id) -> Id {
+        match self.as_const(a) {
+            Some(x) => self.constant(x.sqrt()),
+            None => self.intern(Node::Sqrt(a)),
+        }
+    }
+
+    /// aⁿ.
+    pub fn powi(&mut self, a: Id, n: i32) -> Id {
+        if let Some(x) = self.as_const(a) {
+            return self.constant(x.powi(n));
+        }
+        match (n, self.node(a)) {
+            (0, _) => self.constant(1.0),
+            (1, _) => a,
+            // A square is a product: cheaper than a call, and its CSE is visible.
+            (2, _) => self.mul(a, a),
+            (-1, _) => {
+                let one = self.constant(1.0);
+                self.div(one, a)
+            }
+            (_, Node::Powi(x, m)) if m.checked_mul(n).is_some() => self.powi(x, m * n),
+            (_, Node::Neg(x)) => {
+                let p = self.powi(x, n);
+                if n % 2 == 0 {
+                    p
+                } else {
+                    self.neg(p)
+                }
+            }
+            _ => self.intern(Node::Powi(a, n)),
+        }
+    }
+
+    /// a^b. A constant integer exponent becomes [`Graph::powi`], ½ becomes √.
+    pub fn powf(&mut self, a: Id, b: Id) -> Id {
+        if let Some(e) = self.as_const(b) {
+            if let Some(x) = self.as_const(a) {
+                return self.constant(x.powf(e));
+            }
+            if e.fract() == 0.0 && e.abs() <= f64::from(i32::MAX) {
+                // Exact: `e` is an integer within i32 range.
+                return self.powi(a, e as i32);
+            }
+            if e == 0.5 {
+                return self.sqrt(a);
+            }
+            if let Some(p) = self.power_from_anchor(a, e) {
+                return p;
+            }
+            let p = self.intern(Node::Powf(a, b));
+            self.anchors.entry(a).or_insert((e, p));
+            return p;
+        }
+        self.intern(Node::Powf(a, b))
+    }
+
+    /// a^e from an existing a^c: a^c · a^(e−c) when e − c is a small integer
+    /// (J^(−5/3) = J^(−2/3) / J, as differentiation produces), or (a^c)^(e/c) when
+    /// e/c is (Ī2's J^(−4/3) = (J^(−2/3))²). A product or a square is much cheaper
+    /// than another `powf`, and differs from it by a few ulps at most.
+    fn power_from_anchor(&mut self, a: Id, e: f64) -> Option<Id> {
+        const SMALL: f64 = 8.0;
+        let (c, anchor) = *self.anchors.get(&a)?;
+        // Exponents like −2/3 − 1 are rounded, so "integer" means within 1e-12.
+        let small_integer = |x: f64| {
+            let n = x.round();
+            ((x - n).abs() <= 1e-12 && n.abs() <= SMALL).then_some(n as i32)
+        };
+        if let Some(k) = small_integer(e - c) {
+            let rest = self.powi(a, k);
+            return Some(self.mul(anchor, rest));
+        }
+        let n = small_integer(e / c)?;
+        Some(self.powi(anchor, n))
+    }
+
+    /// |a|.
+    pub fn abs(&mut self, a: Id) -> Id {
+        match (self.as_const(a), self.node(a)) {
+            (Some(x), _) => self.constant(x.abs()),
+            (_, Node::Neg(x)) => self.abs(x),
+            _ => self.intern(Node::Abs(a)),
+        }
+    }
+
+    /// sign(a) (±1, as `f64::signum`).
+    pub fn signum(&mut self, a: Id) -> Id {
+        match self.as_const(a) {
+            Some(x) => self.constant(x.signum()),
+            None => self.intern(Node::Signum(a)),
+        }
+    }
+
+    /// The children of a node.
+    pub fn children(&self, id: Id) -> impl Iterator<Item = Id> {
+        let (a, b) = match self.nodes[id] {
+            Node::Const(_) | Node::Var(_) | Node::Param(_) => (None, None),
+            Node::Add(a, b) | Node::Sub(a, b) | Node::Mul(a, b) | Node::Div(a, b) | Node::Powf(a, b) => {
+                (Some(a), Some(b))
+            }
+            Node::Neg(a)
+            | Node::Ln(a)
+            | Node::Exp(a)
+            | Node::Sqrt(a)
+            | Node::Powi(a, _)
+            | Node::Abs(a)
+            | Node::Signum(a) => (Some(a), None),
+        };
+        a.into_iter().chain(b)
+    }
+
+    /// Marks every node reachable from `roots` (index = id).
+    pub fn reachable(&self, roots: &[Id]) -> Vec<bool> {
+        let mut seen = vec![false; self.nodes.len()];
+        let mut stack: Vec<Id> = roots.to_vec();
+        while let Some(id) = stack.pop() {
+            if !seen[id] {
+                seen[id] = true;
+                stack.extend(self.children(id));
+            }
+        }
+        seen
+    }
+
+    /// Whether any of `roots` depends on `var`.
+    pub fn uses(&self, roots: &[Id], var: Var) -> bool {
+        let seen = self.reachable(roots);
+        seen.iter().zip(&self.nodes).any(|(&s, n)| s && *n == Node::Var(var))
+    }
+
+    /// Evaluates `id` numerically (the reference interpreter of the unit tests).
+    #[cfg(test)]
+    pub fn eval(&self, id: Id, vars: &dyn Fn(Var) -> f64, params: &[f64]) -> f64 {
+        let mut values = Vec::with_capacity(id + 1);
+        for node in &self.nodes[..=id] {
+            let v = |i: Id| -> f64 { values[i] };
+            let x = match *node {
+                Node::Const(bits) => f64::from_bits(bits),
+                Node::Var(var) => vars(var),
+                Node::Param(i) => params[i],
+                Node::Add(a, b) => v(a) + v(b),
+                Node::Sub(a, b) => v(a) - v(b),
+                Node::Mul(a, b) => v(a) * v(b),
+                Node::Div(a, b) => v(a) / v(b),
+                Node::Neg(a) => -v(a),
+                Node::Ln(a) => v(a).ln(),
+                Node::Exp(a) => v(a).exp(),
+                Node::Sqrt(a) => v(a).sqrt(),
+                Node::Powi(a, n) => v(a).powi(n),
+                Node::Powf(a, b) => v(a).powf(v(b)),
+                Node::Abs(a) => v(a).abs(),
+                Node::Signum(a) => v(a).signum(),
+            };
+            values.push(x);
+        }
+        values[id]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn neutral_and_absorbing_elements() {
+        let mut g = Graph::new();
+        let x = g.var(Var::I1);
+        let zero = g.constant(0.0);
+        let one = g.constant(1.0);
+        assert_eq!(g.mul(x, zero), zero);
+        assert_eq!(g.mul(zero, x), zero);
+        assert_eq!(g.add(x, zero), x);
+        assert_eq!(g.add(zero, x), x);
+        assert_eq!(g.sub(x, zero), x);
+        assert_eq!(g.mul(one, x), x);
+        assert_eq!(g.div(x, one), x);
+        assert_eq!(g.sub(x, x), zero);
+        assert_eq!(g.powi(x, 1), x);
+        assert_eq!(g.powi(x, 0), one);
+        let nx = g.neg(x);
+        assert_eq!(g.neg(nx), x);
+        assert_eq!(g.sub(zero, x), nx);
+        let nn = g.mul(nx, nx);
+        let xx = g.mul(x, x);
+        assert_eq!(nn, xx);
+    }
+
+    #[test]
+    fn constants_fold() {
+        let mut g = Graph::new();
+        let two = g.constant(2.0);
+        let three = g.constant(3.0);
+        let s = g.add(two, three);
+        assert_eq!(g.as_const(s), Some(5.0));
+        let q = g.div(two, three);
+        assert_eq!(g.as_const(q), Some(2.0 / 3.0));
+        let l = g.ln(two);
+        assert_eq!(g.as_const(l), Some(2f64.ln()));
+        let r = g.sqrt(two);
+        assert_eq!(g.as_const(r), Some(2f64.sqrt()));
+        // Nested constant factors merge: 2 * (3 * x) = 6 * x.
+        let x = g.var(Var::J);
+        let inner = g.mul(three, x);
+        let outer = g.mul(two, inner);
+        let six = g.constant(6.0);
+        assert_eq!(outer, g.mul(six, x));
+        // powf with an integer constant exponent is powi.
+        let p = g.powf(x, three);
+        assert_eq!(g.node(p), Node::Powi(x, 3));
+        // A square is a product.
+        let sq = g.powi(x, 2);
+        assert_eq!(g.node(sq), Node::Mul(x, x));
+    }
+
+    #[test]
+    fn powers_of_one_base_share_one_call() {
+        let mut g = Graph::new();
+        let j = g.var(Var::J);
+        let c = g.constant(-2.0 / 3.0);
+        let anchor = g.powf(j, c);
+        let e = g.constant(-2.0 / 3.0 - 1.0);
+        let p = g.powf(j, e);
+        let inv = g.powi(j, -1);
+        assert_eq!(p, g.mul(anchor, inv));
+        let e = g.constant(-4.0 / 3.0);
+        let q = g.powf(j, e);
+        assert_eq!(q, g.mul(anchor, anchor));
+        let (jv, pv) = (0.7_f64, g.eval(p, &|_| 0.7, &[]));
+        assert!((pv - jv.powf(-5.0 / 3.0)).abs() <= 4.0 * f64::EPSILON * pv);
+    }
+
+    #[test]
+    fn common_subexpressions_share_one_node() {
+        let mut g = Graph::new();
+        let x = g.var(Var::I1);
+        let y = g.var(Var::J);
+        let a = g.add(x, y);
+        let before = g.len();
+        let b = g.add(y, x);
+        assert_eq!(a, b);
+        let la = g.ln(a);
+        let lb = g.ln(b);
+        assert_eq!(la, lb);
+        assert_eq!(g.len(), before + 1);
+    }
+
+    #[test]
+    fn uses_detects_dependence_after_simplification() {
+        let mut g = Graph::new();
+        let i2 = g.var(Var::I2);
+        let i1 = g.var(Var::I1);
+        let d = g.sub(i2, i2);
+        let w = g.add(i1, d);
+        assert!(!g.uses(&[w], Var::I2));
+        assert!(g.uses(&[w], Var::I1));
+        assert!(!g.uses(&[w], Var::J));
+    }
+}

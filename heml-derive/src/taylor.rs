@@ -1,0 +1,99 @@
+//! The inversion extension (DESIGN §1): below J0 the energy is replaced by its
+//! second-order Taylor polynomial in J about J0, holding I1 and I2,
+//!
+//! T(I1, I2, J, J0) = w(J0) + w_J(J0)·(J − J0) + ½·w_JJ(J0)·(J − J0)².
+//!
+//! It is built as an ordinary expression of (I1, I2, J, J0) so that differentiating
+//! it w.r.t. I1 and I2 is exact: those derivatives contain third derivatives of w
+//! (w_JJ depends on I1 through Ī1 for isochoric laws), which a numeric shortcut
+//! would get wrong.
+
+use crate::diff::diff;
+use crate::expr::{Graph, Id, Node, Var};
+use std::collections::HashMap;
+
+/// Replaces every occurrence of `from` by the node `to` in `root`.
+pub fn substitute(g: &mut Graph, root: Id, from: Var, to: Id) -> Id {
+    let mut memo = HashMap::new();
+    subst_memo(g, root, from, to, &mut memo)
+}
+
+fn subst_memo(g: &mut Graph, id: Id, from: Var, to: Id, memo: &mut HashMap<Id, Id>) -> Id {
+    if let Some(&r) = memo.get(&id) {
+        return r;
+    }
+    let mut s = |g: &mut Graph, a: Id| subst_memo(g, a, from, to, memo);
+    let result = match g.node(id) {
+        Node::Var(v) if v == from => to,
+        Node::Const(_) | Node::Var(_) | Node::Param(_) => id,
+        Node::Add(a, b) => {
+            let (a, b) = (s(g, a), s(g, b));
+            g.add(a, b)
+        }
+        Node::Sub(a, b) => {
+            let (a, b) = (s(g, a), s(g, b));
+            g.sub(a, b)
+        }
+        Node::Mul(a, b) => {
+            let (a, b) = (s(g, a), s(g, b));
+            g.mul(a, b)
+        }
+        Node::Div(a, b) => {
+            let (a, b) = (s(g, a), s(g, b));
+            g.div(a, b)
+        }
+        Node::Powf(a, b) => {
+            let (a, b) = (s(g, a), s(g, b));
+            g.powf(a, b)
+        }
+        Node::Neg(a) => {
+            let a = s(g, a);
+            g.neg(a)
+        }
+        Node::Ln(a) => {
+            let a = s(g, a);
+            g.ln(a)
+        }
+        Node::Exp(a) => {
+            let a = s(g, a);
+            g.exp(a)
+        }
+        Node::Sqrt(a) => {
+            let a = s(g, a);
+            g.sqrt(a)
+        }
+        Node::Powi(a, n) => {
+            let a = s(g, a);
+            g.powi(a, n)
+        }
+        Node::Abs(a) => {
+            let a = s(g, a);
+            g.abs(a)
+        }
+        Node::Signum(a) => {
+            let a = s(g, a);
+            g.signum(a)
+        }
+    };
+    memo.insert(id, result);
+    result
+}
+
+/// The Taylor extension T of `w` (a function of I1, I2, J) about J = J0.
+pub fn inversion_extension(g: &mut Graph, w: Id) -> Id {
+    let j = g.var(Var::J);
+    let j0 = g.var(Var::J0);
+    let wj = diff(g, w, Var::J);
+    let wjj = diff(g, wj, Var::J);
+    let w_at = substitute(g, w, Var::J, j0);
+    let wj_at = substitute(g, wj, Var::J, j0);
+    let wjj_at = substitute(g, wjj, Var::J, j0);
+    let dj = g.sub(j, j0);
+    let lin = g.mul(wj_at, dj);
+    let half = g.constant(0.5);
+    let dj2 = g.powi(dj, 2);
+    let q = g.mul(wjj_at, dj2);
+    let quad = g.mul(half, q);
+    let t = g.add(w_at, lin);
+    g.add(t, quad)
+}

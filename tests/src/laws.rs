@@ -1,0 +1,44 @@
+//! A law the `materials` crate does not have, declared here through the facade only,
+//! and the parameter ranges in which each registered law is well defined.
+
+use heml::prelude::*;
+use rand::Rng;
+
+/// A quartic test law, declared outside the workspace's `materials` crate to prove that
+/// user crates depending only on `heml` can add laws: it mixes I1, I2 and J with a
+/// `let` block, function and method calls, so every kernel branch is exercised.
+#[heml::material(name = "test_quartic")]
+#[energy({
+    let a = I1bar - 3.0;
+    let b = I2bar - 3.0;
+    c1 * a + c2 * a * b + c3 * powi(a, 2) * a.powi(2) + kappa * (J - 1.0 - ln(J))
+})]
+pub struct TestQuartic {
+    /// Linear term (Pa).
+    pub c1: f64,
+    /// Coupling of Ī1 and Ī2 (Pa).
+    #[param(signed)]
+    pub c2: f64,
+    /// Quartic term (Pa).
+    pub c3: f64,
+    /// Volumetric stiffness (Pa).
+    pub kappa: f64,
+}
+
+/// Random parameters for law `entry`, in ranges where the law is defined for the
+/// deformations the tests use (stretches 0.6–1.6, some inverted tets): Gent's locking
+/// parameter large enough that Ī1 − 3 < Jm, Arruda–Boyce's λm > 1, and so on.
+pub fn sample_params(entry: &MaterialEntry, rng: &mut impl Rng) -> Params {
+    let mut p = Params::new();
+    for info in entry.params {
+        let v = match (entry.name, info.name) {
+            ("gent", "jm") => rng.gen_range(40.0..80.0),
+            ("arruda_boyce", "lm") => rng.gen_range(2.0..6.0),
+            ("fung_demiray", "b") | ("veronda_westmann", "c2") => rng.gen_range(0.2..1.5),
+            (_, "kappa") | (_, "lambda") => rng.gen_range(1.0..10.0),
+            _ => rng.gen_range(0.3..2.0),
+        };
+        p.set(info.name, v);
+    }
+    p
+}

@@ -1,0 +1,8 @@
+/// The registry name is required.
+#[heml::material(no_inversion_fix)]
+#[energy(mu * (I1 - 3.0))]
+pub struct Anonymous {
+    pub mu: f64,
+}
+
+fn main() {}

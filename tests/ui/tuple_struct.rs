@@ -1,0 +1,6 @@
+/// Parameters need names.
+#[heml::material(name = "tuple")]
+#[energy(I1 - 3.0)]
+pub struct Tuple(pub f64);
+
+fn main() {}
