@@ -62,6 +62,8 @@ pub use heml_integrators as integrators;
 pub use heml_materials as materials;
 pub use nalgebra;
 
+pub mod validation;
+
 use heml_core::registry::MaterialEntry;
 use heml_core::system::{IntegratorEntry, SystemBuilder};
 use heml_core::{Integrator, Material, Params, TetMesh};

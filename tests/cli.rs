@@ -15,40 +15,75 @@ fn heml(args: &[&str]) -> (bool, String, String) {
 }
 
 /// The binary names the facade only; the registrations of `heml-materials` must
-/// survive linking all the same.
+/// survive linking all the same: every law the library registers is listed.
 #[test]
 fn materials_lists_every_built_in_law_from_the_binary() {
     let (ok, out, err) = heml(&["materials"]);
     assert!(ok, "{err}");
-    for name in [
-        "arruda_boyce",
-        "fung_demiray",
-        "gent",
-        "mass_spring",
-        "mooney_rivlin",
-        "neo_hookean",
-        "saint_venant_kirchhoff",
-        "stable_neo_hookean",
-        "veronda_westmann",
-        "yeoh",
-    ] {
-        assert!(out.contains(&format!("{name}  [")), "{name} missing from:\n{out}");
+    let laws = heml::materials_list();
+    assert!(laws.len() >= 10, "the library registers only {} laws", laws.len());
+    for law in laws {
+        assert!(
+            out.contains(&format!("{}  [", law.name)),
+            "{} missing from:\n{out}",
+            law.name
+        );
     }
     assert!(out.contains("w = mu / 2.0 * (I1 - 3.0)"), "energy text missing:\n{out}");
 }
 
+/// A 2 × 1 × 1 box of 6-tet cells written to a temporary .vtu: `heml info` must
+/// report its exact counts and volume, right-angle dihedral angles (every tet of the
+/// 6-split of a cube has some), and a stable time step for the chosen law.
 #[test]
-fn demo_agrees_with_p1_for_every_invariant_law() {
-    let (ok, out, err) = heml(&["demo"]);
+fn info_reports_counts_quality_and_stable_dt() {
+    use heml::heml_core::io::write_mesh;
+    use heml::heml_core::mesh::generate::{box_mesh, HexSplit};
+    let dir = std::env::temp_dir().join(format!("heml-info-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("box.vtu");
+    let mesh = box_mesh([2.0, 1.0, 1.0], [4, 2, 2], HexSplit::Six).unwrap();
+    write_mesh(&path, &mesh).unwrap();
+    let (ok, out, err) = heml(&["info", path.to_str().unwrap(), "--scale", "0.5", "--density", "1200"]);
     assert!(ok, "{err}");
-    let rows: Vec<&str> = out.lines().filter(|l| l.contains("e")).skip(2).collect();
-    assert!(rows.len() >= 10, "{out}");
-    for row in rows {
-        let last = row.split_whitespace().last().unwrap();
-        if last != "n/a" {
-            let rel: f64 = last.parse().unwrap_or_else(|_| panic!("bad row {row}"));
-            // HEML and P1 are the same forces: round-off only (see fem_equivalence.rs).
-            assert!(rel < 1e-11, "{row}");
-        }
+    let line = |key: &str| {
+        out.lines()
+            .find(|l| l.starts_with(key))
+            .unwrap_or_else(|| panic!("no '{key}' in\n{out}"))
+    };
+    assert!(line("nodes").ends_with(&mesh.n_nodes().to_string()), "{out}");
+    assert!(line("tets").contains(&mesh.n_tets().to_string()), "{out}");
+    // volume scales with the cube of --scale: 2 m³ × 0.125
+    let volume: f64 = line("volume").split_whitespace().last().unwrap().parse().unwrap();
+    assert!((volume - 0.25).abs() < 1e-12, "{out}");
+    assert!(line("dihedral angle").contains("max 90.00°"), "{out}");
+    let dt: f64 = line("stable dt").split_whitespace().nth(2).unwrap().parse().unwrap();
+    assert!(dt > 0.0 && dt.is_finite(), "{out}");
+    assert!(
+        line("stable dt").contains("neo_hookean E=3000 nu=0.45, density 1200"),
+        "{out}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn info_errors_name_the_problem() {
+    let (ok, _, err) = heml(&["info", "no/such/mesh.msh"]);
+    assert!(!ok && err.contains("no/such/mesh.msh"), "{err}");
+    let (ok, _, err) = heml(&["info", "mesh.xyz"]);
+    assert!(
+        !ok && err.contains(".msh"),
+        "unsupported extension should list the supported ones: {err}"
+    );
+    let shared = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/meshes/msh/sofa_liver.msh");
+    if std::path::Path::new(shared).exists() {
+        let (ok, _, err) = heml(&["info", shared, "--param", "E=abc"]);
+        assert!(!ok && err.contains("'abc' is not a number"), "{err}");
+        let (ok, _, err) = heml(&["info", shared, "--law", "neo_hokean"]);
+        assert!(!ok && err.contains("did you mean 'neo_hookean'"), "{err}");
+        let (ok, out, err) = heml(&["info", shared]);
+        assert!(ok && out.contains("596"), "sofa_liver has 596 tets: {out}{err}");
+    } else {
+        eprintln!("skipping the real-mesh part: ../shared/meshes not found");
     }
 }

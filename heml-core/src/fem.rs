@@ -1,9 +1,19 @@
 //! The standard P1 finite-element path, written independently of the HEML kernel:
 //! F = Ds·Dm⁻¹, P = ∂Ψ/∂F, f = −Vol·P·Dm⁻ᵀ. It is the test oracle for HEML (the two
 //! must agree to round-off) and the speed baseline HEML is measured against.
+//!
+//! Like [`crate::force::HemlField`] it has a plain serial kernel
+//! ([`FemField::add_forces_reference`], the oracle), and the same batched, parallel,
+//! deterministic assembly (the default), so that benchmarks compare the two
+//! formulations optimised alike.
+
+// The kernels index fixed-size lane arrays in lock-step on purpose (it is what
+// vectorises); iterator chains over several arrays would obscure that.
+#![allow(clippy::needless_range_loop)]
 
 use crate::error::Result;
-use crate::force::{check_sizes, selection, ElasticForces, ForceOptions};
+use crate::force::assembly::{BatchKernel, LaneForces, Layout, LANES};
+use crate::force::{check_sizes, selection, Assembly, ElasticForces, ForceOptions};
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
 use crate::rest::rest_edge_matrix;
@@ -38,73 +48,92 @@ pub fn energy_and_piola<M: InvariantLaw>(law: &M, f: &Matrix3<f64>, opts: &Force
     (d.w, p)
 }
 
+/// Rest data of `LANES` consecutive tets: volume and Dm⁻¹ (row-major), SoA.
+#[derive(Debug, Clone, Copy)]
+struct FemBatch {
+    vol: [f64; LANES],
+    dm_inv: [[f64; LANES]; 9],
+}
+
 /// Internal forces of an invariant law computed the standard P1 way.
 #[derive(Debug, Clone)]
 pub struct FemField<M: InvariantLaw> {
     law: M,
     opts: ForceOptions,
     n_nodes: usize,
-    ids: Vec<usize>,
-    tets: Vec<[u32; 4]>,
-    dm_inv: Vec<Matrix3<f64>>,
-    vol: Vec<f64>,
+    assembly: Assembly,
+    layout: Layout,
+    rest: Vec<FemBatch>,
 }
 
 impl<M: InvariantLaw> FemField<M> {
-    /// The field of `law` over the tets `tets` of `mesh` (all when `None`).
+    /// The field of `law` over the tets `tets` of `mesh` (all when `None`), stored in
+    /// Morton order (`tet_ids()` gives the global ids).
     pub fn on_tets(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
         opts.validate()?;
-        let ids = selection(mesh.n_tets(), tets)?;
-        let mut dm_inv = Vec::with_capacity(ids.len());
-        let mut vol = Vec::with_capacity(ids.len());
-        for &t in &ids {
+        let sel = selection(mesh.n_tets(), tets)?;
+        let layout = Layout::new(mesh, &sel, true);
+        let pad = FemBatch {
+            vol: [1.0; LANES],
+            dm_inv: [[0.0; LANES]; 9],
+        };
+        let mut rest = vec![pad; layout.n_batches()];
+        for (k, &t) in layout.ids.iter().enumerate() {
             let dm = rest_edge_matrix(&mesh.tet_points(t));
-            vol.push(dm.determinant() / 6.0);
-            dm_inv.push(dm.try_inverse().unwrap_or_else(Matrix3::zeros));
+            let inv = dm.try_inverse().unwrap_or_else(Matrix3::zeros);
+            let (b, l) = (k / LANES, k % LANES);
+            rest[b].vol[l] = dm.determinant() / 6.0;
+            for r in 0..3 {
+                for c in 0..3 {
+                    rest[b].dm_inv[3 * r + c][l] = inv[(r, c)];
+                }
+            }
         }
-        let tets = ids.iter().map(|&t| mesh.tets()[t]).collect();
         Ok(FemField {
             law,
             opts,
             n_nodes: mesh.n_nodes(),
-            ids,
-            tets,
-            dm_inv,
-            vol,
+            assembly: Assembly::default(),
+            layout,
+            rest,
         })
     }
 
-    #[inline(always)]
-    fn deformation_gradient(&self, k: usize, x: &[Vec3]) -> Matrix3<f64> {
-        let p = self.tets[k].map(|i| x[i as usize]);
-        Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * self.dm_inv[k]
+    /// Chooses the evaluation path `add_forces` uses (default [`Assembly::Parallel`]).
+    pub fn set_assembly(&mut self, assembly: Assembly) {
+        self.assembly = assembly;
     }
-}
 
-impl<M: InvariantLaw> ElasticForces for FemField<M> {
-    fn n_nodes(&self) -> usize {
-        self.n_nodes
+    /// Bytes of memory per tet this field holds (see `HemlField::bytes_per_tet`).
+    pub fn bytes_per_tet(&self) -> f64 {
+        let bytes = self.rest.len() * std::mem::size_of::<FemBatch>() + self.layout.heap_bytes();
+        bytes as f64 / self.layout.n_tets().max(1) as f64
     }
-    fn n_tets(&self) -> usize {
-        self.tets.len()
+
+    fn vol(&self, k: usize) -> f64 {
+        self.rest[k / LANES].vol[k % LANES]
     }
-    fn tet_ids(&self) -> &[usize] {
-        &self.ids
+
+    fn dm_inv(&self, k: usize) -> Matrix3<f64> {
+        let (b, l) = (k / LANES, k % LANES);
+        Matrix3::from_fn(|r, c| self.rest[b].dm_inv[3 * r + c][l])
     }
-    fn energy(&self, x: &[Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.tets.len())
-            .map(|k| self.vol[k] * energy_and_piola(&self.law, &self.deformation_gradient(k, x), &self.opts).0)
-            .sum())
+
+    #[inline(always)]
+    fn deformation_gradient(&self, k: usize, idx: &[u32; 4], x: &[Vec3]) -> Matrix3<f64> {
+        let p = idx.map(|i| x[i as usize]);
+        Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * self.dm_inv(k)
     }
-    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+
+    /// The plain serial P1 kernel (the oracle).
+    pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes, x, Some(f))?;
         let mut energy = 0.0;
-        for k in 0..self.tets.len() {
-            let (w, p) = energy_and_piola(&self.law, &self.deformation_gradient(k, x), &self.opts);
-            energy += self.vol[k] * w;
-            let h = -self.vol[k] * p * self.dm_inv[k].transpose();
-            let idx = self.tets[k];
+        for k in 0..self.layout.n_tets() {
+            let idx = self.layout.global_tet(k);
+            let (w, p) = energy_and_piola(&self.law, &self.deformation_gradient(k, &idx, x), &self.opts);
+            energy += self.vol(k) * w;
+            let h = -self.vol(k) * p * self.dm_inv(k).transpose();
             for a in 0..3 {
                 let fa: Vec3 = h.column(a).into();
                 f[idx[a + 1] as usize] += fa;
@@ -113,11 +142,218 @@ impl<M: InvariantLaw> ElasticForces for FemField<M> {
         }
         Ok(energy)
     }
+
+    /// The batched P1 kernel, serial, in the plain kernel's order.
+    pub fn add_forces_batched(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        Ok(self.layout.add_serial(&self.kernel(), x, f))
+    }
+
+    /// The batched P1 kernel on blocks in parallel, deterministic.
+    pub fn add_forces_parallel(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        Ok(self.layout.add_parallel(&self.kernel(), x, f))
+    }
+
+    fn kernel(&self) -> FemKernel<'_, M> {
+        FemKernel {
+            law: &self.law,
+            opts: self.opts,
+            rest: &self.rest,
+        }
+    }
+}
+
+struct FemKernel<'a, M> {
+    law: &'a M,
+    opts: ForceOptions,
+    rest: &'a [FemBatch],
+}
+
+impl<M: InvariantLaw> BatchKernel for FemKernel<'_, M> {
+    #[inline(always)]
+    fn batch(&self, b: usize, idx: &[[u32; 4]; LANES], x: &[Vec3], f: &mut LaneForces, en: &mut [f64; LANES]) {
+        const L: usize = LANES;
+        let r = &self.rest[b];
+        let mut p = [[[0.0; L]; 3]; 4];
+        for l in 0..L {
+            for a in 0..4 {
+                let q = &x[idx[l][a] as usize];
+                p[a][0][l] = q.x;
+                p[a][1][l] = q.y;
+                p[a][2][l] = q.z;
+            }
+        }
+        // Ds[row][col] = (x_{col+1} - x_0)[row]; F = Ds·Dm⁻¹
+        let mut ds = [[[0.0; L]; 3]; 3];
+        for row in 0..3 {
+            for col in 0..3 {
+                for l in 0..L {
+                    ds[row][col][l] = p[col + 1][row][l] - p[0][row][l];
+                }
+            }
+        }
+        let mut fm = [[[0.0; L]; 3]; 3];
+        for row in 0..3 {
+            for col in 0..3 {
+                for l in 0..L {
+                    fm[row][col][l] = ds[row][0][l] * r.dm_inv[col][l]
+                        + ds[row][1][l] * r.dm_inv[3 + col][l]
+                        + ds[row][2][l] * r.dm_inv[6 + col][l];
+                }
+            }
+        }
+        // C = FᵀF (symmetric)
+        let mut c = [[[0.0; L]; 3]; 3];
+        for a in 0..3 {
+            for bb in a..3 {
+                for l in 0..L {
+                    let v = fm[0][a][l] * fm[0][bb][l] + fm[1][a][l] * fm[1][bb][l] + fm[2][a][l] * fm[2][bb][l];
+                    c[a][bb][l] = v;
+                    c[bb][a][l] = v;
+                }
+            }
+        }
+        let mut i1 = [0.0; L];
+        let mut i2 = [0.0; L];
+        for l in 0..L {
+            i1[l] = c[0][0][l] + c[1][1][l] + c[2][2][l];
+        }
+        if M::USES_I2 {
+            for l in 0..L {
+                let mut tr = 0.0;
+                for a in 0..3 {
+                    for bb in 0..3 {
+                        tr += c[a][bb][l] * c[bb][a][l];
+                    }
+                }
+                i2[l] = 0.5 * (i1[l] * i1[l] - tr);
+            }
+        }
+        let mut j = [1.0; L];
+        let mut cof = [[[0.0; L]; 3]; 3];
+        if M::USES_J {
+            // columns of cof F: F1×F2, F2×F0, F0×F1
+            for (a, (s, t)) in [(1, 2), (2, 0), (0, 1)].into_iter().enumerate() {
+                for l in 0..L {
+                    let (ux, uy, uz) = (fm[0][s][l], fm[1][s][l], fm[2][s][l]);
+                    let (wx, wy, wz) = (fm[0][t][l], fm[1][t][l], fm[2][t][l]);
+                    cof[0][a][l] = uy * wz - uz * wy;
+                    cof[1][a][l] = uz * wx - ux * wz;
+                    cof[2][a][l] = ux * wy - uy * wx;
+                }
+            }
+            for l in 0..L {
+                j[l] = fm[0][0][l] * cof[0][0][l] + fm[1][0][l] * cof[1][0][l] + fm[2][0][l] * cof[2][0][l];
+            }
+        }
+        let (mut w, mut w1, mut w2, mut wj) = ([0.0; L], [0.0; L], [0.0; L], [0.0; L]);
+        let fix = M::INVERSION_FIX && self.opts.inversion_fix;
+        let j0 = self.opts.j0;
+        let mut any_ext = false;
+        if fix {
+            for l in 0..L {
+                any_ext |= j[l] < j0;
+            }
+        }
+        if !any_ext {
+            for l in 0..L {
+                let d = self.law.dw_fast(i1[l], i2[l], j[l]);
+                w[l] = d.w;
+                w1[l] = d.d[0];
+                w2[l] = d.d[1];
+                wj[l] = d.d[2];
+            }
+        } else {
+            for l in 0..L {
+                let d = if j[l] < j0 {
+                    self.law.dw_ext_fast(i1[l], i2[l], j[l], j0)
+                } else {
+                    self.law.dw_fast(i1[l], i2[l], j[l])
+                };
+                w[l] = d.w;
+                w1[l] = d.d[0];
+                w2[l] = d.d[1];
+                wj[l] = d.d[2];
+            }
+        }
+        // P = 2w1 F + 2w2 (I1 F − F C) + wJ cof F
+        let mut pk = [[[0.0; L]; 3]; 3];
+        for row in 0..3 {
+            for col in 0..3 {
+                for l in 0..L {
+                    let mut v = fm[row][col][l] * (2.0 * w1[l]);
+                    if M::USES_I2 {
+                        let fc =
+                            fm[row][0][l] * c[0][col][l] + fm[row][1][l] * c[1][col][l] + fm[row][2][l] * c[2][col][l];
+                        v += (fm[row][col][l] * i1[l] - fc) * (2.0 * w2[l]);
+                    }
+                    if M::USES_J {
+                        v += cof[row][col][l] * wj[l];
+                    }
+                    pk[row][col][l] = v;
+                }
+            }
+        }
+        // H = −vol P Dm⁻ᵀ: f_{a+1} = H[:, a], f_0 = −Σ_a H[:, a]
+        for row in 0..3 {
+            for l in 0..L {
+                f[0][row][l] = 0.0;
+            }
+            for a in 0..3 {
+                for l in 0..L {
+                    let h = -r.vol[l]
+                        * (pk[row][0][l] * r.dm_inv[3 * a][l]
+                            + pk[row][1][l] * r.dm_inv[3 * a + 1][l]
+                            + pk[row][2][l] * r.dm_inv[3 * a + 2][l]);
+                    f[a + 1][row][l] = h;
+                    f[0][row][l] -= h;
+                }
+            }
+        }
+        for l in 0..L {
+            en[l] = r.vol[l] * w[l];
+        }
+    }
+}
+
+impl<M: InvariantLaw> ElasticForces for FemField<M> {
+    fn n_nodes(&self) -> usize {
+        self.n_nodes
+    }
+    fn n_tets(&self) -> usize {
+        self.layout.n_tets()
+    }
+    fn tet_ids(&self) -> &[usize] {
+        &self.layout.ids
+    }
+    fn energy(&self, x: &[Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, None)?;
+        Ok((0..self.layout.n_tets())
+            .map(|k| {
+                let f = self.deformation_gradient(k, &self.layout.global_tet(k), x);
+                self.vol(k) * energy_and_piola(&self.law, &f, &self.opts).0
+            })
+            .sum())
+    }
+    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        match self.assembly {
+            Assembly::Reference => self.add_forces_reference(x, f),
+            Assembly::Batched => self.add_forces_batched(x, f),
+            Assembly::Parallel => self.add_forces_parallel(x, f),
+        }
+    }
+    fn set_assembly(&mut self, assembly: Assembly) {
+        self.assembly = assembly;
+    }
+    fn bytes_per_tet(&self) -> Option<f64> {
+        Some(FemField::bytes_per_tet(self))
+    }
     fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>> {
         check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.tets.len())
+        Ok((0..self.layout.n_tets())
             .map(|k| {
-                let f = self.deformation_gradient(k, x);
+                let f = self.deformation_gradient(k, &self.layout.global_tet(k), x);
                 (f.determinant(), energy_and_piola(&self.law, &f, &self.opts).0)
             })
             .collect())

@@ -98,6 +98,20 @@ pub trait InvariantLaw: MaterialInfo {
     fn dw_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs;
     /// The Taylor extension's second derivatives.
     fn d2w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> [[f64; 3]; 3];
+
+    /// [`Self::dw`] with `ln`/`exp`/`powf` replaced by the branch-free, inlinable
+    /// versions of [`crate::force::fastmath`] (equal to round-off), so that a loop over
+    /// the lanes of a batch of tets vectorises. `#[heml::material]` generates it; the
+    /// default falls back to [`Self::dw`].
+    #[inline(always)]
+    fn dw_fast(&self, i1: f64, i2: f64, j: f64) -> Derivs {
+        self.dw(i1, i2, j)
+    }
+    /// [`Self::dw_ext`] with the fast functions (see [`Self::dw_fast`]).
+    #[inline(always)]
+    fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        self.dw_ext(i1, i2, j, j0)
+    }
 }
 
 /// A law given by an energy per tetrahedron edge, w(l, L), with `l` the current and

@@ -19,6 +19,7 @@ pub mod mesh;
 pub mod params;
 pub mod registry;
 pub mod rest;
+pub mod scene;
 pub mod system;
 
 /// 3-vectors of f64: positions, velocities, forces.

@@ -21,6 +21,9 @@ pub struct Block {
 pub struct Names<'a> {
     /// Field names, in parameter order (read as `self.<name>`).
     pub params: &'a [Ident],
+    /// When set, `ln`/`exp`/`powf` call the inlinable, vectorisable versions at
+    /// `<path>::force::fastmath` (the core crate's path) instead of `f64`'s methods.
+    pub fast: Option<&'a TokenStream>,
 }
 
 impl Names<'_> {
@@ -144,8 +147,14 @@ fn operation(g: &Graph, names: &Names, id: Id) -> Option<TokenStream> {
             let a = o(a);
             quote!(-#a)
         }
-        Node::Ln(a) => method(o(a), "ln"),
-        Node::Exp(a) => method(o(a), "exp"),
+        Node::Ln(a) => match names.fast {
+            Some(core) => fast_call(core, "ln", &[o(a)]),
+            None => method(o(a), "ln"),
+        },
+        Node::Exp(a) => match names.fast {
+            Some(core) => fast_call(core, "exp", &[o(a)]),
+            None => method(o(a), "exp"),
+        },
         Node::Sqrt(a) => method(o(a), "sqrt"),
         Node::Abs(a) => method(o(a), "abs"),
         Node::Signum(a) => method(o(a), "signum"),
@@ -160,10 +169,18 @@ fn operation(g: &Graph, names: &Names, id: Id) -> Option<TokenStream> {
         }
         Node::Powf(a, b) => {
             let (a, b) = (o(a), o(b));
-            quote!(#a.powf(#b))
+            match names.fast {
+                Some(core) => fast_call(core, "powf", &[a, b]),
+                None => quote!(#a.powf(#b)),
+            }
         }
         Node::Const(_) | Node::Var(_) | Node::Param(_) => return None,
     })
+}
+
+fn fast_call(core: &TokenStream, name: &str, args: &[TokenStream]) -> TokenStream {
+    let f = Ident::new(name, Span::call_site());
+    quote!(#core::force::fastmath::#f(#(#args),*))
 }
 
 fn method(receiver: TokenStream, name: &str) -> TokenStream {

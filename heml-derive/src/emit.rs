@@ -118,14 +118,34 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
             [#(#rows),*]
         }
     };
-    quote!(#w_fn #dw_fn #d2w_fn)
+    // the same value and gradient with the vectorisable ln/exp/powf
+    let fast = Names {
+        params: names.params,
+        fast: Some(core),
+    };
+    let roots = d.value_and_grad();
+    let (a, b) = (args(&roots), codegen::block(g, &fast, &roots));
+    let (lets, o) = (b.lets, &b.outputs);
+    let (w, w1, w2, wj) = (&o[0], &o[1], &o[2], &o[3]);
+    let fn_fast = quote::format_ident!("dw{}_fast", suffix);
+    let fast_fn = quote! {
+        #[inline(always)]
+        fn #fn_fast(&self, #a) -> #core::law::Derivs {
+            #lets
+            #core::law::Derivs { w: #w, d: [#w1, #w2, #wj] }
+        }
+    };
+    quote!(#w_fn #dw_fn #d2w_fn #fast_fn)
 }
 
 /// `impl InvariantLaw`.
 pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernels) -> TokenStream {
     let ty = &decl.item.ident;
     let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
-    let names = Names { params: &fields };
+    let names = Names {
+        params: &fields,
+        fast: None,
+    };
     let plain = invariant_fns(core, k, &names, &k.plain, false);
     let ext = match &k.ext {
         Some(d) => invariant_fns(core, k, &names, d, true),
@@ -141,6 +161,10 @@ pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernel
             #[inline]
             fn d2w_ext(&self, i1: f64, i2: f64, j: f64, _j0: f64) -> [[f64; 3]; 3] {
                 <Self as #core::law::InvariantLaw>::d2w(self, i1, i2, j)
+            }
+            #[inline(always)]
+            fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, _j0: f64) -> #core::law::Derivs {
+                <Self as #core::law::InvariantLaw>::dw_fast(self, i1, i2, j)
             }
         },
     };
@@ -164,7 +188,10 @@ pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernel
 pub fn link_law(core: &TokenStream, decl: &Declaration, k: &LinkKernels) -> TokenStream {
     let ty = &decl.item.ident;
     let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
-    let names = Names { params: &fields };
+    let names = Names {
+        params: &fields,
+        fast: None,
+    };
     let g = &k.graph;
     let args = |roots: &[Id]| {
         let [l, rest] = [Var::LinkL, Var::RestL].map(|v| Names::arg(v, g.uses(roots, v)));

@@ -8,6 +8,14 @@
 #[allow(dead_code, rustdoc::broken_intra_doc_links)]
 pub mod law;
 
+/// The vectorisable math the generated `dw_fast` calls (`heml-core/src/force/fastmath.rs`).
+#[path = "../../heml-core/src/force/fastmath.rs"]
+#[allow(dead_code)]
+pub mod fastmath_impl;
+pub mod force {
+    pub use crate::fastmath_impl as fastmath;
+}
+
 /// The registry entry, with the fields of `heml_core::registry::MaterialEntry`.
 pub mod registry {
     use crate::law::{LawKind, ParamInfo};

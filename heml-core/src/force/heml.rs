@@ -1,28 +1,49 @@
 //! The HEML force field: per tet, invariants from the six squared edge lengths,
 //! forces along the links plus (for laws using J) the volume term (DESIGN §1).
+//!
+//! Three evaluation paths compute the same forces (see [`Assembly`]):
+//! the plain serial kernel [`HemlField::add_forces_reference`] (one tet at a time,
+//! the law's `dw`, the definition the others are tested against), a serial batched
+//! kernel, and the default parallel blocked kernel (`ElasticForces::add_forces`).
 
-use super::{check_sizes, scatter_links, selection, ElasticForces, ForceOptions};
+// The kernels index fixed-size lane arrays in lock-step on purpose (it is what
+// vectorises); iterator chains over several arrays would obscure that.
+#![allow(clippy::needless_range_loop)]
+
+use super::assembly::{BatchKernel, LaneForces, Layout, LANES};
+use super::{check_sizes, scatter_links, selection, Assembly, ElasticForces, ForceOptions};
 use crate::error::Result;
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, mtr_times, RestTet, MTR_LEN};
+use crate::rest::{edge_vectors, mtr_index, mtr_times, RestTet, EDGES, MTR_LEN};
 use crate::Vec3;
+
+/// Rest data of `LANES` consecutive tets, structure of arrays.
+#[derive(Debug, Clone, Copy)]
+struct RestBatch {
+    vol: [f64; LANES],
+    vtr: [[f64; LANES]; 6],
+}
+
+/// `Mtr` of `LANES` consecutive tets (only stored for laws using I2).
+type MtrBatch = [[f64; LANES]; MTR_LEN];
 
 /// Internal forces of an invariant law `M` over (a region of) a mesh.
 ///
 /// Monomorphised per law: `USES_I2`/`USES_J` are constants, so the dead parts of the
 /// kernel (the 6×6 `Mtr` product, the cross products) vanish at compile time, and
-/// `Mtr` is not even stored for laws that do not use I2.
+/// `Mtr` is not even stored for laws that do not use I2. The tets are kept in Morton
+/// order (`tet_ids()` gives the global id of each), with rest data in batches of
+/// [`LANES`] tets; see [`super::assembly`] for the parallel, deterministic assembly.
 #[derive(Debug, Clone)]
 pub struct HemlField<M: InvariantLaw> {
     law: M,
     opts: ForceOptions,
     n_nodes: usize,
-    ids: Vec<usize>,
-    tets: Vec<[u32; 4]>,
-    vol: Vec<f64>,
-    vtr: Vec<[f64; 6]>,
-    mtr: Vec<[f64; MTR_LEN]>,
+    assembly: Assembly,
+    layout: Layout,
+    rest: Vec<RestBatch>,
+    mtr: Vec<MtrBatch>,
 }
 
 /// What one tet contributes.
@@ -38,30 +59,51 @@ impl<M: InvariantLaw> HemlField<M> {
         Self::on_tets(law, mesh, None, opts)
     }
 
-    /// The field of `law` over the tets `tets` of `mesh` (all when `None`).
+    /// The field of `law` over the tets `tets` of `mesh` (all when `None`), stored in
+    /// Morton order.
     pub fn on_tets(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
+        Self::build(law, mesh, tets, opts, true)
+    }
+
+    /// As [`Self::on_tets`], keeping the tets in the given order (no Morton
+    /// reordering); for tests and benchmarks of the reordering itself.
+    pub fn on_tets_unordered(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
+        Self::build(law, mesh, tets, opts, false)
+    }
+
+    fn build(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions, reorder: bool) -> Result<Self> {
         opts.validate()?;
-        let ids = selection(mesh.n_tets(), tets)?;
-        let mut field = HemlField {
+        let sel = selection(mesh.n_tets(), tets)?;
+        let layout = Layout::new(mesh, &sel, reorder);
+        let nb = layout.n_batches();
+        let pad = RestBatch {
+            vol: [1.0; LANES],
+            vtr: [[0.0; LANES]; 6],
+        };
+        let mut rest = vec![pad; nb];
+        let mut mtr = vec![[[0.0; LANES]; MTR_LEN]; if M::USES_I2 { nb } else { 0 }];
+        for (k, &t) in layout.ids.iter().enumerate() {
+            let r = RestTet::new(&mesh.tet_points(t));
+            let (b, l) = (k / LANES, k % LANES);
+            rest[b].vol[l] = r.vol;
+            for e in 0..6 {
+                rest[b].vtr[e][l] = r.vtr[e];
+            }
+            if M::USES_I2 {
+                for (i, m) in r.mtr.iter().enumerate() {
+                    mtr[b][i][l] = *m;
+                }
+            }
+        }
+        Ok(HemlField {
             law,
             opts,
             n_nodes: mesh.n_nodes(),
-            tets: Vec::with_capacity(ids.len()),
-            vol: Vec::with_capacity(ids.len()),
-            vtr: Vec::with_capacity(ids.len()),
-            mtr: Vec::with_capacity(if M::USES_I2 { ids.len() } else { 0 }),
-            ids,
-        };
-        for &t in &field.ids {
-            let rest = RestTet::new(&mesh.tet_points(t));
-            field.tets.push(mesh.tets()[t]);
-            field.vol.push(rest.vol);
-            field.vtr.push(rest.vtr);
-            if M::USES_I2 {
-                field.mtr.push(rest.mtr);
-            }
-        }
-        Ok(field)
+            assembly: Assembly::default(),
+            layout,
+            rest,
+            mtr,
+        })
     }
 
     /// The law.
@@ -69,27 +111,42 @@ impl<M: InvariantLaw> HemlField<M> {
         &self.law
     }
 
-    /// Bytes of per-tet data this field stores.
-    pub fn bytes_per_tet(&self) -> usize {
-        let mut b = std::mem::size_of::<[u32; 4]>() + 8 + 48 + std::mem::size_of::<usize>();
-        if M::USES_I2 {
-            b += 8 * MTR_LEN;
-        }
-        b
+    /// The evaluation path `add_forces` uses.
+    pub fn assembly(&self) -> Assembly {
+        self.assembly
     }
 
-    /// Energy, J and the four nodal forces of the field's `k`-th tet.
+    /// Chooses the evaluation path `add_forces` uses (default [`Assembly::Parallel`]).
+    pub fn set_assembly(&mut self, assembly: Assembly) {
+        self.assembly = assembly;
+    }
+
+    /// Bytes of memory per tet this field holds: rest data, indices, blocks, merge
+    /// lists and the scratch buffers of the parallel path.
+    pub fn bytes_per_tet(&self) -> f64 {
+        let bytes = self.rest.len() * std::mem::size_of::<RestBatch>()
+            + self.mtr.len() * std::mem::size_of::<MtrBatch>()
+            + self.layout.heap_bytes();
+        bytes as f64 / self.layout.n_tets().max(1) as f64
+    }
+
+    fn vol(&self, k: usize) -> f64 {
+        self.rest[k / LANES].vol[k % LANES]
+    }
+
+    /// Energy, J and the four nodal forces of the field's `k`-th tet: the plain kernel.
     #[inline(always)]
-    pub(crate) fn tet(&self, k: usize, x: &[Vec3]) -> TetResult {
-        let idx = self.tets[k];
+    pub(crate) fn tet(&self, k: usize, idx: &[u32; 4], x: &[Vec3]) -> TetResult {
+        let (b, lane) = (k / LANES, k % LANES);
         let p = idx.map(|i| x[i as usize]);
         let v = edge_vectors(&p);
         let l = v.map(|e| e.norm_squared());
-        let vtr = &self.vtr[k];
-        let vol = self.vol[k];
+        let vtr: [f64; 6] = std::array::from_fn(|e| self.rest[b].vtr[e][lane]);
+        let vol = self.rest[b].vol[lane];
         let i1: f64 = (0..6).map(|e| vtr[e] * l[e]).sum();
         let (i2, ml) = if M::USES_I2 {
-            let ml = mtr_times(&self.mtr[k], &l);
+            let m: [f64; MTR_LEN] = std::array::from_fn(|i| self.mtr[b][i][lane]);
+            let ml = mtr_times(&m, &l);
             let tr_c2: f64 = (0..6).map(|e| ml[e] * l[e]).sum();
             (0.5 * (i1 * i1 - tr_c2), ml)
         } else {
@@ -130,6 +187,203 @@ impl<M: InvariantLaw> HemlField<M> {
             f,
         }
     }
+
+    /// The plain serial kernel: one tet at a time in field order, the law's `dw`,
+    /// forces added node by node. The reference every optimised path is tested
+    /// against.
+    pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        let mut energy = 0.0;
+        for k in 0..self.layout.n_tets() {
+            let idx = self.layout.global_tet(k);
+            let r = self.tet(k, &idx, x);
+            energy += r.energy;
+            for (a, &i) in idx.iter().enumerate() {
+                f[i as usize] += r.f[a];
+            }
+        }
+        Ok(energy)
+    }
+
+    /// The batched kernel run serially over global indices, summing forces in the
+    /// plain kernel's order.
+    pub fn add_forces_batched(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        Ok(self.layout.add_serial(&self.kernel(), x, f))
+    }
+
+    /// The batched kernel on blocks in parallel (rayon's current pool), summed in an
+    /// order independent of the thread count.
+    pub fn add_forces_parallel(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        Ok(self.layout.add_parallel(&self.kernel(), x, f))
+    }
+
+    fn kernel(&self) -> HemlKernel<'_, M> {
+        HemlKernel {
+            law: &self.law,
+            opts: self.opts,
+            rest: &self.rest,
+            mtr: &self.mtr,
+        }
+    }
+}
+
+/// The batch kernel of a [`HemlField`].
+struct HemlKernel<'a, M> {
+    law: &'a M,
+    opts: ForceOptions,
+    rest: &'a [RestBatch],
+    mtr: &'a [MtrBatch],
+}
+
+impl<M: InvariantLaw> BatchKernel for HemlKernel<'_, M> {
+    #[inline(always)]
+    fn batch(&self, b: usize, idx: &[[u32; 4]; LANES], x: &[Vec3], f: &mut LaneForces, en: &mut [f64; LANES]) {
+        const L: usize = LANES;
+        let r = &self.rest[b];
+        let mut p = [[[0.0; L]; 3]; 4];
+        for l in 0..L {
+            for a in 0..4 {
+                let q = &x[idx[l][a] as usize];
+                p[a][0][l] = q.x;
+                p[a][1][l] = q.y;
+                p[a][2][l] = q.z;
+            }
+        }
+        let mut v = [[[0.0; L]; 3]; 6];
+        for (e, &(t, h)) in EDGES.iter().enumerate() {
+            for c in 0..3 {
+                for l in 0..L {
+                    v[e][c][l] = p[h][c][l] - p[t][c][l];
+                }
+            }
+        }
+        let mut len = [[0.0; L]; 6];
+        for e in 0..6 {
+            for l in 0..L {
+                len[e][l] = v[e][0][l] * v[e][0][l] + v[e][1][l] * v[e][1][l] + v[e][2][l] * v[e][2][l];
+            }
+        }
+        let mut i1 = [0.0; L];
+        for e in 0..6 {
+            for l in 0..L {
+                i1[l] += r.vtr[e][l] * len[e][l];
+            }
+        }
+        let mut i2 = [0.0; L];
+        let mut ml = [[0.0; L]; 6];
+        if M::USES_I2 {
+            let m = &self.mtr[b];
+            for e in 0..6 {
+                for g in 0..6 {
+                    for l in 0..L {
+                        ml[e][l] += m[mtr_index(e, g)][l] * len[g][l];
+                    }
+                }
+            }
+            let mut tr_c2 = [0.0; L];
+            for e in 0..6 {
+                for l in 0..L {
+                    tr_c2[l] += ml[e][l] * len[e][l];
+                }
+            }
+            for l in 0..L {
+                i2[l] = 0.5 * (i1[l] * i1[l] - tr_c2[l]);
+            }
+        }
+        let mut j = [1.0; L];
+        let mut cr = [[[0.0; L]; 3]; 3];
+        if M::USES_J {
+            // crosses v2×v3, v3×v1, v1×v2
+            for (a, (s, t)) in [(1, 2), (2, 0), (0, 1)].into_iter().enumerate() {
+                for l in 0..L {
+                    let (ux, uy, uz) = (v[s][0][l], v[s][1][l], v[s][2][l]);
+                    let (wx, wy, wz) = (v[t][0][l], v[t][1][l], v[t][2][l]);
+                    cr[a][0][l] = uy * wz - uz * wy;
+                    cr[a][1][l] = uz * wx - ux * wz;
+                    cr[a][2][l] = ux * wy - uy * wx;
+                }
+            }
+            for l in 0..L {
+                let det = v[0][0][l] * cr[0][0][l] + v[0][1][l] * cr[0][1][l] + v[0][2][l] * cr[0][2][l];
+                j[l] = det / (6.0 * r.vol[l]);
+            }
+        }
+        let (mut w, mut w1, mut w2, mut wj) = ([0.0; L], [0.0; L], [0.0; L], [0.0; L]);
+        let fix = M::INVERSION_FIX && self.opts.inversion_fix;
+        let j0 = self.opts.j0;
+        let mut any_ext = false;
+        if fix {
+            for l in 0..L {
+                any_ext |= j[l] < j0;
+            }
+        }
+        if !any_ext {
+            for l in 0..L {
+                let d = self.law.dw_fast(i1[l], i2[l], j[l]);
+                w[l] = d.w;
+                w1[l] = d.d[0];
+                w2[l] = d.d[1];
+                wj[l] = d.d[2];
+            }
+        } else {
+            for l in 0..L {
+                let d = if j[l] < j0 {
+                    self.law.dw_ext_fast(i1[l], i2[l], j[l], j0)
+                } else {
+                    self.law.dw_fast(i1[l], i2[l], j[l])
+                };
+                w[l] = d.w;
+                w1[l] = d.d[0];
+                w2[l] = d.d[1];
+                wj[l] = d.d[2];
+            }
+        }
+        let mut g = [[0.0; L]; 6];
+        for e in 0..6 {
+            for l in 0..L {
+                let mut ge = w1[l] * r.vtr[e][l];
+                if M::USES_I2 {
+                    ge += w2[l] * (i1[l] * r.vtr[e][l] - ml[e][l]);
+                }
+                g[e][l] = r.vol[l] * ge;
+            }
+        }
+        // node forces, summed in the plain kernel's order (links, then volume term)
+        let mut s = [0.0; L];
+        for l in 0..L {
+            s[l] = wj[l] / 6.0;
+        }
+        for c in 0..3 {
+            let mut fe = [[0.0; L]; 6];
+            for e in 0..6 {
+                for l in 0..L {
+                    fe[e][l] = v[e][c][l] * (2.0 * g[e][l]);
+                }
+            }
+            for l in 0..L {
+                f[0][c][l] = fe[0][l] + fe[1][l] + fe[2][l];
+                f[1][c][l] = -fe[0][l] + fe[3][l] - fe[5][l];
+                f[2][c][l] = -fe[1][l] - fe[3][l] + fe[4][l];
+                f[3][c][l] = -fe[2][l] - fe[4][l] + fe[5][l];
+            }
+            if M::USES_J {
+                for l in 0..L {
+                    let (c0, c1, c2) = (cr[0][c][l] * s[l], cr[1][c][l] * s[l], cr[2][c][l] * s[l]);
+                    f[1][c][l] -= c0;
+                    f[0][c][l] += c0;
+                    f[2][c][l] -= c1;
+                    f[0][c][l] += c1;
+                    f[3][c][l] -= c2;
+                    f[0][c][l] += c2;
+                }
+            }
+        }
+        for l in 0..L {
+            en[l] = r.vol[l] * w[l];
+        }
+    }
 }
 
 impl<M: InvariantLaw> ElasticForces for HemlField<M> {
@@ -137,41 +391,45 @@ impl<M: InvariantLaw> ElasticForces for HemlField<M> {
         self.n_nodes
     }
     fn n_tets(&self) -> usize {
-        self.tets.len()
+        self.layout.n_tets()
     }
     fn tet_ids(&self) -> &[usize] {
-        &self.ids
+        &self.layout.ids
     }
 
     fn energy(&self, x: &[Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.tets.len()).map(|k| self.tet(k, x).energy).sum())
+        match self.assembly {
+            Assembly::Reference => Ok((0..self.layout.n_tets())
+                .map(|k| self.tet(k, &self.layout.global_tet(k), x).energy)
+                .sum()),
+            _ => self.add_forces(x, &mut vec![Vec3::zeros(); self.n_nodes]),
+        }
     }
 
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        let mut energy = 0.0;
-        for k in 0..self.tets.len() {
-            let r = self.tet(k, x);
-            energy += r.energy;
-            for (a, &i) in self.tets[k].iter().enumerate() {
-                f[i as usize] += r.f[a];
-            }
+        match self.assembly {
+            Assembly::Reference => self.add_forces_reference(x, f),
+            Assembly::Batched => self.add_forces_batched(x, f),
+            Assembly::Parallel => self.add_forces_parallel(x, f),
         }
-        Ok(energy)
+    }
+
+    fn set_assembly(&mut self, assembly: Assembly) {
+        self.assembly = assembly;
+    }
+    fn bytes_per_tet(&self) -> Option<f64> {
+        Some(HemlField::bytes_per_tet(self))
     }
 
     fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>> {
         check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.tets.len())
+        Ok((0..self.layout.n_tets())
             .map(|k| {
-                let r = self.tet(k, x);
-                let j = if M::USES_J {
-                    r.j
-                } else {
-                    signed_j(&self.tets[k], x, self.vol[k])
-                };
-                (j, r.energy / self.vol[k])
+                let idx = self.layout.global_tet(k);
+                let r = self.tet(k, &idx, x);
+                let j = if M::USES_J { r.j } else { signed_j(&idx, x, self.vol(k)) };
+                (j, r.energy / self.vol(k))
             })
             .collect())
     }

@@ -1,16 +1,32 @@
 //! Internal elastic forces: the HEML link kernels, the mass–spring link path, and
 //! the shared interface through which a system evaluates any of them.
 
+pub mod assembly;
+pub mod fastmath;
 mod heml;
 mod link;
 mod options;
 
+pub use assembly::SimdLevel;
 pub use heml::HemlField;
 pub use link::LinkField;
 pub use options::ForceOptions;
 
 use crate::error::{HemlError, Result};
 use crate::Vec3;
+
+/// Which evaluation path a field's `add_forces` takes. All give the same forces to
+/// round-off; `Parallel` gives the same bits for any number of threads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Assembly {
+    /// The plain serial kernel, one tet at a time (the reference).
+    Reference,
+    /// Batches of [`assembly::LANES`] tets, vectorised, serial.
+    Batched,
+    /// Batches on blocks of tets in parallel (rayon), deterministic (the default).
+    #[default]
+    Parallel,
+}
 
 /// A force field over a mesh, evaluated once per step behind one dynamic call.
 pub trait ElasticForces: Send + Sync {
@@ -27,6 +43,14 @@ pub trait ElasticForces: Send + Sync {
     fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>>;
     /// Global ids of the tets this field covers, in its order.
     fn tet_ids(&self) -> &[usize];
+
+    /// Chooses the evaluation path of [`Self::add_forces`] for fields that have
+    /// several (HEML and P1 fields); a no-op for the others.
+    fn set_assembly(&mut self, _assembly: Assembly) {}
+    /// Memory the field holds per tet, in bytes, when it reports it.
+    fn bytes_per_tet(&self) -> Option<f64> {
+        None
+    }
 
     /// Energy and forces in one freshly allocated buffer.
     fn forces(&self, x: &[Vec3]) -> Result<(f64, Vec<Vec3>)> {

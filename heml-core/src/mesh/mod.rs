@@ -2,6 +2,8 @@
 //! oriented (reordered at load) and non-degenerate.
 
 pub mod generate;
+pub mod quality;
+pub mod reorder;
 
 use crate::error::{HemlError, Result};
 use crate::Vec3;
@@ -182,6 +184,19 @@ impl TetMesh {
             hi = hi.sup(p);
         }
         (lo, hi)
+    }
+
+    /// The same mesh with every coordinate multiplied by `factor` (unit conversion,
+    /// e.g. 0.001 for millimetres → metres).
+    pub fn scaled(&self, factor: f64) -> Result<TetMesh> {
+        if !(factor.is_finite() && factor > 0.0) {
+            return Err(HemlError::Invalid(format!(
+                "scale factor {factor} must be positive and finite"
+            )));
+        }
+        let mut out = self.clone();
+        out.nodes.iter_mut().for_each(|p| *p *= factor);
+        Ok(out)
     }
 
     /// Indices of the tets whose tag is `tag`.

@@ -69,6 +69,7 @@ mod energy;
 mod integrator;
 mod prony;
 mod stability;
+pub mod statics;
 
 #[cfg(test)]
 mod tests;
@@ -82,6 +83,7 @@ pub use stability::{
     lame_at_rest, power_iteration_time_step, stable_time_step, wave_speed_time_step, TimeStepPolicy, DEFAULT_SAFETY,
     WAVE_FACTOR,
 };
+pub use statics::{Slider, StaticOptions, StaticReport};
 
 use crate::error::{HemlError, Result};
 use crate::force::ElasticForces;

@@ -73,18 +73,7 @@ pub fn lame_at_rest(material: &dyn Material, opts: &ForceOptions) -> Option<(f64
 
 /// Smallest height of a tet: 3·Vol / (largest face area).
 fn min_height(sys: &System, tets: &[usize]) -> f64 {
-    let mesh = sys.mesh();
-    tets.iter()
-        .map(|&t| {
-            let p = mesh.tet_points(t);
-            let faces = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
-            let amax = faces
-                .iter()
-                .map(|&[a, b, c]| 0.5 * (p[b] - p[a]).cross(&(p[c] - p[a])).norm())
-                .fold(0.0, f64::max);
-            3.0 * mesh.tet_volume(t) / amax
-        })
-        .fold(f64::INFINITY, f64::min)
+    crate::mesh::quality::mesh_quality(sys.mesh(), Some(tets)).map_or(f64::INFINITY, |q| q.min_height.0)
 }
 
 /// The wave-speed part of the estimate for one region: `Some(WAVE_FACTOR·h_min/c)`,

@@ -1,0 +1,76 @@
+//! TOML errors turned into HEML errors with a line number and a "did you mean",
+//! and line look-ups for semantic errors.
+
+use std::path::Path;
+
+use crate::error::HemlError;
+use crate::registry::closest;
+
+/// A TOML/serde error as [`HemlError::Parse`]: the file, the 1-based line of the
+/// offending key or value, the message and, for an unknown key or value, the
+/// closest expected one.
+pub(crate) fn toml_error(origin: &Path, text: &str, e: &toml::de::Error) -> HemlError {
+    let line = e.span().map_or(0, |s| line_of(text, s.start));
+    let mut msg = e.message().trim().replace('\n', " ");
+    if let Some(s) = suggestion(&msg) {
+        msg.push_str(&format!("; did you mean `{s}`?"));
+    }
+    HemlError::Parse {
+        file: origin.to_path_buf(),
+        line,
+        msg,
+    }
+}
+
+/// For "unknown field `x`, expected one of `a`, `b`" (and "unknown variant"), the
+/// expected name closest to `x`.
+pub(crate) fn suggestion(msg: &str) -> Option<String> {
+    let rest = ["unknown field `", "unknown variant `"]
+        .iter()
+        .find_map(|p| msg.split_once(p).map(|(_, r)| r))?;
+    let (word, rest) = rest.split_once('`')?;
+    let (_, expected) = rest.split_once("expected")?;
+    let names: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+    closest(word, &names).map(str::to_string)
+}
+
+/// 1-based line of byte offset `pos`.
+pub(crate) fn line_of(text: &str, pos: usize) -> usize {
+    let pos = pos.min(text.len());
+    text.as_bytes()[..pos].iter().filter(|&&b| b == b'\n').count() + 1
+}
+
+/// Line of the `index`-th (0-based) `[[table]]` header, when written as a header.
+pub(crate) fn entry_line(text: &str, table: &str, index: usize) -> Option<usize> {
+    let header = format!("[[{table}]]");
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| l.trim_start().starts_with(&header))
+        .nth(index)
+        .map(|(i, _)| i + 1)
+}
+
+/// Line of the `[table]` header.
+pub(crate) fn table_line(text: &str, table: &str) -> Option<usize> {
+    let header = format!("[{table}]");
+    text.lines()
+        .position(|l| l.trim_start().starts_with(&header))
+        .map(|i| i + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn suggests_the_closest_expected_name() {
+        let m = "unknown field `densty`, expected one of `law`, `params`, `density`, `tag`, `prony`";
+        assert_eq!(suggestion(m).as_deref(), Some("density"));
+        let m = "unknown variant `smoth`, expected one of `step`, `linear`, `smooth`";
+        assert_eq!(suggestion(m).as_deref(), Some("smooth"));
+        assert_eq!(suggestion("unknown field `zzzzzzzz`, expected `law`"), None);
+        assert_eq!(suggestion("invalid type: string"), None);
+        assert_eq!(line_of("a\nb\nc", 2), 2);
+        assert_eq!(entry_line("x\n[[fix]]\n\n [[fix]]\n", "fix", 1), Some(4));
+    }
+}

@@ -1,0 +1,263 @@
+//! The data of a scene file, as deserialized from TOML (see `scenes/example.toml`
+//! for a fully commented file). Every table rejects unknown keys.
+
+use serde::Deserialize;
+
+use crate::mesh::generate::HexSplit;
+use crate::params::Params;
+use crate::system::{PronyTerm, Ramp, TimeStepPolicy};
+
+/// Where the body comes from and how its coordinates map to metres.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// A mesh file (`.msh`, `.vtk`, `.vtu`, `.node`/`.ele`, `.mesh`), relative to the
+    /// scene file's directory. Exactly one of `file` and `generate`.
+    pub file: Option<String>,
+    /// A generated box or beam.
+    pub generate: Option<GenerateSpec>,
+    /// Multiplies the mesh coordinates (and the generated `size`) to get metres.
+    /// Exclusive with `units`.
+    pub scale: Option<f64>,
+    /// Length unit of the mesh coordinates (and of the generated `size`).
+    pub units: Option<Units>,
+    /// Translation in metres, applied after the scaling.
+    pub translate: Option<[f64; 3]>,
+    /// Hold nodes that belong to no tet in place (with a warning) instead of
+    /// refusing the mesh.
+    #[serde(default)]
+    pub pin_unreferenced: bool,
+}
+
+/// Length units of a mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Units {
+    /// Metres.
+    M,
+    /// Centimetres.
+    Cm,
+    /// Millimetres.
+    Mm,
+    /// Micrometres.
+    Um,
+}
+
+impl Units {
+    /// Metres per unit.
+    pub fn to_metres(self) -> f64 {
+        match self {
+            Units::M => 1.0,
+            Units::Cm => 1e-2,
+            Units::Mm => 1e-3,
+            Units::Um => 1e-6,
+        }
+    }
+}
+
+/// Kind of generated mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GenerateKind {
+    /// `[0, size.x] × [0, size.y] × [0, size.z]` with `cells = [nx, ny, nz]`.
+    Box,
+    /// A beam along x: `cells = [n]` cells along its length and as many across as
+    /// keep the cells close to cubes (or `cells = [nx, ny, nz]` like a box).
+    Beam,
+}
+
+/// A generated mesh.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GenerateSpec {
+    /// `box` or `beam`.
+    pub kind: GenerateKind,
+    /// Extent along x, y, z (in the mesh units).
+    pub size: [f64; 3],
+    /// Hexahedral cells: `[nx, ny, nz]`, or `[n]` along the length of a beam.
+    pub cells: Vec<usize>,
+    /// Tets per cell: `five`, `six` (default) or `twentyfour`.
+    #[serde(default)]
+    pub split: HexSplit,
+}
+
+/// One material: a registered law with its parameters, over one tag or all tets.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Registry name (`heml materials` lists them).
+    pub law: String,
+    /// Parameters by name; laws with exactly `mu`, `lambda` also accept `E`, `nu`.
+    #[serde(default)]
+    pub params: Params,
+    /// Density in kg/m³ (default 1000).
+    pub density: Option<f64>,
+    /// Mesh tag whose tets this material covers; absent: every tet that no tagged
+    /// material claims.
+    pub tag: Option<i32>,
+    /// Prony series (visco-hyperelasticity): `[{ alpha = 0.3, tau = 0.1 }, …]`.
+    #[serde(default)]
+    pub prony: Vec<PronyTerm>,
+}
+
+/// An axis-aligned box `min ≤ X ≤ max` (metres, inclusive up to 1e-9 of the mesh size).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSpec {
+    /// Lower corner.
+    pub min: [f64; 3],
+    /// Upper corner.
+    pub max: [f64; 3],
+}
+
+/// The nodes within `tolerance` of a plane.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneSpec {
+    /// A point of the plane (metres).
+    pub point: [f64; 3],
+    /// Its normal (any length > 0).
+    pub normal: [f64; 3],
+    /// Largest distance (metres) of a selected node; default 1e-6 × the mesh's
+    /// bounding-box diagonal.
+    pub tolerance: Option<f64>,
+}
+
+/// `[[fix]]`: nodes held at their rest position. Exactly one selector.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FixSpec {
+    /// Node ids (0-based).
+    pub nodes: Option<Vec<usize>>,
+    /// Nodes inside a box.
+    #[serde(rename = "box")]
+    pub bbox: Option<BoxSpec>,
+    /// Nodes on a plane.
+    pub plane: Option<PlaneSpec>,
+    /// Nodes of the tets with this mesh tag.
+    pub tag: Option<i32>,
+}
+
+/// `[[prescribe]]`: nodes moved by `displacement` following `ramp`. Exactly one
+/// selector.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrescribeSpec {
+    /// Node ids (0-based).
+    pub nodes: Option<Vec<usize>>,
+    /// Nodes inside a box.
+    #[serde(rename = "box")]
+    pub bbox: Option<BoxSpec>,
+    /// Nodes on a plane.
+    pub plane: Option<PlaneSpec>,
+    /// Nodes of the tets with this mesh tag.
+    pub tag: Option<i32>,
+    /// Final displacement (metres).
+    pub displacement: [f64; 3],
+    /// Time profile: `{ kind = "linear"|"smooth", duration = s }` or `{ kind = "step" }`.
+    pub ramp: Ramp,
+}
+
+/// `[[loads.nodal]]`: a total force shared equally by the selected nodes.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodalLoadSpec {
+    /// Node ids (0-based).
+    pub nodes: Option<Vec<usize>>,
+    /// Nodes inside a box.
+    #[serde(rename = "box")]
+    pub bbox: Option<BoxSpec>,
+    /// Nodes on a plane.
+    pub plane: Option<PlaneSpec>,
+    /// Nodes of the tets with this mesh tag.
+    pub tag: Option<i32>,
+    /// Total force (newtons), split equally over the selected nodes.
+    pub force: [f64; 3],
+}
+
+/// `[loads]`.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadsSpec {
+    /// Gravity acceleration (m/s²), e.g. `[0, 0, -9.81]`; default none.
+    pub gravity: Option<[f64; 3]>,
+    /// Constant nodal forces.
+    #[serde(default)]
+    pub nodal: Vec<NodalLoadSpec>,
+}
+
+/// `[damping]`: Rayleigh damping −α m v − β K v.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DampingSpec {
+    /// Mass-proportional α (1/s).
+    #[serde(default)]
+    pub mass: f64,
+    /// Stiffness-proportional β (s).
+    #[serde(default)]
+    pub stiffness: f64,
+}
+
+/// `[solver]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// Registry name of the integrator (default `symplectic_euler`).
+    #[serde(default = "default_integrator")]
+    pub integrator: String,
+    /// Time step (s); default: the stable estimate. The run uses
+    /// `duration / ceil(duration / dt)` so that it ends exactly at `duration`.
+    pub dt: Option<f64>,
+    /// Simulated time (s).
+    pub duration: f64,
+    /// What a dt above the stable estimate does: `warn` (default), `refuse`, `ignore`.
+    #[serde(default)]
+    pub dt_policy: TimeStepPolicy,
+    /// Safety factor of the stable estimate, in (0, 1] (default 0.9).
+    pub safety: Option<f64>,
+    /// Inversion threshold J0 of the laws, in (0, 1) (default 0.4).
+    pub j0: Option<f64>,
+}
+
+fn default_integrator() -> String {
+    "symplectic_euler".into()
+}
+
+/// `[output]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Output directory, relative to the working directory (created if needed;
+    /// default `heml-output`).
+    pub dir: Option<String>,
+    /// A frame every this many steps. Exclusive with `frame_interval`.
+    pub every: Option<u64>,
+    /// A frame every this many simulated seconds (rounded to whole steps).
+    /// Default: 50 frames over the duration.
+    pub frame_interval: Option<f64>,
+    /// Write VTU frames and the `.pvd` series (default true).
+    #[serde(default = "yes")]
+    pub vtu: bool,
+    /// Write `energy.csv` (default true).
+    #[serde(default = "yes")]
+    pub csv: bool,
+    /// A CSV row every this many steps (default: 10 rows per frame).
+    pub csv_every: Option<u64>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            dir: None,
+            every: None,
+            frame_interval: None,
+            vtu: true,
+            csv: true,
+            csv_every: None,
+        }
+    }
+}

@@ -1,0 +1,299 @@
+//! `heml bench`: force-evaluation throughput of HEML and of the standard P1 path,
+//! measured in the same run (interleaved, medians), plus the time of full
+//! semi-explicit steps through the `System`.
+
+use clap::Args;
+use heml::force::{Assembly, ElasticForces, SimdLevel};
+use heml::mesh::generate::{box_mesh, HexSplit};
+use heml::prelude::*;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `heml bench`.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Mesh file (.msh, .vtk, .vtu, .node/.ele, .mesh); default: a generated box.
+    #[arg(long)]
+    pub mesh: Option<PathBuf>,
+    /// Number of tets of the generated box (ignored with --mesh).
+    #[arg(long, default_value_t = 100_000)]
+    pub tets: usize,
+    /// Law (registry name, see `heml materials`).
+    #[arg(long, default_value = "neo_hookean")]
+    pub law: String,
+    /// Threads of the parallel runs (default: all cores). 1 thread is always measured too.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Timed samples per measurement (the median is reported).
+    #[arg(long, default_value_t = 25)]
+    pub repeats: usize,
+    /// Shuffle node and tet numbering randomly before building the fields (as real
+    /// meshes often arrive).
+    #[arg(long)]
+    pub shuffle: bool,
+    /// Also time the plain serial reference kernels.
+    #[arg(long)]
+    pub reference: bool,
+}
+
+/// Soft-tissue-like parameters (E = 3 kPa, ν = 0.45) for any registered law.
+pub fn tissue_params(entry: &MaterialEntry) -> Params {
+    let (mu, lambda) = heml::params::lame(3e3, 0.45);
+    let kappa = lambda + 2.0 * mu / 3.0;
+    let mut p = Params::new();
+    for info in entry.params {
+        let v = match info.name {
+            "mu" => mu,
+            "lambda" => lambda,
+            "kappa" => kappa,
+            "k" => 10.0,
+            "jm" => 50.0,
+            "lm" => 3.0,
+            "b" | "c2" if entry.name != "yeoh" => 1.0,
+            "c1" if entry.name == "veronda_westmann" => mu,
+            "c1" => mu / 2.0,
+            "c10" | "c01" => mu / 4.0,
+            "a" => mu,
+            _ => 0.0,
+        };
+        p.set(info.name, v);
+    }
+    p
+}
+
+/// A box of about `n` tets (six per hexahedral cell, cells about cubic).
+pub fn box_of(n: usize) -> heml::Result<TetMesh> {
+    let cells = (n as f64 / 6.0).max(1.0);
+    let a = cells.cbrt().round().max(1.0) as usize;
+    let c = ((cells / (a * a) as f64).round() as usize).max(1);
+    box_mesh([0.1, 0.1, 0.1 * c as f64 / a as f64], [a, a, c], HexSplit::Six)
+}
+
+/// `mesh` with nodes and tets in a pseudo-random order (deterministic seed).
+pub fn shuffled(mesh: &TetMesh) -> heml::Result<TetMesh> {
+    use heml::mesh::reorder::Permutation;
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let mut shuffle = |n: usize| {
+        let mut v: Vec<usize> = (0..n).collect();
+        for i in (1..n).rev() {
+            v.swap(i, (next() % (i as u64 + 1)) as usize);
+        }
+        Permutation::from_new_to_old(v)
+    };
+    let pn = shuffle(mesh.n_nodes());
+    let pt = shuffle(mesh.n_tets());
+    mesh.renumbered(&pn, &pt)
+}
+
+/// A smooth deformation (10 % stretch, 0.2 rad twist over the length, 2 % shear) that
+/// inverts no element.
+pub fn deformed(mesh: &TetMesh) -> Vec<Vec3> {
+    let (lo, hi) = mesh.bounding_box();
+    let size = hi - lo;
+    let c = (lo + hi) / 2.0;
+    mesh.nodes()
+        .iter()
+        .map(|p| {
+            let q = p - c;
+            let s = q.x / size.x.max(1e-300);
+            let (sn, cs) = (0.2 * s).sin_cos();
+            Vec3::new(
+                c.x + 1.1 * q.x + 0.02 * q.y,
+                c.y + cs * q.y - sn * q.z,
+                c.z + sn * q.y + cs * q.z,
+            )
+        })
+        .collect()
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Seconds per call of each field, interleaved: `repeats` samples of `inner` calls each.
+fn time_fields(fields: &[&dyn ElasticForces], x: &[Vec3], repeats: usize, inner: usize) -> heml::Result<Vec<f64>> {
+    let mut f = vec![Vec3::zeros(); x.len()];
+    for fl in fields {
+        fl.add_forces(x, &mut f)?; // warm-up (allocates scratch)
+    }
+    let mut samples = vec![Vec::with_capacity(repeats); fields.len()];
+    for _ in 0..repeats {
+        for (s, fl) in samples.iter_mut().zip(fields) {
+            let t = Instant::now();
+            for _ in 0..inner {
+                f.fill(Vec3::zeros());
+                std::hint::black_box(fl.add_forces(x, &mut f)?);
+            }
+            s.push(t.elapsed().as_secs_f64() / inner as f64);
+        }
+    }
+    Ok(samples.iter_mut().map(|s| median(s)).collect())
+}
+
+/// Runs `heml bench`.
+pub fn run(args: BenchArgs) -> heml::Result<()> {
+    let mut mesh = match &args.mesh {
+        Some(path) => heml::heml_core::io::read_mesh(path)?.0,
+        None => box_of(args.tets)?,
+    };
+    if args.shuffle {
+        mesh = shuffled(&mesh)?;
+    }
+    let entry = heml::find_material(&args.law)?;
+    let params = tissue_params(entry);
+    let law = entry.instantiate(&params)?;
+    let opts = ForceOptions::default();
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let pool = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| HemlError::Invalid(format!("cannot start {n} threads: {e}")))
+    };
+    let n_tets = mesh.n_tets();
+    let x = deformed(&mesh);
+    let repeats = args.repeats.max(1);
+    // about 20 ms per sample
+    let inner = (2_000_000 / n_tets.max(1)).clamp(1, 1000);
+
+    println!(
+        "mesh: {} ({} nodes, {} tets){}",
+        args.mesh
+            .as_ref()
+            .map_or("generated box".to_string(), |p| p.display().to_string()),
+        mesh.n_nodes(),
+        n_tets,
+        if args.shuffle { ", shuffled" } else { "" }
+    );
+    println!(
+        "law: {}   SIMD: {}   threads: {}   repeats: {} × {} calls (medians)",
+        entry.name,
+        SimdLevel::detect().name(),
+        threads,
+        repeats,
+        inner
+    );
+
+    let heml_field = law.force_field(&mesh, None, &opts)?;
+    let fem_field = law.fem_field(&mesh, None, &opts)?;
+    let mut counts = vec![1];
+    if threads != 1 {
+        counts.push(threads);
+    }
+    println!();
+    println!(
+        "{:<8} {:>14} {:>10} {:>14} {:>10} {:>12}",
+        "threads", "HEML tets/s", "ns/tet", "P1 tets/s", "ns/tet", "HEML vs P1"
+    );
+    let mut heml_times = Vec::new();
+    for &n in &counts {
+        let t = pool(n)?.install(|| {
+            let mut list: Vec<&dyn ElasticForces> = vec![heml_field.as_ref()];
+            if let Some(fem) = &fem_field {
+                list.push(fem.as_ref());
+            }
+            time_fields(&list, &x, repeats, inner)
+        })?;
+        let (th, tf) = (t[0], t.get(1).copied());
+        heml_times.push(th);
+        let per = |s: f64| s / n_tets as f64;
+        match tf {
+            Some(tf) => println!(
+                "{:<8} {:>14.3e} {:>10.2} {:>14.3e} {:>10.2} {:>11.2}×",
+                n,
+                1.0 / per(th),
+                per(th) * 1e9,
+                1.0 / per(tf),
+                per(tf) * 1e9,
+                tf / th
+            ),
+            None => println!(
+                "{:<8} {:>14.3e} {:>10.2} {:>14} {:>10} {:>12}",
+                n,
+                1.0 / per(th),
+                per(th) * 1e9,
+                "n/a",
+                "n/a",
+                "n/a"
+            ),
+        }
+    }
+    if heml_times.len() == 2 {
+        println!("speed-up {threads} threads vs 1: {:.2}×", heml_times[0] / heml_times[1]);
+    }
+    if let Some(b) = heml_field.bytes_per_tet() {
+        print!("memory: HEML {b:.1} bytes/tet");
+        if let Some(b) = fem_field.as_ref().and_then(|f| f.bytes_per_tet()) {
+            print!(", P1 {b:.1} bytes/tet");
+        }
+        println!();
+    }
+
+    if args.reference {
+        let mut h = law.force_field(&mesh, None, &opts)?;
+        h.set_assembly(Assembly::Reference);
+        let mut list: Vec<Box<dyn ElasticForces>> = vec![h];
+        if let Some(mut f) = law.fem_field(&mesh, None, &opts)? {
+            f.set_assembly(Assembly::Reference);
+            list.push(f);
+        }
+        let refs: Vec<&dyn ElasticForces> = list.iter().map(|b| b.as_ref()).collect();
+        let t = time_fields(&refs, &x, repeats.min(7), (inner / 4).max(1))?;
+        print!(
+            "plain serial reference kernels: HEML {:.2} ns/tet",
+            t[0] / n_tets as f64 * 1e9
+        );
+        if let Some(tf) = t.get(1) {
+            print!(", P1 {:.2} ns/tet", tf / n_tets as f64 * 1e9);
+        }
+        println!();
+    }
+
+    // full semi-explicit steps through the System
+    let (lo, hi) = mesh.bounding_box();
+    let clamp = lo.x + 1e-9 * (hi - lo).norm();
+    let mut sys = heml::system(mesh.clone())
+        .material(entry.name, &params)?
+        .density(1000.0)
+        .gravity(Vec3::new(0.0, 0.0, -9.81))
+        .fix_where(|p| p.x <= clamp)
+        .energy_every(0)
+        .build()?;
+    let mut integ = heml::integrator("symplectic_euler")?;
+    let dt = 0.9 * sys.stable_dt();
+    let steps = (repeats * inner).clamp(20, 2000);
+    let step_times = pool(threads)?.install(|| -> heml::Result<Vec<f64>> {
+        for _ in 0..5 {
+            integ.step(&mut sys, dt)?;
+        }
+        let mut v = Vec::with_capacity(steps);
+        for _ in 0..steps {
+            let t = Instant::now();
+            integ.step(&mut sys, dt)?;
+            v.push(t.elapsed().as_secs_f64());
+        }
+        Ok(v)
+    })?;
+    let mut st = step_times;
+    let m = median(&mut st);
+    println!(
+        "full step (symplectic_euler: forces + update + constraints, energies off, {threads} threads): {:.3} ms median of {steps}, {:.0} steps/s",
+        m * 1e3,
+        1.0 / m
+    );
+    Ok(())
+}

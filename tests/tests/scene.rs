@@ -1,0 +1,256 @@
+//! Scene files: parsing, strict errors with lines and suggestions, unit conversion,
+//! selections, per-region materials, and running the example scene.
+
+use std::path::{Path, PathBuf};
+
+use heml::heml_core::io::{read_pvd, write_mesh};
+use heml::heml_core::scene::Scene;
+use heml::prelude::*;
+
+fn scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes")
+}
+
+/// Builds need the registries of the member crates linked (the facade does it).
+fn link() {
+    let _ = (heml::materials_list(), heml::integrators_list());
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("heml-scene-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+const BASE: &str = r#"
+[mesh]
+generate = { kind = "box", size = [0.02, 0.02, 0.02], cells = [2, 2, 2] }
+
+[[material]]
+law = "neo_hookean"
+params = { E = 3e3, nu = 0.45 }
+
+[solver]
+duration = 0.01
+"#;
+
+fn err_of(text: &str) -> String {
+    link();
+    match Scene::from_toml_str(text, ".").and_then(|s| s.build()) {
+        Ok(_) => panic!("expected an error for:\n{text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn example_scene_parses_builds_and_runs_at_reduced_duration() {
+    link();
+    let mut scene = Scene::from_file(scenes_dir().join("example.toml")).unwrap();
+    assert_eq!(scene.solver.integrator, "symplectic_euler");
+    assert_eq!(scene.materials[0].prony.len(), 1);
+    assert_eq!(scene.loads.nodal.len(), 1);
+    let dir = temp_dir("example");
+    scene.output.dir = Some(dir.to_string_lossy().into_owned());
+    scene.solver.duration = 0.04;
+    let mut sim = scene.build().unwrap();
+    // mm -> m and the translation: the beam spans x in [0, 0.1], y in [-0.01, 0.01]
+    let (lo, hi) = sim.system.mesh().bounding_box();
+    assert!(
+        (hi.x - 0.1).abs() < 1e-15 && (lo.y + 0.01).abs() < 1e-15,
+        "{lo:?} {hi:?}"
+    );
+    // frame_interval = 0.02 s rounds to whole steps of the stable dt
+    assert_eq!(sim.frame_every, (0.02 / sim.dt).round() as u64);
+    assert!(sim.dt <= sim.system.stable_dt());
+    let summary = sim.run(|_| {}).unwrap();
+    assert!((summary.time - 0.04).abs() < 1e-12);
+    let frames = read_pvd(&dir.join("frames.pvd")).unwrap();
+    assert_eq!(frames.len(), summary.frames);
+    assert!(frames.len() >= 3, "t = 0, 0.02, 0.04");
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    assert!(csv.starts_with(heml::heml_core::scene::CSV_HEADER));
+    // the prescribed end moved sideways by r(0.04) * 1 cm with the smooth ramp
+    let s = 0.04 / 0.5;
+    let expected = 0.01 * s * s * (3.0 - 2.0 * s);
+    let p = &sim.system.constraints().prescribed[0];
+    let i = p.node;
+    let uy = sim.system.positions()[i].y - sim.system.rest_positions()[i].y;
+    assert!((uy - expected).abs() < 1e-15, "{uy} vs {expected}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn demo_scene_parses_and_builds() {
+    link();
+    let scene = Scene::from_file(scenes_dir().join("demo.toml")).unwrap();
+    assert_eq!(scene.output.dir.as_deref(), Some("heml-demo-output"));
+    let sim = scene.build().unwrap();
+    // 8 x 6 x 5 cm at 5 mm cells: 17 x 13 x 11 nodes; the clamped face has 13 x 11,
+    // the tool patch 3 x 3
+    assert_eq!(sim.system.mesh().n_nodes(), 17 * 13 * 11);
+    assert_eq!(sim.system.constraints().fixed.len(), 13 * 11);
+    assert_eq!(sim.system.constraints().prescribed.len(), 9);
+    assert!((sim.system.total_mass() - 0.24).abs() < 1e-12);
+    assert!(sim.warnings.is_empty(), "{:?}", sim.warnings);
+}
+
+#[test]
+fn unknown_keys_are_errors_with_line_and_suggestion() {
+    let text = BASE.replace("[solver]", "[solver]\ndurration = 1.0");
+    let e = err_of(&text);
+    assert!(e.starts_with("<scene>:10:"), "{e}");
+    assert!(
+        e.contains("unknown field `durration`") && e.contains("did you mean `duration`?"),
+        "{e}"
+    );
+    // in an inline table, and an unknown enum value
+    let e = err_of(&BASE.replace("cells = [2, 2, 2]", "cells = [2, 2, 2], splitt = \"six\""));
+    assert!(e.contains("<scene>:3:") && e.contains("did you mean `split`?"), "{e}");
+    let e = err_of(&format!(
+        "{BASE}[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.001]\nramp = {{ kind = \"smoth\", duration = 1 }}\n"
+    ));
+    assert!(e.contains("<scene>:14:") && e.contains("did you mean `smooth`?"), "{e}");
+    // a top-level typo
+    let e = err_of(&format!("{BASE}[dampng]\nmass = 1.0\n"));
+    assert!(e.contains("did you mean `damping`?"), "{e}");
+}
+
+#[test]
+fn unknown_law_integrator_and_parameter_names_list_the_known_ones() {
+    let e = err_of(&BASE.replace("neo_hookean", "neo_hokean"));
+    assert!(e.contains("[[material]] #1") && e.contains(":5:"), "{e}");
+    assert!(
+        e.contains("did you mean 'neo_hookean'") && e.contains("mooney_rivlin"),
+        "{e}"
+    );
+    let e = err_of(&BASE.replace("[solver]", "[solver]\nintegrator = \"verlet\""));
+    assert!(
+        e.contains("[solver]") && e.contains("velocity_verlet") && e.contains("explicit_euler"),
+        "{e}"
+    );
+    let e = err_of(&BASE.replace("nu = 0.45", "nuu = 0.45"));
+    assert!(e.contains("did you mean 'nu' for 'nuu'?"), "{e}");
+}
+
+#[test]
+fn selections_that_select_nothing_are_named() {
+    let text = format!(
+        "{BASE}[[fix]]\nplane = {{ point = [0, 0, 0], normal = [1, 0, 0] }}\n\
+         [[fix]]\nbox = {{ min = [1, 1, 1], max = [2, 2, 2] }}\n"
+    );
+    let e = err_of(&text);
+    assert!(e.contains("<scene>:13: [[fix]] #2 (box) selects no node"), "{e}");
+    let e = err_of(&format!("{BASE}[[fix]]\ntag = 7\n"));
+    assert!(e.contains("[[fix]] #1 (tag)") && e.contains("no tet has tag 7"), "{e}");
+    let e = err_of(&format!("{BASE}[[fix]]\nnodes = [1]\ntag = 0\n"));
+    assert!(e.contains("several selectors (nodes, tag)"), "{e}");
+    let e = err_of(&format!(
+        "{BASE}[[loads.nodal]]\nplane = {{ point = [0, 0, 0.5], normal = [0, 0, 1] }}\nforce = [0, 0, 1]\n"
+    ));
+    assert!(e.contains("[[loads.nodal]] #1 (plane) selects no node"), "{e}");
+}
+
+#[test]
+fn units_scale_the_mesh_and_selections_and_loads_act_in_metres() {
+    link();
+    let dir = temp_dir("units");
+    // a 20 mm cube written in millimetres
+    let cube = heml::mesh::generate::box_mesh([20.0; 3], [2, 2, 2], heml::mesh::generate::HexSplit::Six).unwrap();
+    write_mesh(&dir.join("cube.msh"), &cube).unwrap();
+    let text = BASE.replace(
+        "generate = { kind = \"box\", size = [0.02, 0.02, 0.02], cells = [2, 2, 2] }",
+        "file = \"cube.msh\"\nunits = \"mm\"\ntranslate = [0.0, 0.0, 1.0]",
+    ) + "[[fix]]\nplane = { point = [0, 0, 1.0], normal = [0, 0, 1] }\n\
+         [[loads.nodal]]\nbox = { min = [0, 0, 1.02], max = [0.02, 0.02, 1.02] }\nforce = [0, 0, -0.9]\n";
+    let sim = Scene::from_toml_str(&text, &dir).unwrap().build().unwrap();
+    let (lo, hi) = sim.system.mesh().bounding_box();
+    assert!(
+        (hi - lo - Vec3::repeat(0.02)).norm() < 1e-15 && lo.z == 1.0,
+        "{lo:?} {hi:?}"
+    );
+    // volume 8e-6 m3 at 1000 kg/m3
+    assert!((sim.system.total_mass() - 8e-3).abs() < 1e-15);
+    assert_eq!(sim.system.constraints().fixed.len(), 9);
+    // the top face has 9 nodes sharing 0.9 N
+    let f = sim.system.nodal_forces();
+    assert_eq!(f.len(), 9);
+    assert!(f.iter().all(|(_, v)| (v.z + 0.1).abs() < 1e-15));
+    // scale = 0.001 is the same; both at once is an error
+    let scaled = text.replace("units = \"mm\"", "scale = 0.001");
+    let sim2 = Scene::from_toml_str(&scaled, &dir).unwrap().build().unwrap();
+    assert_eq!(sim2.system.mesh().nodes(), sim.system.mesh().nodes());
+    let both = text.replace("units = \"mm\"", "units = \"mm\"\nscale = 0.001");
+    let e = Scene::from_toml_str(&both, &dir)
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("`scale` or `units`, not both"), "{e}");
+    // a missing mesh file names the path
+    let e = err_of(&text.replace("cube.msh", "nowhere.msh"));
+    assert!(e.contains("nowhere.msh"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn per_region_materials_follow_the_mesh_tags() {
+    link();
+    let dir = temp_dir("regions");
+    // two 1 cm cubes side by side, tagged 1 (x < 1 cm) and 2
+    let m =
+        heml::mesh::generate::box_mesh([0.02, 0.01, 0.01], [2, 1, 1], heml::mesh::generate::HexSplit::Five).unwrap();
+    let tags: Vec<i32> = (0..m.n_tets())
+        .map(|t| {
+            if m.tet_points(t).iter().map(|p| p.x).sum::<f64>() < 0.04 {
+                1
+            } else {
+                2
+            }
+        })
+        .collect();
+    let nodes = m.nodes().to_vec();
+    let tets: Vec<[usize; 4]> = m.tets().iter().map(|t| t.map(|i| i as usize)).collect();
+    let tagged = TetMesh::with_tags(nodes, tets, tags).unwrap();
+    write_mesh(&dir.join("two.vtu"), &tagged).unwrap();
+    let text = r#"
+[mesh]
+file = "two.vtu"
+[[material]]
+tag = 2
+law = "mooney_rivlin"
+params = { c10 = 1e3, c01 = 2e2, kappa = 5e4 }
+density = 2000.0
+[[material]]
+law = "neo_hookean"
+params = { E = 3e3, nu = 0.45 }
+density = 1000.0
+[[fix]]
+tag = 1
+[solver]
+duration = 0.01
+"#;
+    let sim = Scene::from_toml_str(text, &dir).unwrap().build().unwrap();
+    let regions = sim.system.regions();
+    assert_eq!(regions.len(), 2);
+    let by_tag = |t: Option<i32>| regions.iter().find(|r| r.tag() == t).unwrap();
+    assert_eq!(by_tag(Some(2)).material().name(), "mooney_rivlin");
+    assert_eq!(by_tag(None).material().name(), "neo_hookean");
+    assert_eq!(by_tag(Some(2)).field().n_tets(), 5);
+    assert_eq!(by_tag(None).field().n_tets(), 5);
+    // 1e-6 m3 at 1000 and 1e-6 m3 at 2000 kg/m3
+    assert!((sim.system.total_mass() - 3e-3).abs() < 1e-15);
+    // `tag = 1` fixes the nodes of the first cube: its 8 corners (five-tet split)
+    assert_eq!(sim.system.constraints().fixed.len(), 8);
+    // two untagged materials are an error naming the second
+    let e = err_of(&text.replace("tag = 2\n", "").replace("two.vtu", "x.vtu"));
+    assert!(e.contains("x.vtu"), "{e}");
+    let two_untagged = text.replace("tag = 2\n", "");
+    let e = Scene::from_toml_str(&two_untagged, &dir)
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("[[material]] #2") && e.contains("without `tag`"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

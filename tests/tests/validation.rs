@@ -1,0 +1,81 @@
+//! The validation cases of `heml validate` at reduced resolution (`Options::quick`):
+//! every row's criterion must hold. The tolerances and their justification live with
+//! each case (src/validation/*.rs); the quick settings only coarsen meshes and
+//! shorten runs, and loosen the tolerances that depend on resolution (cantilever).
+
+use heml::validation::{find_case, format_table, run_case, Options, Status, CASES};
+
+fn check(name: &str) {
+    let report = run_case(name, &Options::quick()).unwrap();
+    let table = format_table(std::slice::from_ref(&report));
+    assert!(!report.rows.is_empty(), "{name}: no rows\n{table}");
+    assert!(!report.failed(), "{name} failed:\n{table}");
+    if report.rows.iter().any(|r| r.status == Status::Skip) {
+        // said loudly, never passed silently
+        eprintln!("note: {name} skipped some checks:\n{table}");
+    }
+}
+
+#[test]
+fn uniaxial_cube_matches_svk_and_neo_hookean_closed_forms() {
+    check("uniaxial");
+}
+
+#[test]
+fn cantilever_converges_to_euler_bernoulli() {
+    check("cantilever");
+}
+
+#[test]
+fn heml_equals_standard_p1_on_organ_meshes() {
+    check("p1_equivalence");
+}
+
+#[test]
+fn heml_needs_fewer_operations_than_p1() {
+    check("op_count");
+}
+
+#[test]
+fn mass_spring_is_the_classical_spring_network() {
+    check("mass_spring");
+}
+
+#[test]
+fn prony_relaxation_follows_alpha_t() {
+    check("prony");
+}
+
+#[test]
+fn crushed_organ_inverts_without_nan_and_returns_to_rest() {
+    check("inversion");
+}
+
+#[test]
+fn symplectic_integrators_conserve_energy() {
+    check("energy");
+}
+
+#[test]
+fn unknown_case_lists_the_known_ones() {
+    let e = find_case("nope").unwrap_err().to_string();
+    for c in CASES {
+        assert!(e.contains(c.name), "{e}");
+    }
+}
+
+/// Plots render headless with the bundled font (no system fonts needed).
+#[test]
+fn plots_are_written_as_png() {
+    let dir = std::env::temp_dir().join(format!("heml-validation-test-{}", std::process::id()));
+    let opts = Options {
+        out_dir: Some(dir.clone()),
+        ..Options::quick()
+    };
+    let report = run_case("prony", &opts).unwrap();
+    let path = report.plot.expect("a plot");
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    assert!(bytes.len() > 5000, "suspiciously small plot: {} bytes", bytes.len());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
