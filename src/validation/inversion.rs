@@ -54,14 +54,36 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
     let height = hi.z - lo.z;
     let mut by_z: Vec<usize> = (0..mesh.n_nodes()).collect();
     by_z.sort_by(|&a, &b| mesh.nodes()[a].z.total_cmp(&mesh.nodes()[b].z));
-    let fixed: Vec<usize> = by_z[..5].to_vec();
+    // Five supports spread over the bottom 10 % of the body (its extreme nodes in ±x,
+    // ±y and the lowest one): clustered supports would act as a pivot about which the
+    // released body could swing almost rigidly, with nothing elastic to bring it back.
+    let base: Vec<usize> = by_z
+        .iter()
+        .copied()
+        .filter(|&i| mesh.nodes()[i].z < lo.z + 0.1 * height)
+        .collect();
+    let extreme = |key: &dyn Fn(&Vec3) -> f64| {
+        base.iter()
+            .copied()
+            .min_by(|&a, &b| key(&mesh.nodes()[a]).total_cmp(&key(&mesh.nodes()[b])))
+            .unwrap_or(by_z[0])
+    };
+    let mut fixed: Vec<usize> = vec![
+        by_z[0],
+        extreme(&|p| p.x),
+        extreme(&|p| -p.x),
+        extreme(&|p| p.y),
+        extreme(&|p| -p.y),
+    ];
+    fixed.sort_unstable();
+    fixed.dedup();
     let top: Vec<usize> = by_z
         .iter()
         .copied()
         .filter(|&i| mesh.nodes()[i].z > hi.z - 0.1 * height)
         .collect();
     let params = Params::from([("E", 3e3), ("nu", 0.45)]);
-    let (t_crush, t_hold, t_release) = (1.0, 0.5, if opts.quick { 2.0 } else { 4.0 });
+    let (t_crush, t_hold, t_release) = (1.0, 0.5, if opts.quick { 3.0 } else { 4.0 });
     let mut sys = crate::system(mesh.clone())
         .material("neo_hookean", &params)?
         .fix_nodes(&fixed)
@@ -73,7 +95,11 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
         .rayleigh(5.0, 0.0)
         .energy_every(0)
         .build()?;
-    let dt = 0.5 * sys.stable_dt();
+    // The stable step is estimated at rest, but crushed tissue is much stiffer: for
+    // neo-Hookean the volumetric stiffness λ(1 − ln J)/J² is ~12× its rest value at
+    // J0 = 0.4 (where the Taylor extension freezes it), so the critical step shrinks by
+    // √12 ≈ 3.5. A fifth of the rest estimate keeps the crushed and inverted states stable.
+    let dt = 0.2 * sys.stable_dt();
     let mut integrator = crate::integrator("velocity_verlet")?;
     let mut lowest_j = f64::INFINITY;
     let mut nan_count = 0usize;
@@ -174,9 +200,20 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
         nan_count as f64,
         0.0,
     ));
+    // The released body itself must come back (no element stays inverted or tangled):
+    // mass damping α = 10/s leaves a slowly decaying tail, so the bound is loose —
+    // an element stuck inverted would keep it at O(0.1–1) × height.
+    let dynamic_tol = if opts.quick { 0.1 } else { 0.03 };
+    report.rows.push(Row::check(
+        &format!("RMS distance to rest shape / height after {t_release} s damped release"),
+        fmt_num(after_dynamics),
+        "0".into(),
+        after_dynamics,
+        dynamic_tol,
+    ));
     // back at rest up to the quasi-static tolerance (residual 1e-9 of E·H²)
     report.rows.push(Row::check(
-        "final RMS distance to rest shape / height",
+        "RMS distance to rest shape / height after a quasi-static solve",
         fmt_num(final_rms),
         "0".into(),
         final_rms,
