@@ -1,18 +1,7 @@
 //! End-to-end tests of the `heml` binary.
-
-use std::process::Command;
-
-fn heml(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_heml"))
-        .args(args)
-        .output()
-        .expect("run heml");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
-}
+#[path = "support/bin.rs"]
+mod support;
+use support::heml;
 
 /// The binary names the facade only; the registrations of `heml-materials` must
 /// survive linking all the same: every law the library registers is listed.
@@ -39,8 +28,7 @@ fn materials_lists_every_built_in_law_from_the_binary() {
 fn info_reports_counts_quality_and_stable_dt() {
     use heml::heml_core::io::write_mesh;
     use heml::heml_core::mesh::generate::{box_mesh, HexSplit};
-    let dir = std::env::temp_dir().join(format!("heml-info-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = support::temp_dir("cli", "info");
     let path = dir.join("box.vtu");
     let mesh = box_mesh([2.0, 1.0, 1.0], [4, 2, 2], HexSplit::Six).unwrap();
     write_mesh(&path, &mesh).unwrap();

@@ -2,29 +2,17 @@
 //! read back with heml's own readers and checked against physics.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use heml::heml_core::io::{read_mesh_data, read_pvd};
 use heml::Vec3;
 
-fn heml(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_heml"))
-        .args(args)
-        .output()
-        .expect("run heml");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
-}
+#[path = "support/bin.rs"]
+mod support;
+use support::heml;
 
 /// A fresh, empty temporary directory for one test.
 fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("heml-cli-run-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    support::temp_dir("cli-run", name)
 }
 
 /// The node positions of a VTU frame.

@@ -247,36 +247,7 @@ impl<M: InvariantLaw> BatchKernel for FemKernel<'_, M> {
                 j[l] = fm[0][0][l] * cof[0][0][l] + fm[1][0][l] * cof[1][0][l] + fm[2][0][l] * cof[2][0][l];
             }
         }
-        let (mut w, mut w1, mut w2, mut wj) = ([0.0; L], [0.0; L], [0.0; L], [0.0; L]);
-        let fix = M::INVERSION_FIX && self.opts.inversion_fix;
-        let j0 = self.opts.j0;
-        let mut any_ext = false;
-        if fix {
-            for l in 0..L {
-                any_ext |= j[l] < j0;
-            }
-        }
-        if !any_ext {
-            for l in 0..L {
-                let d = self.law.dw_fast(i1[l], i2[l], j[l]);
-                w[l] = d.w;
-                w1[l] = d.d[0];
-                w2[l] = d.d[1];
-                wj[l] = d.d[2];
-            }
-        } else {
-            for l in 0..L {
-                let d = if j[l] < j0 {
-                    self.law.dw_ext_fast(i1[l], i2[l], j[l], j0)
-                } else {
-                    self.law.dw_fast(i1[l], i2[l], j[l])
-                };
-                w[l] = d.w;
-                w1[l] = d.d[0];
-                w2[l] = d.d[1];
-                wj[l] = d.d[2];
-            }
-        }
+        crate::force::lanes::law_lanes!(self.law, self.opts, i1, i2, j => w, w1, w2, wj);
         // P = 2w1 F + 2w2 (I1 F − F C) + wJ cof F
         let mut pk = [[[0.0; L]; 3]; 3];
         for row in 0..3 {

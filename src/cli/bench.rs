@@ -36,29 +36,19 @@ pub struct BenchArgs {
     pub reference: bool,
 }
 
-/// Soft-tissue-like parameters (E = 3 kPa, ν = 0.45) for any registered law.
-pub fn tissue_params(entry: &MaterialEntry) -> Params {
-    let (mu, lambda) = heml::params::lame(3e3, 0.45);
-    let kappa = lambda + 2.0 * mu / 3.0;
-    let mut p = Params::new();
-    for info in entry.params {
-        let v = match info.name {
-            "mu" => mu,
-            "lambda" => lambda,
-            "kappa" => kappa,
-            "k" => 10.0,
-            "jm" => 50.0,
-            "lm" => 3.0,
-            "b" | "c2" if entry.name != "yeoh" => 1.0,
-            "c1" if entry.name == "veronda_westmann" => mu,
-            "c1" => mu / 2.0,
-            "c10" | "c01" => mu / 4.0,
-            "a" => mu,
-            _ => 0.0,
-        };
-        p.set(info.name, v);
+/// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
+/// spring stiffness of 10 N/m per tet edge.
+pub fn tissue_params(entry: &MaterialEntry) -> heml::Result<Params> {
+    match heml::materials::soft_tissue_params(entry.name, 3e3, 0.45) {
+        Some(p) => Ok(p),
+        None if entry.kind == LawKind::Link && entry.params.len() == 1 => {
+            Ok(Params::new().with(entry.params[0].name, 10.0))
+        }
+        None => Err(HemlError::Invalid(format!(
+            "heml bench knows soft-tissue parameters for the built-in laws only, not '{}'",
+            entry.name
+        ))),
     }
-    p
 }
 
 /// A box of about `n` tets (six per hexahedral cell, cells about cubic).
@@ -152,7 +142,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         mesh = shuffled(&mesh)?;
     }
     let entry = heml::find_material(&args.law)?;
-    let params = tissue_params(entry);
+    let params = tissue_params(entry)?;
     let law = entry.instantiate(&params)?;
     let opts = ForceOptions::default();
     let threads = args

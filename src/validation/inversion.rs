@@ -205,7 +205,7 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
     // an element stuck inverted would keep it at O(0.1–1) × height.
     let dynamic_tol = if opts.quick { 0.1 } else { 0.03 };
     report.rows.push(Row::check(
-        &format!("RMS distance to rest shape / height after {t_release} s damped release"),
+        format!("RMS distance to rest shape / height after {t_release} s damped release"),
         fmt_num(after_dynamics),
         "0".into(),
         after_dynamics,

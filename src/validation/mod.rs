@@ -387,26 +387,12 @@ pub fn format_table(reports: &[CaseReport]) -> String {
 
 // ----- helpers shared by the cases ------------------------------------------------------
 
-/// Parameters for `law` in ranges where every law is well defined, with small-strain
-/// shear modulus ≈ `mu` and bulk-like modulus ≈ 3·`mu` (ν ≈ 0.35).
+/// Parameters of `entry` with small-strain shear modulus `mu` and bulk modulus 3μ
+/// (ν = 0.35), from [`heml_materials::soft_tissue_params`]; link laws get k = `mu`.
 pub(crate) fn law_params(entry: &heml_core::MaterialEntry, mu: f64) -> Params {
-    let mut p = Params::new();
-    for info in entry.params {
-        let v = match (entry.name, info.name) {
-            ("gent", "jm") => 50.0,
-            ("arruda_boyce", "lm") => 3.0,
-            ("fung_demiray", "b") => 0.8,
-            ("veronda_westmann", "c2") => 0.5,
-            ("veronda_westmann", "c1") => 2.0 * mu,
-            ("yeoh", "c1") | ("mooney_rivlin", "c10") => 0.35 * mu,
-            ("yeoh", "c2") | ("mooney_rivlin", "c01") => 0.15 * mu,
-            ("yeoh", "c3") => 0.05 * mu,
-            (_, "kappa") | (_, "lambda") => 3.0 * mu,
-            _ => mu,
-        };
-        p.set(info.name, v);
-    }
-    p
+    let nu = 0.35;
+    heml_materials::soft_tissue_params(entry.name, 2.0 * mu * (1.0 + nu), nu)
+        .unwrap_or_else(|| entry.params.iter().fold(Params::new(), |p, info| p.with(info.name, mu)))
 }
 
 /// Reads `msh/NAME.msh` from the shared mesh folder.

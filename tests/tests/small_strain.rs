@@ -104,3 +104,26 @@ fn documented_small_strain_moduli_hold() {
         bulk(mu0),
     );
 }
+
+/// `soft_tissue_params` gives every built-in invariant law the requested small-strain
+/// moduli, so laws compared in benchmarks and validation are the same tissue.
+#[test]
+fn soft_tissue_params_match_the_requested_moduli() {
+    let (e, nu) = (4.5e3, 0.42);
+    let (mu, lambda) = heml::params::lame(e, nu);
+    let mut checked = 0;
+    for entry in heml::materials_list() {
+        match heml::materials::soft_tissue_params(entry.name, e, nu) {
+            Some(p) => {
+                check(entry.name, entry.instantiate(&p).unwrap().as_ref(), mu, lambda);
+                checked += 1;
+            }
+            None => assert!(
+                entry.kind == LawKind::Link || entry.name.starts_with("test_"),
+                "{} has no parameters",
+                entry.name
+            ),
+        }
+    }
+    assert_eq!(checked, 9);
+}

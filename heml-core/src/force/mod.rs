@@ -4,6 +4,7 @@
 pub mod assembly;
 pub mod fastmath;
 mod heml;
+pub(crate) mod lanes;
 mod link;
 mod options;
 
