@@ -47,6 +47,34 @@
 //! # Ok::<(), heml::HemlError>(())
 //! ```
 //!
+//! ## Simulating
+//!
+//! A system gathers the mesh, the law(s), masses, supports and loads; integrators are
+//! found by name and step it:
+//!
+//! ```
+//! use heml::mesh::generate::{box_mesh, HexSplit};
+//! use heml::prelude::*;
+//!
+//! // a 10 × 2 × 2 cm beam of soft tissue, clamped at x = 0, sagging under gravity
+//! let mesh = box_mesh([0.1, 0.02, 0.02], [10, 2, 2], HexSplit::Six)?;
+//! let mut sys = heml::system(mesh)
+//!     .material("neo_hookean", &Params::from([("E", 30e3), ("nu", 0.45)]))?
+//!     .density(1000.0)
+//!     .gravity(Vec3::new(0.0, 0.0, -9.81))
+//!     .fix_where(|p| p.x < 1e-9)
+//!     .rayleigh(20.0, 0.0)
+//!     .build()?;
+//! let mut integrator = heml::integrator("symplectic_euler")?;
+//! let dt = sys.stable_dt();
+//! while sys.time() < 0.05 {
+//!     integrator.step(&mut sys, dt)?;
+//! }
+//! let tip = sys.displacements().iter().map(|u| u.z).fold(0.0, f64::min);
+//! assert!(tip < 0.0); // the free end has started to fall
+//! # Ok::<(), heml::HemlError>(())
+//! ```
+//!
 //! ## Crates
 //! - [`heml_core`]: meshes, rest precomputation, force kernels, FEM oracle, registry;
 //! - [`heml_derive`]: the `#[material]` macro;
