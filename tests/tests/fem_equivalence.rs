@@ -27,6 +27,12 @@ fn compare(mesh: &TetMesh, x: &[Vec3], rng: &mut TestRng) -> usize {
         let heml = law.force_field(mesh, None, &opts).unwrap();
         let (eh, fh) = heml.forces(x).unwrap();
         let (ef, ff) = fem.forces(x).unwrap();
+        if !ef.is_finite() {
+            // Outside the law's domain (Gent beyond its locking stretch Ī1 − 3 ≥ Jm):
+            // both paths must say so rather than return numbers.
+            assert!(!eh.is_finite(), "{}: P1 energy is {ef}, HEML gives {eh}", entry.name);
+            continue;
+        }
         let scale = max_norm(&ff);
         assert!(
             max_diff(&fh, &ff) <= REL * scale,
@@ -55,6 +61,7 @@ proptest! {
         if invert {
             invert_first_tet(&mesh, &mut x, 0.7);
         }
-        prop_assert!(compare(&mesh, &x, &mut rng) >= 10);
+        // ten invariant laws are registered here; at most Gent can leave its domain
+        prop_assert!(compare(&mesh, &x, &mut rng) >= 9);
     }
 }
