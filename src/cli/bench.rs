@@ -4,7 +4,7 @@
 
 use clap::Args;
 use heml::force::{Assembly, ElasticForces, SimdLevel};
-use heml::mesh::generate::{box_mesh, HexSplit};
+use heml::mesh::generate::box_of_about;
 use heml::prelude::*;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -49,14 +49,6 @@ pub fn tissue_params(entry: &MaterialEntry) -> heml::Result<Params> {
             entry.name
         ))),
     }
-}
-
-/// A box of about `n` tets (six per hexahedral cell, cells about cubic).
-pub fn box_of(n: usize) -> heml::Result<TetMesh> {
-    let cells = (n as f64 / 6.0).max(1.0);
-    let a = cells.cbrt().round().max(1.0) as usize;
-    let c = ((cells / (a * a) as f64).round() as usize).max(1);
-    box_mesh([0.1, 0.1, 0.1 * c as f64 / a as f64], [a, a, c], HexSplit::Six)
 }
 
 /// `mesh` with nodes and tets in a pseudo-random order (deterministic seed).
@@ -136,7 +128,7 @@ fn time_fields(fields: &[&dyn ElasticForces], x: &[Vec3], repeats: usize, inner:
 pub fn run(args: BenchArgs) -> heml::Result<()> {
     let mut mesh = match &args.mesh {
         Some(path) => heml::heml_core::io::read_mesh(path)?.0,
-        None => box_of(args.tets)?,
+        None => box_of_about(args.tets)?,
     };
     if args.shuffle {
         mesh = shuffled(&mesh)?;

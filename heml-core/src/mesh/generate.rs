@@ -225,6 +225,22 @@ pub fn beam(length: f64, width: f64, height: f64, cells_along_length: usize, spl
     )
 }
 
+/// A box of about `n_tets` tets, for benchmarks: [`HexSplit::Six`] cells, about cubic
+/// (`a × a × c` cells with `c ≈ a`), 0.1 m across in x and y. The tet count is within a
+/// few percent of `n_tets` for `n_tets` ≥ 1000 (at least one cell, 6 tets, always).
+///
+/// ```
+/// use heml_core::mesh::generate::box_of_about;
+/// let m = box_of_about(10_000).unwrap();
+/// assert!((m.n_tets() as f64 / 10_000.0 - 1.0).abs() < 0.1);
+/// ```
+pub fn box_of_about(n_tets: usize) -> Result<TetMesh> {
+    let cells = (n_tets as f64 / 6.0).max(1.0);
+    let a = cells.cbrt().round().max(1.0) as usize;
+    let c = ((cells / (a * a) as f64).round() as usize).max(1);
+    box_mesh([0.1, 0.1, 0.1 * c as f64 / a as f64], [a, a, c], HexSplit::Six)
+}
+
 /// Per-face incidence counts of a mesh (sorted node triples), for conformity checks.
 #[cfg(test)]
 fn face_counts(m: &TetMesh) -> std::collections::HashMap<[u32; 3], usize> {
@@ -249,6 +265,15 @@ fn face_counts(m: &TetMesh) -> std::collections::HashMap<[u32; 3], usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn box_of_about_hits_the_requested_tet_count() {
+        for n in [1_000, 10_000, 100_000] {
+            let m = box_of_about(n).unwrap();
+            let r = m.n_tets() as f64 / n as f64;
+            assert!((r - 1.0).abs() < 0.1, "{n} tets asked, {} made", m.n_tets());
+        }
+    }
 
     #[test]
     fn every_split_fills_the_box_conformingly() {
