@@ -195,6 +195,22 @@ impl System {
         loads.max(reactions)
     }
 
+    /// The convergence state after `it` iterations: the largest force on a free
+    /// degree of freedom against the tolerance scaled by the largest load or slider
+    /// reaction (or the absolute tolerance, whichever is larger).
+    fn static_report(&self, slider_reactions: &[f64], opts: &StaticOptions, it: usize) -> StaticReport {
+        let residual = self.free_residual();
+        let scale = slider_reactions.iter().fold(self.load_scale(), |m, r| m.max(r.abs()));
+        StaticReport {
+            converged: residual <= (opts.tol * scale).max(opts.abs_tol),
+            iterations: it,
+            residual,
+            load_scale: scale,
+            tol: opts.tol,
+            slider_reactions: slider_reactions.to_vec(),
+        }
+    }
+
     fn free_residual(&self) -> f64 {
         // forces on constrained nodes are zeroed by compute_forces
         self.force.iter().map(|f| f.norm()).fold(0.0, f64::max)
@@ -262,16 +278,8 @@ impl System {
         self.slider_forces(sliders, &mut slider_reactions);
         let mut it = 0usize;
         loop {
-            let residual = self.free_residual();
-            let scale = slider_reactions.iter().fold(self.load_scale(), |m, r| m.max(r.abs()));
-            let report = StaticReport {
-                converged: residual <= (opts.tol * scale).max(opts.abs_tol),
-                iterations: it,
-                residual,
-                load_scale: scale,
-                tol: opts.tol,
-                slider_reactions: Vec::new(),
-            };
+            let report = self.static_report(&slider_reactions, opts, it);
+            let (residual, scale) = (report.residual, report.load_scale);
             if opts.progress_every > 0 && (it.is_multiple_of(opts.progress_every) || report.converged) {
                 eprintln!(
                     "quasi-static: iteration {it:>7}  residual {residual:.3e}  relative {:.3e}  dt {dt:.2e}",
@@ -279,10 +287,7 @@ impl System {
                 );
             }
             if report.converged {
-                return Ok(StaticReport {
-                    slider_reactions,
-                    ..report
-                });
+                return Ok(report);
             }
             if it >= opts.max_iterations {
                 return Err(HemlError::Numerical(format!(
@@ -400,16 +405,8 @@ impl System {
         let norm2 = |f: &[Vec3]| f.iter().map(|v| v.norm_squared()).sum::<f64>();
         let mut step_taken = 0.0;
         for it in 0..=50 {
-            let residual = self.free_residual();
-            let scale = slider_reactions.iter().fold(self.load_scale(), |m, r| m.max(r.abs()));
-            let report = StaticReport {
-                converged: residual <= (opts.tol * scale).max(opts.abs_tol),
-                iterations: it,
-                residual,
-                load_scale: scale,
-                tol: opts.tol,
-                slider_reactions: slider_reactions.clone(),
-            };
+            let report = self.static_report(&slider_reactions, opts, it);
+            let residual = report.residual;
             if opts.progress_every > 0 {
                 eprintln!(
                     "quasi-static Newton (step {step_taken}):: iteration {it:>3}  residual {residual:.3e}  relative {:.3e}",
