@@ -119,6 +119,17 @@ const COLORS: [RGBColor; 8] = [
     RGBColor(23, 190, 207),
 ];
 
+/// The legend every chart uses: upper left, on a translucent white box.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(ctx: &mut ChartContext<'a, DB, CT>) -> Result<()> {
+    ctx.configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(plot_err)
+}
+
 fn plot_err(e: impl std::fmt::Display) -> HemlError {
     HemlError::Invalid(format!("plot: {e}"))
 }
@@ -234,14 +245,7 @@ fn draw_xy(area: &DrawingArea<BitMapBackend, plotters::coord::Shift>, chart: &Ch
             }
         }
     }
-    ctx.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(plot_err)?;
-    Ok(())
+    draw_legend(&mut ctx)
 }
 
 fn draw_bars(
@@ -294,12 +298,5 @@ fn draw_bars(
             .label(label)
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], color.filled()));
     }
-    ctx.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(plot_err)?;
-    Ok(())
+    draw_legend(&mut ctx)
 }
