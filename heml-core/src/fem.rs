@@ -12,7 +12,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::error::Result;
-use crate::force::assembly::{BatchKernel, LaneForces, Layout, LANES};
+use crate::force::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
 use crate::force::{check_sizes, selection, Assembly, ElasticForces, ForceOptions};
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
@@ -172,18 +172,9 @@ struct FemKernel<'a, M> {
 
 impl<M: InvariantLaw> BatchKernel for FemKernel<'_, M> {
     #[inline(always)]
-    fn batch(&self, b: usize, idx: &[[u32; 4]; LANES], x: &[Vec3], f: &mut LaneForces, en: &mut [f64; LANES]) {
+    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
         const L: usize = LANES;
         let r = &self.rest[b];
-        let mut p = [[[0.0; L]; 3]; 4];
-        for l in 0..L {
-            for a in 0..4 {
-                let q = &x[idx[l][a] as usize];
-                p[a][0][l] = q.x;
-                p[a][1][l] = q.y;
-                p[a][2][l] = q.z;
-            }
-        }
         // Ds[row][col] = (x_{col+1} - x_0)[row]; F = Ds·Dm⁻¹
         let mut ds = [[[0.0; L]; 3]; 3];
         for row in 0..3 {

@@ -168,14 +168,28 @@ fn operation(g: &Graph, names: &Names, id: Id) -> Option<TokenStream> {
             }
         }
         Node::Powf(a, b) => {
+            let thirds = g.as_const(b).and_then(thirds);
             let (a, b) = (o(a), o(b));
-            match names.fast {
-                Some(core) => fast_call(core, "powf", &[a, b]),
-                None => quote!(#a.powf(#b)),
+            match (names.fast, thirds) {
+                (Some(core), Some(n)) => {
+                    let n = Literal::i32_unsuffixed(n);
+                    quote!(#core::force::fastmath::pow_thirds(#a, #n))
+                }
+                (Some(core), None) => fast_call(core, "powf", &[a, b]),
+                (None, _) => quote!(#a.powf(#b)),
             }
         }
         Node::Const(_) | Node::Var(_) | Node::Param(_) => return None,
     })
+}
+
+/// `n` when the constant exponent `b` is n/3 for a small n not divisible by 3 (the
+/// isochoric powers J^(−2/3), J^(−4/3), …): the fast kernel takes a cube root instead
+/// of exp(b·ln a), about half the work, vectorised alike.
+fn thirds(b: f64) -> Option<i32> {
+    let n = (3.0 * b).round();
+    let exact = (3.0 * b - n).abs() <= 4.0 * f64::EPSILON * n.abs();
+    (exact && n.abs() <= 12.0 && n % 3.0 != 0.0).then_some(n as i32)
 }
 
 fn fast_call(core: &TokenStream, name: &str, args: &[TokenStream]) -> TokenStream {

@@ -38,7 +38,11 @@ use rayon::prelude::*;
 use std::sync::Mutex;
 
 /// Tets per batch (SIMD lanes of the batch kernels).
-pub const LANES: usize = 8;
+pub const LANES: usize = 4;
+
+thread_local! {
+    static FORCED_LEVEL: std::cell::Cell<Option<SimdLevel>> = const { std::cell::Cell::new(None) };
+}
 
 /// The instruction set the block driver is compiled for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -95,6 +99,45 @@ impl SimdLevel {
         false
     }
 
+    /// The levels this CPU can run, best first (AVX-512 included when supported,
+    /// although [`Self::detect`] only picks it on request).
+    pub fn available() -> Vec<SimdLevel> {
+        let mut v = Vec::new();
+        if Self::has_avx512() {
+            v.push(SimdLevel::Avx512);
+        }
+        if Self::has_avx2() {
+            v.push(SimdLevel::Avx2);
+        }
+        v.push(SimdLevel::Baseline);
+        v
+    }
+
+    /// Runs `f` with the batched and parallel kernels started from this thread
+    /// using this level instead of the detected one: for tests and benchmarks that
+    /// compare the instruction sets. `None` when the CPU cannot run it.
+    pub fn run_with<R>(self, f: impl FnOnce() -> R) -> Option<R> {
+        if !Self::available().contains(&self) {
+            return None;
+        }
+        let previous = FORCED_LEVEL.with(|c| c.replace(Some(self)));
+        // restored even if `f` panics
+        struct Restore(Option<SimdLevel>);
+        impl Drop for Restore {
+            fn drop(&mut self) {
+                FORCED_LEVEL.with(|c| c.set(self.0));
+            }
+        }
+        let _restore = Restore(previous);
+        Some(f())
+    }
+
+    /// The level the kernels use on this thread: forced by [`Self::run_with`], or
+    /// detected.
+    fn current() -> SimdLevel {
+        FORCED_LEVEL.with(|c| c.get()).unwrap_or_else(SimdLevel::detect)
+    }
+
     /// Name for reports.
     pub fn name(self) -> &'static str {
         match self {
@@ -108,12 +151,30 @@ impl SimdLevel {
 /// Forces of the four corners of each lane, `[corner][xyz][lane]`.
 pub type LaneForces = [[[f64; LANES]; 3]; 4];
 
+/// Positions of the four corners of each lane, `[corner][xyz][lane]`.
+pub type LanePoints = [[[f64; LANES]; 3]; 4];
+
 /// A batch kernel: the per-tet physics of a field, evaluated `LANES` tets at a time.
 pub trait BatchKernel: Sync {
     /// Energies and corner forces of the tets of batch `b` (field positions
-    /// `b*LANES..`), whose node indices into `x` are `idx`. Lanes past the end of the
-    /// field hold padding and may produce anything (they are never used).
-    fn batch(&self, b: usize, idx: &[[u32; 4]; LANES], x: &[Vec3], f: &mut LaneForces, e: &mut [f64; LANES]);
+    /// `b*LANES..`), whose corner positions are `p`. Lanes past the end of the field
+    /// hold padding and may produce anything (they are never used).
+    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]);
+}
+
+/// A node position or force padded to four `f64` (32-byte aligned), so that one
+/// aligned vector load or store moves a whole node in the SIMD gather and scatter.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[repr(C, align(32))]
+struct Node4([f64; 4]);
+
+impl Node4 {
+    fn from_vec(v: &Vec3) -> Node4 {
+        Node4([v.x, v.y, v.z, 0.0])
+    }
+    fn to_vec(self) -> Vec3 {
+        Vec3::new(self.0[0], self.0[1], self.0[2])
+    }
 }
 
 /// One block of consecutive field tets.
@@ -127,10 +188,11 @@ struct Block {
     nodes: Vec<u32>,
 }
 
+/// Per-block buffers of the local node positions and forces, kept between calls.
 #[derive(Debug, Default)]
 struct Scratch {
-    x: Vec<Vec<Vec3>>,
-    f: Vec<Vec<Vec3>>,
+    x: Vec<Vec<Node4>>,
+    f: Vec<Vec<Node4>>,
     energy: Vec<f64>,
 }
 
@@ -141,8 +203,9 @@ pub struct Layout {
     n_tets: usize,
     /// Global tet id per field tet.
     pub ids: Vec<usize>,
-    /// Local node indices per field tet, padded to a multiple of `LANES`.
-    local: Vec<[u32; 4]>,
+    /// Local node indices per field tet (a block has fewer than 2^16 nodes), padded
+    /// to a multiple of `LANES`.
+    local: Vec<[u16; 4]>,
     blocks: Vec<Block>,
     /// CSR: for node i, `merge[merge_off[i]..merge_off[i+1]]` = (block, local index).
     merge_off: Vec<u32>,
@@ -165,10 +228,14 @@ impl Clone for Layout {
     }
 }
 
-/// Tets per block for a field of `n` tets: a multiple of `LANES`, from 512 to 4096,
-/// about n/32 (enough blocks for load balance, few enough to keep the merge small).
+/// Most tets in a block: its at most 4 × this many local nodes fit in a `u16`.
+const MAX_BLOCK: usize = 4096;
+
+/// Tets per block for a field of `n` tets: a multiple of `LANES`, from 512 to
+/// [`MAX_BLOCK`], about n/32 (enough blocks for load balance, few enough to keep the
+/// merge small).
 fn block_size(n: usize) -> usize {
-    let b = (n / 32).clamp(512, 4096);
+    let b = (n / 32).clamp(512, MAX_BLOCK);
     b.div_ceil(LANES) * LANES
 }
 
@@ -183,10 +250,11 @@ impl Layout {
         let n = ids.len();
         let n_batches = n.div_ceil(LANES);
         let bs = block_size(n) / LANES;
-        let mut local = vec![[0u32; 4]; n_batches * LANES];
+        const _: () = assert!(4 * MAX_BLOCK <= u16::MAX as usize + 1);
+        let mut local = vec![[0u16; 4]; n_batches * LANES];
         let mut blocks = Vec::new();
         let mut stamp = vec![u32::MAX; mesh.n_nodes()];
-        let mut map = vec![0u32; mesh.n_nodes()];
+        let mut map = vec![0u16; mesh.n_nodes()];
         let mut start = 0;
         while start < n_batches {
             let end = (start + bs).min(n_batches);
@@ -197,7 +265,7 @@ impl Layout {
                     let g = g as usize;
                     if stamp[g] != b {
                         stamp[g] = b;
-                        map[g] = nodes.len() as u32;
+                        map[g] = nodes.len() as u16;
                         nodes.push(g as u32);
                     }
                     local[k][a] = map[g];
@@ -266,69 +334,89 @@ impl Layout {
     /// Heap bytes of the layout (indices, blocks, merge lists, scratch buffers).
     pub fn heap_bytes(&self) -> usize {
         let nodes: usize = self.blocks.iter().map(|b| b.nodes.len()).sum();
-        self.ids.len() * 8
-            + self.local.len() * 16
+        self.ids.len() * std::mem::size_of::<usize>()
+            + self.local.len() * std::mem::size_of::<[u16; 4]>()
             + self.blocks.len() * std::mem::size_of::<Block>()
             + nodes * 4
             + self.merge_off.len() * 4
             + self.merge.len() * 8
             // scratch: local positions and forces of every block, once allocated
-            + nodes * 2 * 24
+            + nodes * 2 * std::mem::size_of::<Node4>()
             + self.blocks.len() * 8
     }
 
-    /// Serial batched evaluation in field order over global indices: adds the forces
-    /// to `f` tet by tet, corner by corner — the plain kernel's order of summation.
+    /// Serial batched evaluation: the blocks one after the other on this thread, then
+    /// the same merge as [`Self::add_parallel`] (so the same bits).
     pub fn add_serial<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3]) -> f64 {
-        let level = SimdLevel::detect();
-        let mut energy = 0.0;
-        for blk in &self.blocks {
-            let local = &self.local[blk.batch_start * LANES..blk.batch_end * LANES];
-            energy += run_block(level, k, blk.batch_start, local, Some(&blk.nodes), self.n_tets, x, f);
-        }
-        energy
+        self.evaluate(k, x, f, false)
     }
 
     /// Parallel blocked evaluation (see the module doc): adds the forces to `f` and
     /// returns the energy; the same bits for any number of rayon threads.
     pub fn add_parallel<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3]) -> f64 {
-        let level = SimdLevel::detect();
+        self.evaluate(k, x, f, true)
+    }
+
+    fn evaluate<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3], parallel: bool) -> f64 {
+        let level = SimdLevel::current();
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         let s = &mut *guard;
         if s.f.len() != self.blocks.len() {
-            s.x = self.blocks.iter().map(|b| vec![Vec3::zeros(); b.nodes.len()]).collect();
+            s.x = self
+                .blocks
+                .iter()
+                .map(|b| vec![Node4::default(); b.nodes.len()])
+                .collect();
             s.f = s.x.clone();
             s.energy = vec![0.0; self.blocks.len()];
         }
         let n_tets = self.n_tets;
-        self.blocks
-            .par_iter()
-            .zip(s.x.par_iter_mut())
-            .zip(s.f.par_iter_mut())
-            .zip(s.energy.par_iter_mut())
-            .with_max_len(1)
-            .for_each(|(((blk, xl), fl), e)| {
-                for (xi, &g) in xl.iter_mut().zip(&blk.nodes) {
-                    *xi = x[g as usize];
-                }
-                fl.fill(Vec3::zeros());
-                let local = &self.local[blk.batch_start * LANES..blk.batch_end * LANES];
-                *e = run_block(level, k, blk.batch_start, local, None, n_tets, xl, fl);
-            });
-        let bufs: &[Vec<Vec3>] = &s.f;
-        const CHUNK: usize = 2048;
-        f.par_chunks_mut(CHUNK).enumerate().for_each(|(c, chunk)| {
+        type Task<'a> = (((&'a Block, &'a mut Vec<Node4>), &'a mut Vec<Node4>), &'a mut f64);
+        let one = |(((blk, xl), fl), e): Task| {
+            for (xi, &g) in xl.iter_mut().zip(&blk.nodes) {
+                *xi = Node4::from_vec(&x[g as usize]);
+            }
+            fl.fill(Node4::default());
+            let local = &self.local[blk.batch_start * LANES..blk.batch_end * LANES];
+            *e = run_block(level, k, blk.batch_start, local, blk.nodes.len(), n_tets, xl, fl);
+        };
+        if parallel {
+            self.blocks
+                .par_iter()
+                .zip(s.x.par_iter_mut())
+                .zip(s.f.par_iter_mut())
+                .zip(s.energy.par_iter_mut())
+                .with_max_len(1)
+                .for_each(one);
+        } else {
+            self.blocks
+                .iter()
+                .zip(s.x.iter_mut())
+                .zip(s.f.iter_mut())
+                .zip(s.energy.iter_mut())
+                .for_each(one);
+        }
+        let bufs: &[Vec<Node4>] = &s.f;
+        let merge = |(c, chunk): (usize, &mut [Vec3])| {
             for (o, fi) in chunk.iter_mut().enumerate() {
-                let i = c * CHUNK + o;
+                let i = c * MERGE_CHUNK + o;
                 let (lo, hi) = (self.merge_off[i] as usize, self.merge_off[i + 1] as usize);
                 for &(b, li) in &self.merge[lo..hi] {
-                    *fi += bufs[b as usize][li as usize];
+                    *fi += bufs[b as usize][li as usize].to_vec();
                 }
             }
-        });
+        };
+        if parallel {
+            f.par_chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
+        } else {
+            f.chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
+        }
         s.energy.iter().sum()
     }
 }
+
+/// Nodes per parallel task of the merge.
+const MERGE_CHUNK: usize = 2048;
 
 /// Runs the batches of one block with the driver compiled for `level`.
 #[allow(clippy::too_many_arguments)]
@@ -336,85 +424,211 @@ fn run_block<K: BatchKernel>(
     level: SimdLevel,
     k: &K,
     batch0: usize,
-    local: &[[u32; 4]],
-    map: Option<&[u32]>,
+    local: &[[u16; 4]],
+    nodes: usize,
     n_tets: usize,
-    x: &[Vec3],
-    f: &mut [Vec3],
+    x: &[Node4],
+    f: &mut [Node4],
 ) -> f64 {
+    check_local(local, nodes, x.len(), f.len());
     match level {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `SimdLevel::detect` returns Avx512 only when the CPU reports
-        // avx512f, avx512dq, avx512vl, avx2 and fma, the features this function enables.
-        SimdLevel::Avx512 => unsafe { block_avx512(k, batch0, local, map, n_tets, x, f) },
+        // avx512f, avx512dq, avx512vl, avx2 and fma, the features this function
+        // enables; the indices the gather and scatter use are in bounds (`check_local`).
+        SimdLevel::Avx512 => unsafe { block_avx512(k, batch0, local, n_tets, x, f) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdLevel::detect` returns Avx2 only when the CPU reports avx2 and fma.
-        SimdLevel::Avx2 => unsafe { block_avx2(k, batch0, local, map, n_tets, x, f) },
-        _ => block_body(k, batch0, local, map, n_tets, x, f),
+        // SAFETY: `SimdLevel::detect` returns Avx2 only when the CPU reports avx2 and
+        // fma; the indices the gather and scatter use are in bounds (`check_local`).
+        SimdLevel::Avx2 => unsafe { block_avx2(k, batch0, local, n_tets, x, f) },
+        _ => block_body::<K, Portable>(k, batch0, local, n_tets, x, f),
     }
+}
+
+/// The buffers of a block hold its nodes. With the invariant of [`Layout::new`]
+/// (every local index of a block is below its node count), every index the SIMD
+/// gather and scatter use is in bounds.
+#[inline]
+fn check_local(local: &[[u16; 4]], nodes: usize, nx: usize, nf: usize) {
+    assert!(
+        local.len().is_multiple_of(LANES) && nx == nodes && nf == nodes,
+        "force layout: block buffers of {nx} and {nf} nodes for a block of {nodes}"
+    );
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-#[allow(clippy::too_many_arguments)]
-fn block_avx512<K: BatchKernel>(
+unsafe fn block_avx512<K: BatchKernel>(
     k: &K,
     batch0: usize,
-    local: &[[u32; 4]],
-    map: Option<&[u32]>,
+    local: &[[u16; 4]],
     n_tets: usize,
-    x: &[Vec3],
-    f: &mut [Vec3],
+    x: &[Node4],
+    f: &mut [Node4],
 ) -> f64 {
-    block_body(k, batch0, local, map, n_tets, x, f)
+    block_body::<K, simd_x86::Avx2>(k, batch0, local, n_tets, x, f)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-#[allow(clippy::too_many_arguments)]
-fn block_avx2<K: BatchKernel>(
+unsafe fn block_avx2<K: BatchKernel>(
     k: &K,
     batch0: usize,
-    local: &[[u32; 4]],
-    map: Option<&[u32]>,
+    local: &[[u16; 4]],
     n_tets: usize,
-    x: &[Vec3],
-    f: &mut [Vec3],
+    x: &[Node4],
+    f: &mut [Node4],
 ) -> f64 {
-    block_body(k, batch0, local, map, n_tets, x, f)
+    block_body::<K, simd_x86::Avx2>(k, batch0, local, n_tets, x, f)
 }
 
+/// Moves one batch's corner positions in and corner forces out: between the
+/// per-node AoS buffers of a block and the SoA lanes of the kernels.
+trait LaneIo {
+    /// `p[a][c][l] = x[idx[l][a]][c]`.
+    fn gather(idx: &[[u16; 4]; LANES], x: &[Node4], p: &mut LanePoints);
+    /// `f[idx[l][a]][c] += fl[a][c][l]` for every lane, in lane order.
+    fn scatter(idx: &[[u16; 4]; LANES], fl: &LaneForces, f: &mut [Node4]);
+}
+
+/// Plain indexed loads and stores (the baseline target).
+struct Portable;
+
+impl LaneIo for Portable {
+    #[inline(always)]
+    fn gather(idx: &[[u16; 4]; LANES], x: &[Node4], p: &mut LanePoints) {
+        for l in 0..LANES {
+            for a in 0..4 {
+                let q = &x[idx[l][a] as usize].0;
+                for c in 0..3 {
+                    p[a][c][l] = q[c];
+                }
+            }
+        }
+    }
+    #[inline(always)]
+    fn scatter(idx: &[[u16; 4]; LANES], fl: &LaneForces, f: &mut [Node4]) {
+        for l in 0..LANES {
+            scatter_lane(idx, fl, f, l);
+        }
+    }
+}
+
+/// Adds the four corner forces of lane `l` to `f`.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn block_body<K: BatchKernel>(
+fn scatter_lane(idx: &[[u16; 4]; LANES], fl: &LaneForces, f: &mut [Node4], l: usize) {
+    for a in 0..4 {
+        let q = &mut f[idx[l][a] as usize].0;
+        for c in 0..3 {
+            q[c] += fl[a][c][l];
+        }
+    }
+}
+
+/// Gather and scatter with AVX2 4×4 transposes: one aligned load or store per node
+/// and corner instead of three scalar ones plus a bounds check each.
+#[cfg(target_arch = "x86_64")]
+mod simd_x86 {
+    use super::{LaneForces, LaneIo, LanePoints, Node4, LANES};
+    use std::arch::x86_64::*;
+
+    pub struct Avx2;
+
+    impl LaneIo for Avx2 {
+        #[inline(always)]
+        fn gather(idx: &[[u16; 4]; LANES], x: &[Node4], p: &mut LanePoints) {
+            // SAFETY: only reached from `block_avx2`/`block_avx512` (AVX2 enabled),
+            // and every index is < x.len() (`check_local`).
+            unsafe { gather(idx, x, p) }
+        }
+        #[inline(always)]
+        fn scatter(idx: &[[u16; 4]; LANES], fl: &LaneForces, f: &mut [Node4]) {
+            // SAFETY: as for `gather`, with every index < f.len().
+            unsafe { scatter(idx, fl, f) }
+        }
+    }
+
+    #[inline(always)]
+    unsafe fn gather(idx: &[[u16; 4]; LANES], x: &[Node4], p: &mut LanePoints) {
+        let base = x.as_ptr() as *const f64;
+        for a in 0..4 {
+            for h in 0..LANES / 4 {
+                let i = &idx[4 * h..4 * h + 4];
+                let r0 = _mm256_load_pd(base.add(4 * i[0][a] as usize));
+                let r1 = _mm256_load_pd(base.add(4 * i[1][a] as usize));
+                let r2 = _mm256_load_pd(base.add(4 * i[2][a] as usize));
+                let r3 = _mm256_load_pd(base.add(4 * i[3][a] as usize));
+                let t0 = _mm256_unpacklo_pd(r0, r1); // x0 x1 z0 z1
+                let t1 = _mm256_unpackhi_pd(r0, r1); // y0 y1 .. ..
+                let t2 = _mm256_unpacklo_pd(r2, r3); // x2 x3 z2 z3
+                let t3 = _mm256_unpackhi_pd(r2, r3); // y2 y3 .. ..
+                let out = &mut p[a];
+                _mm256_storeu_pd(out[0][4 * h..].as_mut_ptr(), _mm256_permute2f128_pd(t0, t2, 0x20));
+                _mm256_storeu_pd(out[1][4 * h..].as_mut_ptr(), _mm256_permute2f128_pd(t1, t3, 0x20));
+                _mm256_storeu_pd(out[2][4 * h..].as_mut_ptr(), _mm256_permute2f128_pd(t0, t2, 0x31));
+            }
+        }
+    }
+
+    #[inline(always)]
+    unsafe fn scatter(idx: &[[u16; 4]; LANES], fl: &LaneForces, f: &mut [Node4]) {
+        let base = f.as_mut_ptr() as *mut f64;
+        let zero = _mm256_setzero_pd();
+        for a in 0..4 {
+            for h in 0..LANES / 4 {
+                let x = _mm256_loadu_pd(fl[a][0][4 * h..].as_ptr());
+                let y = _mm256_loadu_pd(fl[a][1][4 * h..].as_ptr());
+                let z = _mm256_loadu_pd(fl[a][2][4 * h..].as_ptr());
+                let t0 = _mm256_unpacklo_pd(x, y); // x0 y0 x2 y2
+                let t1 = _mm256_unpackhi_pd(x, y); // x1 y1 x3 y3
+                let t2 = _mm256_unpacklo_pd(z, zero); // z0 0 z2 0
+                let t3 = _mm256_unpackhi_pd(z, zero); // z1 0 z3 0
+                let rows = [
+                    _mm256_permute2f128_pd(t0, t2, 0x20),
+                    _mm256_permute2f128_pd(t1, t3, 0x20),
+                    _mm256_permute2f128_pd(t0, t2, 0x31),
+                    _mm256_permute2f128_pd(t1, t3, 0x31),
+                ];
+                // lane by lane: two lanes may share a node
+                for (l, r) in rows.into_iter().enumerate() {
+                    let q = base.add(4 * idx[4 * h + l][a] as usize);
+                    _mm256_store_pd(q, _mm256_add_pd(_mm256_load_pd(q), r));
+                }
+            }
+        }
+    }
+}
+
+/// The batches of one block: gather, kernel, scatter (all lanes at once for full
+/// batches, lane by lane for the padded last one).
+#[inline(always)]
+fn block_body<K: BatchKernel, IO: LaneIo>(
     k: &K,
     batch0: usize,
-    local: &[[u32; 4]],
-    map: Option<&[u32]>,
+    local: &[[u16; 4]],
     n_tets: usize,
-    x: &[Vec3],
-    f: &mut [Vec3],
+    x: &[Node4],
+    f: &mut [Node4],
 ) -> f64 {
     let mut energy = 0.0;
+    let mut p = [[[0.0; LANES]; 3]; 4];
     let mut fl = [[[0.0; LANES]; 3]; 4];
     let mut el = [0.0; LANES];
     for (bo, idx) in local.chunks_exact(LANES).enumerate() {
         let b = batch0 + bo;
-        let idx: &[[u32; 4]; LANES] = idx.try_into().expect("a batch has LANES tets");
-        // with a map, local indices are translated to global ones (serial path)
-        let idx: [[u32; 4]; LANES] = match map {
-            Some(m) => std::array::from_fn(|l| idx[l].map(|i| m[i as usize])),
-            None => *idx,
-        };
-        k.batch(b, &idx, x, &mut fl, &mut el);
+        let idx: &[[u16; 4]; LANES] = idx.try_into().expect("a batch has LANES tets");
+        IO::gather(idx, x, &mut p);
+        k.batch(b, &p, &mut fl, &mut el);
         let count = (n_tets - b * LANES).min(LANES);
-        for l in 0..count {
-            energy += el[l];
-            for (a, &i) in idx[l].iter().enumerate() {
-                let fi = &mut f[i as usize];
-                fi.x += fl[a][0][l];
-                fi.y += fl[a][1][l];
-                fi.z += fl[a][2][l];
+        if count == LANES {
+            IO::scatter(idx, &fl, f);
+            for l in 0..LANES {
+                energy += el[l];
+            }
+        } else {
+            for l in 0..count {
+                energy += el[l];
+                scatter_lane(idx, &fl, f, l);
             }
         }
     }

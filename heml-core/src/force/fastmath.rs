@@ -133,6 +133,80 @@ pub fn powf(a: f64, b: f64) -> f64 {
     }
 }
 
+/// Cube root, with the special values of `f64::cbrt` (odd: cbrt(−x) = −cbrt(x)).
+///
+/// x = m·2^(3q+r) with m in [1, 2) and r in {0, 1, 2}: a quadratic guess of
+/// cbrt(m) (relative error 7e-4) times 2^(r/3), two Halley steps on m·2^r (each
+/// cubes the error: 3e-10, then below round-off), times 2^q built in the exponent
+/// bits. Only arithmetic, selects and 64-bit shifts: it vectorises, unlike libm's.
+#[inline(always)]
+pub fn cbrt(x: f64) -> f64 {
+    const CBRT2: f64 = 1.259_921_049_894_873_2;
+    const CBRT4: f64 = 1.587_401_052_238_664_6;
+    let ax = x.abs();
+    let sub = ax < f64::MIN_POSITIVE;
+    let xs = if sub { ax * 18_014_398_509_481_984.0 } else { ax }; // 2^54
+    let bits = xs.to_bits();
+    let eb = f64::from_bits(0x4330_0000_0000_0000 | ((bits >> 52) & 0x7ff)) - 4_503_599_627_370_496.0;
+    let e = eb - if sub { 1023.0 + 54.0 } else { 1023.0 };
+    // e/3 is exact or at least 1/3 away from an integer, so its floor is exact
+    let q = (e * (1.0 / 3.0)).floor();
+    let q = if q * 3.0 > e { q - 1.0 } else { q };
+    let r = e - 3.0 * q;
+    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    let a = if r == 0.0 {
+        m
+    } else if r == 1.0 {
+        2.0 * m
+    } else {
+        4.0 * m
+    };
+    let guess = 0.622_894_423_327_851_6 + m * (0.437_472_945_967_911_1 - m * 0.059_657_406_767_872_5);
+    let mut y = guess
+        * if r == 0.0 {
+            1.0
+        } else if r == 1.0 {
+            CBRT2
+        } else {
+            CBRT4
+        };
+    for _ in 0..2 {
+        // Halley, y·(y³ + 2a)/(2y³ + a), as a correction (a − y³ is small): ≤ 1 ulp
+        let y3 = y * y * y;
+        y += y * (a - y3) / (2.0 * y3 + a);
+    }
+    // 2^q: q + 1023 in [1, 2046] for every finite non-zero x
+    let qb = (q + 1023.0 + SHIFTER).to_bits() & 0x7ff;
+    let y = y * f64::from_bits(qb << 52);
+    let y = if x < 0.0 { -y } else { y };
+    // ±0, ±∞ and NaN are their own cube roots
+    if ax == 0.0 || ax == f64::INFINITY || x.is_nan() {
+        x + x
+    } else {
+        y
+    }
+}
+
+/// x^(n/3) as a power of [`cbrt`]: for the rational exponents of isochoric
+/// invariants (J^(−2/3), J^(−4/3), …), exact to a few ulp, and NaN for x < 0 like
+/// `f64::powf` with a non-integral exponent. `n` is a constant in generated code,
+/// so the power loop unrolls into a few multiplications.
+#[inline(always)]
+pub fn pow_thirds(x: f64, n: i32) -> f64 {
+    let c = cbrt(x);
+    // invert first: c^-n as (1/c)^n keeps the products normal when the result is
+    let base = if n < 0 { 1.0 / c } else { c };
+    let mut y = 1.0;
+    for _ in 0..n.unsigned_abs() {
+        y *= base;
+    }
+    if x < 0.0 && n % 3 != 0 {
+        f64::NAN
+    } else {
+        y
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -215,5 +289,45 @@ mod tests {
         assert_eq!(powf(0.0, 2.0 / 3.0), 0.0);
         assert_eq!(powf(f64::NAN, 0.0), 1.0);
         assert_eq!(powf(1.0, f64::NAN), 1.0);
+    }
+
+    #[test]
+    fn cbrt_is_within_one_ulp() {
+        let mut worst: f64 = 0.0;
+        for x in samples() {
+            worst = worst.max(ulps(cbrt(x), x.cbrt()));
+            worst = worst.max(ulps(cbrt(-x), (-x).cbrt()));
+        }
+        assert!(worst <= 1.0, "worst cbrt error {worst} ulp");
+        for x in [5e-324, 2.5e-310, f64::MIN_POSITIVE, f64::MAX, 8.0, 27.0, 0.125] {
+            assert!(ulps(cbrt(x), x.cbrt()) <= 1.0, "{x}");
+        }
+        assert_eq!(cbrt(0.0).to_bits(), 0.0f64.to_bits());
+        assert_eq!(cbrt(-0.0).to_bits(), (-0.0f64).to_bits());
+        assert_eq!(cbrt(f64::INFINITY), f64::INFINITY);
+        assert_eq!(cbrt(f64::NEG_INFINITY), f64::NEG_INFINITY);
+        assert!(cbrt(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn pow_thirds_matches_powf() {
+        let mut worst: f64 = 0.0;
+        for x in samples() {
+            for n in [-7, -5, -4, -2, -1, 1, 2, 4, 5] {
+                let want = x.powf(n as f64 / 3.0);
+                if want.is_finite() && want > 1e-300 {
+                    // |n| products of a ≤ 1-ulp root and a division; and powf's own
+                    // exponent n/3 is rounded, off by |ln x · n/3| ulp at most
+                    let b = n as f64 / 3.0;
+                    let e = ulps(pow_thirds(x, n), want) / (n.unsigned_abs() as f64 + 1.0 + (b * x.ln()).abs());
+                    worst = worst.max(e);
+                }
+            }
+        }
+        assert!(worst <= 1.0, "worst pow_thirds error {worst} ulp per factor");
+        assert!(pow_thirds(-2.0, -2).is_nan());
+        assert_eq!(pow_thirds(0.0, -2), f64::INFINITY);
+        assert_eq!(pow_thirds(0.0, 2), 0.0);
+        assert_eq!(pow_thirds(f64::INFINITY, -2), 0.0);
     }
 }
