@@ -75,3 +75,36 @@ fn info_errors_name_the_problem() {
         eprintln!("skipping the real-mesh part: ../shared/meshes not found");
     }
 }
+
+/// `heml bench` on a small generated box: the table names the mesh it measured
+/// (the same box the library generates), both thread counts, HEML and P1 side by side
+/// with positive rates, and the memory of both fields.
+#[test]
+fn bench_prints_a_complete_side_by_side_table() {
+    let (ok, out, err) = heml(&["bench", "--tets", "3000", "--repeats", "1", "--threads", "2"]);
+    assert!(ok, "{err}");
+    let mesh = heml::heml_core::mesh::generate::box_of_about(3000).unwrap();
+    assert!(
+        out.contains(&format!("({} nodes, {} tets)", mesh.n_nodes(), mesh.n_tets())),
+        "{out}"
+    );
+    assert!(out.contains("nodes renumbered at load"), "{out}");
+    for threads in ["1", "2"] {
+        let row: Vec<f64> = out
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(threads))
+            .unwrap_or_else(|| panic!("no row for {threads} threads:\n{out}"))
+            .split_whitespace()
+            .skip(1)
+            .map(|v| v.trim_end_matches('×').parse().unwrap())
+            .collect();
+        // HEML tets/s, ns/tet, P1 tets/s, ns/tet, ratio
+        assert_eq!(row.len(), 5, "{out}");
+        assert!(row.iter().all(|v| v.is_finite() && *v > 0.0), "{row:?}");
+        assert!(
+            (row[0] * row[1] * 1e-9 - 1.0).abs() < 0.01,
+            "tets/s and ns/tet disagree: {row:?}"
+        );
+    }
+    assert!(out.contains("memory: HEML") && out.contains("full step"), "{out}");
+}

@@ -34,6 +34,15 @@ pub struct BenchArgs {
     /// Also time the plain serial reference kernels.
     #[arg(long)]
     pub reference: bool,
+    /// Keep the mesh's node numbering. By default the nodes are renumbered along a
+    /// Morton curve as loaded, as `heml run` does.
+    #[arg(long)]
+    pub keep_order: bool,
+    /// Instead of the usual table: cost per tet of the HEML field on generated boxes
+    /// of about 10k, 100k and 1M tets and on the 1M box shuffled (renumbered at load,
+    /// and kept shuffled), timed interleaved in one run.
+    #[arg(long)]
+    pub scaling: bool,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -71,6 +80,12 @@ pub fn shuffled(mesh: &TetMesh) -> heml::Result<TetMesh> {
     let pn = shuffle(mesh.n_nodes());
     let pt = shuffle(mesh.n_tets());
     mesh.renumbered(&pn, &pt)
+}
+
+/// `mesh` with its nodes renumbered along a Morton curve, as the scene loader does.
+pub fn renumbered_at_load(mesh: &TetMesh) -> heml::Result<TetMesh> {
+    use heml::mesh::reorder::{morton_node_order, Permutation};
+    mesh.renumbered(&morton_node_order(mesh), &Permutation::identity(mesh.n_tets()))
 }
 
 /// A smooth deformation (10 % stretch, 0.2 rad twist over the length, 2 % shear) that
@@ -124,15 +139,63 @@ fn time_fields(fields: &[&dyn ElasticForces], x: &[Vec3], repeats: usize, inner:
     Ok(samples.iter_mut().map(|s| median(s)).collect())
 }
 
+/// `heml bench --scaling`: the cost per tet as the mesh grows, and on a shuffled
+/// mesh, all fields timed round-robin in one run so that machine noise hits them
+/// alike.
+fn scaling(args: &BenchArgs, law: &dyn Material, pool: &rayon::ThreadPool) -> heml::Result<()> {
+    let opts = ForceOptions::default();
+    let mut cases: Vec<(String, TetMesh)> = Vec::new();
+    for n in [10_000, 100_000, 1_000_000] {
+        let mesh = box_of_about(n)?;
+        cases.push((format!("box {} tets", mesh.n_tets()), mesh));
+    }
+    let big = shuffled(&cases[2].1)?;
+    cases.push(("same, shuffled, renumbered at load".into(), renumbered_at_load(&big)?));
+    cases.push(("same, shuffled, order kept".into(), big));
+    let fields: Vec<Box<dyn ElasticForces>> = cases
+        .iter()
+        .map(|(_, m)| law.force_field(m, None, &opts))
+        .collect::<heml::Result<_>>()?;
+    let xs: Vec<Vec<Vec3>> = cases.iter().map(|(_, m)| deformed(m)).collect();
+    let mut bufs: Vec<Vec<Vec3>> = xs.iter().map(|x| vec![Vec3::zeros(); x.len()]).collect();
+    let repeats = args.repeats.max(1);
+    let mut samples = vec![Vec::with_capacity(repeats); fields.len()];
+    pool.install(|| -> heml::Result<()> {
+        for (fl, (x, f)) in fields.iter().zip(xs.iter().zip(bufs.iter_mut())) {
+            fl.add_forces(x, f)?; // warm-up
+        }
+        for _ in 0..repeats {
+            for (k, fl) in fields.iter().enumerate() {
+                // about 20 ms per sample whatever the size
+                let inner = (2_000_000 / fl.n_tets().max(1)).clamp(1, 1000);
+                let t = Instant::now();
+                for _ in 0..inner {
+                    bufs[k].fill(Vec3::zeros());
+                    std::hint::black_box(fl.add_forces(&xs[k], &mut bufs[k])?);
+                }
+                samples[k].push(t.elapsed().as_secs_f64() / inner as f64 / fl.n_tets() as f64);
+            }
+        }
+        Ok(())
+    })?;
+    println!(
+        "cost per tet, {} threads, {} round-robin samples (medians):",
+        pool.current_num_threads(),
+        repeats
+    );
+    let per: Vec<f64> = samples.iter_mut().map(|s| median(s)).collect();
+    for ((name, _), t) in cases.iter().zip(&per) {
+        println!(
+            "  {name:<38} {:>7.2} ns/tet   {:>5.2}× the 10k box",
+            t * 1e9,
+            t / per[0]
+        );
+    }
+    Ok(())
+}
+
 /// Runs `heml bench`.
 pub fn run(args: BenchArgs) -> heml::Result<()> {
-    let mut mesh = match &args.mesh {
-        Some(path) => heml::heml_core::io::read_mesh(path)?.0,
-        None => box_of_about(args.tets)?,
-    };
-    if args.shuffle {
-        mesh = shuffled(&mesh)?;
-    }
     let entry = heml::find_material(&args.law)?;
     let params = tissue_params(entry)?;
     let law = entry.instantiate(&params)?;
@@ -146,6 +209,24 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             .build()
             .map_err(|e| HemlError::Invalid(format!("cannot start {n} threads: {e}")))
     };
+    if args.scaling {
+        println!(
+            "law: {}   SIMD: {}   (--mesh, --tets and --shuffle do not apply)",
+            entry.name,
+            SimdLevel::detect().name()
+        );
+        return scaling(&args, law.as_ref(), &pool(threads)?);
+    }
+    let mut mesh = match &args.mesh {
+        Some(path) => heml::heml_core::io::read_mesh(path)?.0,
+        None => box_of_about(args.tets)?,
+    };
+    if args.shuffle {
+        mesh = shuffled(&mesh)?;
+    }
+    if !args.keep_order {
+        mesh = renumbered_at_load(&mesh)?;
+    }
     let n_tets = mesh.n_tets();
     let x = deformed(&mesh);
     let repeats = args.repeats.max(1);
@@ -153,13 +234,18 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     let inner = (2_000_000 / n_tets.max(1)).clamp(1, 1000);
 
     println!(
-        "mesh: {} ({} nodes, {} tets){}",
+        "mesh: {} ({} nodes, {} tets){}{}",
         args.mesh
             .as_ref()
             .map_or("generated box".to_string(), |p| p.display().to_string()),
         mesh.n_nodes(),
         n_tets,
-        if args.shuffle { ", shuffled" } else { "" }
+        if args.shuffle { ", shuffled" } else { "" },
+        if args.keep_order {
+            ", node order kept"
+        } else {
+            ", nodes renumbered at load (Morton)"
+        }
     );
     println!(
         "law: {}   SIMD: {}   threads: {}   repeats: {} × {} calls (medians)",

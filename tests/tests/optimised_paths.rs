@@ -123,7 +123,9 @@ fn check_all_paths(fem: bool) {
         let mut batched = build();
         batched.set_assembly(Assembly::Batched);
         let parallel = build();
-        // every instruction set this CPU runs (AVX-512, AVX2 + FMA, baseline)
+        // every instruction set this CPU runs (AVX-512, AVX2 + FMA, baseline); they
+        // do the same operations in the same order, so they agree bitwise too
+        let mut first_level: Option<(u64, Vec<u64>)> = None;
         for level in SimdLevel::available() {
             let name = level.name();
             let (e, f) = level.run_with(|| batched.forces(&x)).unwrap().unwrap();
@@ -153,6 +155,15 @@ fn check_all_paths(fem: bool) {
                         entry.name
                     ),
                 }
+            }
+            match &first_level {
+                None => first_level = first,
+                Some(b0) => assert!(
+                    Some(b0) == first.as_ref(),
+                    "{}: {name} differs bitwise from {}",
+                    entry.name,
+                    SimdLevel::available()[0].name()
+                ),
             }
         }
         // adding to a non-zero buffer adds

@@ -10,6 +10,7 @@ use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
 use crate::io::{read_mesh_data, MeshData};
 use crate::mesh::generate::box_mesh;
+use crate::mesh::reorder::{morton_node_order, Permutation};
 use crate::mesh::TetMesh;
 use crate::registry::{closest, find_material, materials};
 use crate::system::{find_integrator, integrators, Integrator, System, SystemBuilder, TimeStepPolicy};
@@ -42,6 +43,12 @@ pub struct Simulation {
     pub dt_policy: TimeStepPolicy,
     /// Warnings found while building (e.g. dt above the stable estimate).
     pub warnings: Vec<String>,
+    /// The node renumbering of `[mesh] renumber`: internal node `i` (of `system`,
+    /// whose arrays are all in internal order) is file node `new_to_old[i]`. The
+    /// runner writes its frames back in file order and the system's messages name
+    /// file ids. `None` when the system keeps the file order (`renumber = false`,
+    /// or a mesh already in Morton order).
+    pub node_order: Option<Permutation>,
 }
 
 impl std::fmt::Debug for Simulation {
@@ -52,6 +59,7 @@ impl std::fmt::Debug for Simulation {
             .field("steps", &self.steps)
             .field("frame_every", &self.frame_every)
             .field("out_dir", &self.out_dir)
+            .field("renumbered", &self.node_order.is_some())
             .finish_non_exhaustive()
     }
 }
@@ -121,7 +129,28 @@ impl Scene {
     /// Builds the system and the integrator. Law and integrator names are looked up
     /// in the registry (see the [module docs](super) about linking).
     pub fn build(&self) -> Result<Simulation> {
+        // `mesh` stays in file order: selections (ids and geometry alike) resolve on
+        // it, and their ids go through `to_internal` to the builder
         let mesh = self.load_mesh()?;
+        let node_order = if self.mesh.renumber {
+            let order = morton_node_order(&mesh);
+            let unchanged = order.new_to_old.iter().enumerate().all(|(i, &old)| i == old);
+            (!unchanged).then_some(order)
+        } else {
+            None
+        };
+        let internal_mesh = match &node_order {
+            Some(p) => mesh
+                .renumbered(p, &Permutation::identity(mesh.n_tets()))
+                .map_err(|e| HemlError::Invalid(format!("{}: {e}", self.table_name("mesh"))))?,
+            None => mesh.clone(),
+        };
+        let to_internal = |ids: Vec<usize>| -> Vec<usize> {
+            match &node_order {
+                Some(p) => ids.into_iter().map(|i| p.old_to_new[i]).collect(),
+                None => ids,
+            }
+        };
         let solver_what = self.table_name("solver");
         let s = &self.solver;
         if !(s.duration.is_finite() && s.duration > 0.0) {
@@ -139,7 +168,10 @@ impl Scene {
             .map_err(|e| HemlError::Invalid(format!("{solver_what}: {e}{}", registry_hint(integrators().is_empty()))))?
             .instantiate();
 
-        let mut b = SystemBuilder::new(mesh.clone());
+        let mut b = SystemBuilder::new(internal_mesh);
+        if let Some(p) = &node_order {
+            b = b.input_node_ids(p.new_to_old.clone());
+        }
         if self.mesh.pin_unreferenced {
             b = b.pin_unreferenced();
         }
@@ -173,11 +205,11 @@ impl Scene {
         }
         for (i, f) in self.fix.iter().enumerate() {
             let what = self.entry_name("fix", i);
-            b = b.fix_nodes(f.selection(&what)?.resolve(&what, &mesh)?);
+            b = b.fix_nodes(to_internal(f.selection(&what)?.resolve(&what, &mesh)?));
         }
         for (i, p) in self.prescribe.iter().enumerate() {
             let what = self.entry_name("prescribe", i);
-            let ids = p.selection(&what)?.resolve(&what, &mesh)?;
+            let ids = to_internal(p.selection(&what)?.resolve(&what, &mesh)?);
             if !finite3(&p.displacement) {
                 return invalid(format!("{what}: displacement {:?} is not finite", p.displacement));
             }
@@ -195,7 +227,7 @@ impl Scene {
         }
         for (i, l) in self.loads.nodal.iter().enumerate() {
             let what = self.entry_name("loads.nodal", i);
-            let ids = l.selection(&what)?.resolve(&what, &mesh)?;
+            let ids = to_internal(l.selection(&what)?.resolve(&what, &mesh)?);
             if !finite3(&l.force) {
                 return invalid(format!("{what}: force {:?} is not finite", l.force));
             }
@@ -277,6 +309,7 @@ impl Scene {
             csv: o.csv,
             dt_policy: s.dt_policy,
             warnings,
+            node_order,
         })
     }
 }

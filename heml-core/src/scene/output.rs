@@ -2,6 +2,7 @@
 //! written atomically (the CSV is rewritten whole at each frame), so a run stopped at
 //! any moment leaves complete files only.
 
+use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -9,6 +10,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{HemlError, Result};
 use crate::io::atomic::write_atomic;
 use crate::io::{write_vtu, PvdWriter, VtuFrame};
+use crate::mesh::reorder::Permutation;
 use crate::system::{Energies, System};
 use crate::Vec3;
 
@@ -26,23 +28,43 @@ pub(crate) struct Output {
     /// Step count and path of the last frame written.
     last: Option<(u64, PathBuf)>,
     csv: Option<String>,
+    /// When the system's nodes are renumbered: the permutation and the tets in the
+    /// file's node numbering, so that frames read like the input mesh.
+    file_order: Option<(Permutation, Vec<[u32; 4]>)>,
 }
 
 impl Output {
-    /// Creates the directory and the empty series.
-    pub(crate) fn create(dir: &Path, vtu: bool, csv: bool) -> Result<Output> {
+    /// Creates the directory and the empty series. `node_order` is the renumbering
+    /// of `sys`'s nodes ([`super::Simulation::node_order`]), undone in every frame.
+    pub(crate) fn create(
+        dir: &Path,
+        vtu: bool,
+        csv: bool,
+        sys: &System,
+        node_order: Option<&Permutation>,
+    ) -> Result<Output> {
         std::fs::create_dir_all(dir).map_err(|e| HemlError::io(dir, e))?;
         let pvd = if vtu {
             Some(PvdWriter::create(dir.join("frames.pvd"))?)
         } else {
             None
         };
+        let file_order = node_order.filter(|_| vtu).map(|p| {
+            let tets = sys
+                .mesh()
+                .tets()
+                .iter()
+                .map(|t| t.map(|i| p.new_to_old[i as usize] as u32))
+                .collect();
+            (p.clone(), tets)
+        });
         Ok(Output {
             dir: dir.to_path_buf(),
             pvd,
             frames: 0,
             last: None,
             csv: csv.then(|| format!("{CSV_HEADER}\n")),
+            file_order,
         })
     }
 
@@ -82,11 +104,20 @@ impl Output {
                 }
             }
         }
+        let (order, tets) = match &self.file_order {
+            Some((p, tets)) => (Some(p), tets.as_slice()),
+            None => (None, sys.mesh().tets()),
+        };
         let displacement = sys.displacements();
+        let points = in_file_order(order, sys.positions());
+        let displacement = in_file_order(order, &displacement);
+        let velocity = in_file_order(order, sys.velocities());
+        let (force, reaction) = (in_file_order(order, &force), in_file_order(order, &reaction));
         let path = self.dir.join(format!("frame_{:05}.vtu", self.frames));
-        let frame = VtuFrame::deformed(sys.mesh(), sys.positions())
+        let frame = VtuFrame::new(&points, tets)
+            .tags(sys.mesh().tags())
             .point_vectors("displacement", &displacement)
-            .point_vectors("velocity", sys.velocities())
+            .point_vectors("velocity", &velocity)
             .point_vectors("force", &force)
             .point_vectors("reaction", &reaction)
             .cell_scalars("J", &j)
@@ -130,5 +161,14 @@ impl Output {
 
     pub(crate) fn wants_csv(&self) -> bool {
         self.csv.is_some()
+    }
+}
+
+/// A point array of the system brought back to the mesh file's node order (as it is
+/// when the nodes were not renumbered).
+fn in_file_order<'a>(order: Option<&Permutation>, a: &'a [Vec3]) -> Cow<'a, [Vec3]> {
+    match order {
+        Some(p) => Cow::Owned(p.unapply(a)),
+        None => Cow::Borrowed(a),
     }
 }

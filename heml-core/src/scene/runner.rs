@@ -84,7 +84,13 @@ impl Simulation {
             // the warning is in `self.warnings` already
             self.system.set_time_step_policy(TimeStepPolicy::Ignore);
         }
-        let mut out = Output::create(&self.out_dir, self.vtu, self.csv)?;
+        let mut out = Output::create(
+            &self.out_dir,
+            self.vtu,
+            self.csv,
+            &self.system,
+            self.node_order.as_ref(),
+        )?;
         let sys = &mut self.system;
         if let Err(e) = sys.compute_forces() {
             return Err(fail(&mut out, sys, e));

@@ -49,6 +49,7 @@ pub struct SystemBuilder {
     safety: f64,
     energy_every: u64,
     pin_unreferenced: bool,
+    input_ids: Option<Vec<usize>>,
     problems: Vec<String>,
 }
 
@@ -80,6 +81,7 @@ impl SystemBuilder {
             safety: DEFAULT_SAFETY,
             energy_every: 1,
             pin_unreferenced: false,
+            input_ids: None,
             problems: Vec::new(),
         }
     }
@@ -262,6 +264,15 @@ impl SystemBuilder {
         self
     }
 
+    /// The id to show for each node in messages: `ids[i]` names node `i` (one per
+    /// node). A caller that renumbered the mesh (e.g. for memory locality) passes the
+    /// original ids so that errors and warnings name nodes as its users know them.
+    /// The ids given to the other builder calls stay those of the builder's mesh.
+    pub fn input_node_ids(mut self, ids: Vec<usize>) -> Self {
+        self.input_ids = Some(ids);
+        self
+    }
+
     /// Checks everything and builds the system.
     pub fn build(self) -> Result<System> {
         if let Some(p) = self.problems.first() {
@@ -269,6 +280,16 @@ impl SystemBuilder {
         }
         let mesh = self.mesh;
         let n = mesh.n_nodes();
+        if let Some(ids) = &self.input_ids {
+            if ids.len() != n {
+                return invalid(format!(
+                    "input_node_ids() got {} ids, but the mesh has {n} nodes (one id per node)",
+                    ids.len()
+                ));
+            }
+        }
+        // the caller's id of node i (only called with ids already checked to be in range)
+        let shown = |i: usize| self.input_ids.as_ref().map_or(i, |ids| ids[i]);
         let check_id = |what: &str, i: usize| -> Result<()> {
             if i >= n {
                 return invalid(format!(
@@ -284,14 +305,21 @@ impl SystemBuilder {
         for p in &self.prescribed {
             check_id("prescribed", p.node)?;
             if !p.displacement.iter().all(|c| c.is_finite()) {
-                return invalid(format!("prescribed displacement of node {} is not finite", p.node));
+                return invalid(format!(
+                    "prescribed displacement of node {} is not finite",
+                    shown(p.node)
+                ));
             }
             p.ramp.validate()?;
         }
         for &(i, f) in &self.nodal {
             check_id("nodal force", i)?;
             if !f.iter().all(|c| c.is_finite()) {
-                return invalid(format!("nodal force on node {i} is not finite: {:?}", f.as_slice()));
+                return invalid(format!(
+                    "nodal force on node {} is not finite: {:?}",
+                    shown(i),
+                    f.as_slice()
+                ));
             }
         }
         let mut mask = vec![false; n];
@@ -304,10 +332,10 @@ impl SystemBuilder {
         let mut prescribed_mask = vec![false; n];
         for p in &self.prescribed {
             if mask[p.node] && !prescribed_mask[p.node] {
-                return invalid(format!("node {} is both fixed and prescribed", p.node));
+                return invalid(format!("node {} is both fixed and prescribed", shown(p.node)));
             }
             if prescribed_mask[p.node] {
-                return invalid(format!("node {} is prescribed twice", p.node));
+                return invalid(format!("node {} is prescribed twice", shown(p.node)));
             }
             prescribed_mask[p.node] = true;
             mask[p.node] = true;
@@ -408,10 +436,12 @@ impl SystemBuilder {
         let mut warnings = Vec::new();
         let unreferenced = mesh.unreferenced_nodes();
         if !unreferenced.is_empty() {
-            let shown: Vec<String> = unreferenced.iter().take(20).map(|i| i.to_string()).collect();
+            let mut ids: Vec<usize> = unreferenced.iter().map(|&i| shown(i)).collect();
+            ids.sort_unstable();
+            let listed: Vec<String> = ids.iter().take(20).map(|i| i.to_string()).collect();
             let list = format!(
                 "{}{}",
-                shown.join(", "),
+                listed.join(", "),
                 if unreferenced.len() > 20 { ", …" } else { "" }
             );
             if !self.pin_unreferenced {
@@ -450,7 +480,7 @@ impl SystemBuilder {
         let x = mesh.nodes().to_vec();
         let v = self.initial_velocity.unwrap_or_else(|| vec![Vec3::zeros(); n]);
         if let Some(i) = v.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
-            return invalid(format!("initial velocity of node {i} is not finite"));
+            return invalid(format!("initial velocity of node {} is not finite", shown(i)));
         }
         let mut sys = System {
             x,
@@ -481,6 +511,7 @@ impl SystemBuilder {
             length_scale: (hi - lo).norm(),
             scratch: vec![Vec3::zeros(); n],
             elastic: vec![Vec3::zeros(); n],
+            input_ids: self.input_ids,
             mesh,
         };
         sys.apply_constraints(0.0);

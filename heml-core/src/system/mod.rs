@@ -191,6 +191,8 @@ pub struct System {
     length_scale: f64,
     scratch: Vec<Vec3>,
     elastic: Vec<Vec3>,
+    /// Ids that messages show for the nodes (see [`SystemBuilder::input_node_ids`]).
+    input_ids: Option<Vec<usize>>,
 }
 
 impl System {
@@ -296,6 +298,12 @@ impl System {
     /// Warnings issued so far (also printed to stderr).
     pub fn warnings(&self) -> &[String] {
         &self.warnings
+    }
+    /// The id that messages show for node `i`: the caller's numbering given to
+    /// [`SystemBuilder::input_node_ids`] (e.g. a mesh file's, when the scene loader
+    /// renumbered the nodes), or `i` itself.
+    pub fn input_id(&self, i: usize) -> usize {
+        self.input_ids.as_ref().map_or(i, |ids| ids[i])
     }
     /// Whether [`System::forces`] belong to the current state (lets velocity Verlet
     /// reuse the forces of the end of its previous step).
@@ -477,9 +485,10 @@ impl System {
         self.reaction_total = total;
         if let Some(i) = self.force.iter().position(|f| !f.iter().all(|c| c.is_finite())) {
             return Err(HemlError::Numerical(format!(
-                "step {}: non-finite force {:?} at node {i} (t = {}); {}",
+                "step {}: non-finite force {:?} at node {} (t = {}); {}",
                 self.attempted_step(),
                 self.force[i].as_slice(),
+                self.input_id(i),
                 self.t,
                 self.kept_state()
             )));
@@ -553,9 +562,10 @@ impl System {
             .or_else(|| first_non_finite(&self.v).map(|i| ("velocity", i, self.v[i])));
         if let Some((what, i, value)) = bad {
             let msg = format!(
-                "step {}: non-finite {what} {:?} at node {i} (t = {}); {}",
+                "step {}: non-finite {what} {:?} at node {} (t = {}); {}",
                 self.step + 1,
                 value.as_slice(),
+                self.input_id(i),
                 self.t,
                 self.kept_state()
             );
