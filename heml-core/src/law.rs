@@ -76,7 +76,7 @@ pub struct Derivs {
 /// stay finite for inverted elements (DESIGN §1). The extension is built
 /// symbolically, so its I1/I2 derivatives are exact.
 pub trait InvariantLaw: MaterialInfo {
-    /// Whether w depends on I2 (else the 6×6 `Mtr` product and storage are skipped).
+    /// Whether w depends on I2 (else the I2 terms of the kernels are skipped).
     const USES_I2: bool;
     /// Whether w depends on J (else the volume term and its cross products are skipped).
     const USES_J: bool;

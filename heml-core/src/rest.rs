@@ -83,6 +83,69 @@ pub fn mtr_times(mtr: &[f64; MTR_LEN], l: &[f64; 6]) -> [f64; 6] {
     out
 }
 
+/// B = V⁻¹V⁻ᵀ (symmetric 3×3), recovered from `vtr`: tr(C_e) = tr(D_e B) makes
+/// vtr_e (e = 1..3) the row sums of B and vtr of the edges 1→2, 2→3, 3→1 minus its
+/// off-diagonal entries. With D(l) from the current lengths, C = V⁻ᵀ D V⁻¹ gives
+/// tr(C²) = tr(D B D B) and (Mtr l)_e = tr(D_e · B D B): the I2 terms of DESIGN §1
+/// from `vtr` alone, so that `Mtr` (21 numbers per tet) need not be stored.
+#[inline(always)]
+pub fn b_from_vtr(vtr: &[f64; 6]) -> [[f64; 3]; 3] {
+    let (b01, b12, b02) = (-vtr[3], -vtr[4], -vtr[5]);
+    [
+        [vtr[0] - b01 - b02, b01, b02],
+        [b01, vtr[1] - b01 - b12, b12],
+        [b02, b12, vtr[2] - b02 - b12],
+    ]
+}
+
+/// D(l) = Vᵀ C V of DESIGN §1 from the squared lengths.
+#[inline(always)]
+pub fn d_of_lengths(l: &[f64; 6]) -> [[f64; 3]; 3] {
+    let d01 = 0.5 * (l[0] + l[1] - l[3]);
+    let d12 = 0.5 * (l[1] + l[2] - l[4]);
+    let d02 = 0.5 * (l[0] + l[2] - l[5]);
+    [[l[0], d01, d02], [d01, l[1], d12], [d02, d12, l[2]]]
+}
+
+/// tr(C²) and (Mtr l)_e from `vtr` and the squared lengths, without `Mtr`: with
+/// B from [`b_from_vtr`] and D from [`d_of_lengths`], M = D·B, tr(C²) = tr(M²) and
+/// N = B·M = B D B, (Mtr l)_e = tr(D_e N) is N's row sum for e = 1..3 and minus its
+/// off-diagonal entry for the edges 1→2, 2→3, 3→1. About 100 flops against the
+/// 72 of the 6×6 product, but no 168 bytes of `Mtr` per tet to stream from memory.
+#[inline(always)]
+pub fn i2_terms(vtr: &[f64; 6], l: &[f64; 6]) -> (f64, [f64; 6]) {
+    let b = b_from_vtr(vtr);
+    let d = d_of_lengths(l);
+    let m: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| d[i][0] * b[0][j] + d[i][1] * b[1][j] + d[i][2] * b[2][j]));
+    let mut tr_c2 = 0.0;
+    for (i, row) in m.iter().enumerate() {
+        for (j, mij) in row.iter().enumerate() {
+            tr_c2 += mij * m[j][i];
+        }
+    }
+    let n = |i: usize, j: usize| b[i][0] * m[0][j] + b[i][1] * m[1][j] + b[i][2] * m[2][j];
+    let (n00, n11, n22, n01, n12, n02) = (n(0, 0), n(1, 1), n(2, 2), n(0, 1), n(1, 2), n(0, 2));
+    (
+        tr_c2,
+        [n00 + n01 + n02, n01 + n11 + n12, n02 + n12 + n22, -n01, -n12, -n02],
+    )
+}
+
+/// `Mtr` (packed) computed from `vtr`: Mtr_ef = tr(C_e C_f) = tr(D_e B D_f B). The
+/// plain kernel uses it so that fields need not store `Mtr`.
+pub fn mtr_from_vtr(vtr: &[f64; 6]) -> [f64; MTR_LEN] {
+    let b = Matrix3::from_fn(|i, j| b_from_vtr(vtr)[i][j]);
+    let db: Vec<Matrix3<f64>> = d_matrices().iter().map(|d| d * b).collect();
+    let mut mtr = [0.0; MTR_LEN];
+    for e in 0..6 {
+        for f in e..6 {
+            mtr[mtr_index(e, f)] = (db[e] * db[f]).trace();
+        }
+    }
+    mtr
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -119,5 +182,41 @@ mod tests {
         let tr_c2: f64 = ml.iter().zip(&l).map(|(a, b)| a * b).sum();
         assert!((i1 - c.trace()).abs() < 1e-12);
         assert!((tr_c2 - (c * c).trace()).abs() < 1e-11);
+    }
+
+    #[test]
+    fn mtr_from_vtr_matches_the_definition() {
+        let p = [
+            Vec3::new(0.1, -0.2, 0.0),
+            Vec3::new(1.3, 0.1, 0.2),
+            Vec3::new(0.2, 0.9, -0.1),
+            Vec3::new(0.3, 0.2, 1.1),
+        ];
+        let rest = RestTet::new(&p);
+        let m = mtr_from_vtr(&rest.vtr);
+        // the factorised terms equal lᵀ Mtr l and Mtr l
+        let q = p.map(|x| Matrix3::new(1.2, 0.3, -0.1, 0.05, 0.8, 0.2, -0.3, 0.1, 1.4) * x);
+        let l = edge_vectors(&q).map(|v| v.norm_squared());
+        let (tr_c2, ml) = i2_terms(&rest.vtr, &l);
+        let ml_ref = mtr_times(&rest.mtr, &l);
+        let tr_ref: f64 = ml_ref.iter().zip(&l).map(|(a, b)| a * b).sum();
+        assert!((tr_c2 - tr_ref).abs() <= 1e-13 * tr_ref.abs(), "{tr_c2} vs {tr_ref}");
+        for (a, b) in ml.iter().zip(&ml_ref) {
+            assert!((a - b).abs() <= 1e-13 * tr_ref.abs(), "{a} vs {b}");
+        }
+        let scale = rest.mtr.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        for (a, b) in m.iter().zip(&rest.mtr) {
+            // two routes through V⁻¹ of a well-shaped tet: round-off only
+            assert!((a - b).abs() <= 1e-13 * scale, "{a} vs {b}");
+        }
+        let v = rest_edge_matrix(&p);
+        let vinv = v.try_inverse().unwrap();
+        let b = vinv * vinv.transpose();
+        let bb = b_from_vtr(&rest.vtr);
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((bb[i][j] - b[(i, j)]).abs() <= 1e-13 * b.abs().max());
+            }
+        }
     }
 }

@@ -15,7 +15,7 @@ use super::{check_sizes, scatter_links, selection, Assembly, ElasticForces, Forc
 use crate::error::Result;
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, mtr_times, RestTet, EDGES, MTR_LEN};
+use crate::rest::{edge_vectors, i2_terms, mtr_from_vtr, mtr_times, RestTet, EDGES};
 use crate::Vec3;
 
 /// Rest data of `LANES` consecutive tets, structure of arrays.
@@ -25,14 +25,12 @@ struct RestBatch {
     vtr: [[f64; LANES]; 6],
 }
 
-/// `Mtr` of `LANES` consecutive tets (only stored for laws using I2).
-type MtrBatch = [[f64; LANES]; MTR_LEN];
-
 /// Internal forces of an invariant law `M` over (a region of) a mesh.
 ///
 /// Monomorphised per law: `USES_I2`/`USES_J` are constants, so the dead parts of the
-/// kernel (the 6×6 `Mtr` product, the cross products) vanish at compile time, and
-/// `Mtr` is not even stored for laws that do not use I2. The tets are kept in Morton
+/// kernel (the I2 terms, the cross products) vanish at compile time. `Mtr` is never
+/// stored: the I2 terms are factorised through `vtr` (see [`crate::rest::i2_terms`]),
+/// so laws using I2 take no more memory than the others. The tets are kept in Morton
 /// order (`tet_ids()` gives the global id of each), with rest data in batches of
 /// [`LANES`] tets; see [`super::assembly`] for the parallel, deterministic assembly.
 #[derive(Debug, Clone)]
@@ -43,7 +41,6 @@ pub struct HemlField<M: InvariantLaw> {
     assembly: Assembly,
     layout: Layout,
     rest: Vec<RestBatch>,
-    mtr: Vec<MtrBatch>,
 }
 
 /// What one tet contributes.
@@ -81,18 +78,12 @@ impl<M: InvariantLaw> HemlField<M> {
             vtr: [[0.0; LANES]; 6],
         };
         let mut rest = vec![pad; nb];
-        let mut mtr = vec![[[0.0; LANES]; MTR_LEN]; if M::USES_I2 { nb } else { 0 }];
         for (k, &t) in layout.ids.iter().enumerate() {
             let r = RestTet::new(&mesh.tet_points(t));
             let (b, l) = (k / LANES, k % LANES);
             rest[b].vol[l] = r.vol;
             for e in 0..6 {
                 rest[b].vtr[e][l] = r.vtr[e];
-            }
-            if M::USES_I2 {
-                for (i, m) in r.mtr.iter().enumerate() {
-                    mtr[b][i][l] = *m;
-                }
             }
         }
         Ok(HemlField {
@@ -102,7 +93,6 @@ impl<M: InvariantLaw> HemlField<M> {
             assembly: Assembly::default(),
             layout,
             rest,
-            mtr,
         })
     }
 
@@ -124,9 +114,7 @@ impl<M: InvariantLaw> HemlField<M> {
     /// Bytes of memory per tet this field holds: rest data, indices, blocks, merge
     /// lists and the scratch buffers of the parallel path.
     pub fn bytes_per_tet(&self) -> f64 {
-        let bytes = self.rest.len() * std::mem::size_of::<RestBatch>()
-            + self.mtr.len() * std::mem::size_of::<MtrBatch>()
-            + self.layout.heap_bytes();
+        let bytes = self.rest.len() * std::mem::size_of::<RestBatch>() + self.layout.heap_bytes();
         bytes as f64 / self.layout.n_tets().max(1) as f64
     }
 
@@ -145,8 +133,8 @@ impl<M: InvariantLaw> HemlField<M> {
         let vol = self.rest[b].vol[lane];
         let i1: f64 = (0..6).map(|e| vtr[e] * l[e]).sum();
         let (i2, ml) = if M::USES_I2 {
-            let m: [f64; MTR_LEN] = std::array::from_fn(|i| self.mtr[b][i][lane]);
-            let ml = mtr_times(&m, &l);
+            // DESIGN §1 literally: lᵀ Mtr l, with Mtr rebuilt from vtr (not stored)
+            let ml = mtr_times(&mtr_from_vtr(&vtr), &l);
             let tr_c2: f64 = (0..6).map(|e| ml[e] * l[e]).sum();
             (0.5 * (i1 * i1 - tr_c2), ml)
         } else {
@@ -224,7 +212,6 @@ impl<M: InvariantLaw> HemlField<M> {
             law: &self.law,
             opts: self.opts,
             rest: &self.rest,
-            mtr: &self.mtr,
         }
     }
 }
@@ -234,7 +221,6 @@ struct HemlKernel<'a, M> {
     law: &'a M,
     opts: ForceOptions,
     rest: &'a [RestBatch],
-    mtr: &'a [MtrBatch],
 }
 
 impl<M: InvariantLaw> BatchKernel for HemlKernel<'_, M> {
@@ -264,30 +250,15 @@ impl<M: InvariantLaw> BatchKernel for HemlKernel<'_, M> {
         let mut i2 = [0.0; L];
         let mut ml = [[0.0; L]; 6];
         if M::USES_I2 {
-            let m = &self.mtr[b];
-            // Mtr is symmetric: each of its 21 stored entries is loaded once
-            let mut i = 0;
-            for e in 0..6 {
-                for g in e..6 {
-                    for l in 0..L {
-                        ml[e][l] += m[i][l] * len[g][l];
-                    }
-                    if g != e {
-                        for l in 0..L {
-                            ml[g][l] += m[i][l] * len[e][l];
-                        }
-                    }
-                    i += 1;
-                }
-            }
-            let mut tr_c2 = [0.0; L];
-            for e in 0..6 {
-                for l in 0..L {
-                    tr_c2[l] += ml[e][l] * len[e][l];
-                }
-            }
+            // factorised through B = V⁻¹V⁻ᵀ (see `rest::i2_terms`): no Mtr to load
             for l in 0..L {
-                i2[l] = 0.5 * (i1[l] * i1[l] - tr_c2[l]);
+                let vtr: [f64; 6] = std::array::from_fn(|e| r.vtr[e][l]);
+                let le: [f64; 6] = std::array::from_fn(|e| len[e][l]);
+                let (tr_c2, m) = i2_terms(&vtr, &le);
+                for e in 0..6 {
+                    ml[e][l] = m[e];
+                }
+                i2[l] = 0.5 * (i1[l] * i1[l] - tr_c2);
             }
         }
         let mut j = [1.0; L];
