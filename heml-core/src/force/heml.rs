@@ -297,26 +297,33 @@ impl<M: InvariantLaw> BatchKernel for HemlKernel<'_, M> {
             }
         }
         super::lanes::law_lanes!(self.law, self.opts, i1, i2, j => w, w1, w2, wj);
-        let mut g = [[0.0; L]; 6];
+        // 2·g_e = 2·Vol·(w1·vtr_e + w2·(I1·vtr_e − (Mtr l)_e)), with the per-tet
+        // factors 2·Vol·w1 and 2·Vol·w2 formed once
+        let (mut a1, mut a2) = ([0.0; L], [0.0; L]);
+        for l in 0..L {
+            a1[l] = 2.0 * r.vol[l] * w1[l];
+            a2[l] = 2.0 * r.vol[l] * w2[l];
+        }
+        let mut g2 = [[0.0; L]; 6];
         for e in 0..6 {
             for l in 0..L {
-                let mut ge = w1[l] * r.vtr[e][l];
+                let mut ge = a1[l] * r.vtr[e][l];
                 if M::USES_I2 {
-                    ge += w2[l] * (i1[l] * r.vtr[e][l] - ml[e][l]);
+                    ge += a2[l] * (i1[l] * r.vtr[e][l] - ml[e][l]);
                 }
-                g[e][l] = r.vol[l] * ge;
+                g2[e][l] = ge;
             }
         }
         // node forces, summed in the plain kernel's order (links, then volume term)
         let mut s = [0.0; L];
         for l in 0..L {
-            s[l] = wj[l] / 6.0;
+            s[l] = wj[l] * (1.0 / 6.0);
         }
         for c in 0..3 {
             let mut fe = [[0.0; L]; 6];
             for (e, &(t, h)) in EDGES.iter().enumerate() {
                 for l in 0..L {
-                    fe[e][l] = (p[h][c][l] - p[t][c][l]) * (2.0 * g[e][l]);
+                    fe[e][l] = (p[h][c][l] - p[t][c][l]) * g2[e][l];
                 }
             }
             for l in 0..L {
