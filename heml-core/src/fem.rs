@@ -143,18 +143,6 @@ impl<M: InvariantLaw> FemField<M> {
         Ok(energy)
     }
 
-    /// The batched P1 kernel, serial, in the plain kernel's order.
-    pub fn add_forces_batched(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        Ok(self.layout.add_serial(&self.kernel(), x, f))
-    }
-
-    /// The batched P1 kernel on blocks in parallel, deterministic.
-    pub fn add_forces_parallel(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        Ok(self.layout.add_parallel(&self.kernel(), x, f))
-    }
-
     fn kernel(&self) -> FemKernel<'_, M> {
         FemKernel {
             law: &self.law,
@@ -301,8 +289,7 @@ impl<M: InvariantLaw> ElasticForces for FemField<M> {
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         match self.assembly {
             Assembly::Reference => self.add_forces_reference(x, f),
-            Assembly::Batched => self.add_forces_batched(x, f),
-            Assembly::Parallel => self.add_forces_parallel(x, f),
+            a => self.layout.add_batched(&self.kernel(), a == Assembly::Parallel, x, f),
         }
     }
     fn set_assembly(&mut self, assembly: Assembly) {

@@ -40,6 +40,8 @@
 // vectorises); iterator chains over several arrays would obscure that.
 #![allow(clippy::needless_range_loop)]
 
+use super::check_sizes;
+use crate::error::Result;
 use crate::mesh::reorder::morton_tet_order;
 use crate::mesh::TetMesh;
 use crate::Vec3;
@@ -354,16 +356,13 @@ impl Layout {
             + self.blocks.len() * 8
     }
 
-    /// Serial batched evaluation: the blocks one after the other on this thread, then
-    /// the same merge as [`Self::add_parallel`] (so the same bits).
-    pub fn add_serial<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3]) -> f64 {
-        self.evaluate(k, x, f, false)
-    }
-
-    /// Parallel blocked evaluation (see the module doc): adds the forces to `f` and
-    /// returns the energy; the same bits for any number of rayon threads.
-    pub fn add_parallel<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3]) -> f64 {
-        self.evaluate(k, x, f, true)
+    /// Adds the forces of kernel `k` at `x` to `f` and returns the energy, after
+    /// checking the buffer sizes: the blocks on rayon when `parallel` (see the module
+    /// doc), else one after the other on this thread; the same merge, so the same
+    /// bits either way.
+    pub fn add_batched<K: BatchKernel>(&self, k: &K, parallel: bool, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        Ok(self.evaluate(k, x, f, parallel))
     }
 
     fn evaluate<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3], parallel: bool) -> f64 {
@@ -465,31 +464,26 @@ fn check_local(local: &[[u16; 4]], nodes: usize, nx: usize, nf: usize) {
     );
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-unsafe fn block_avx512<K: BatchKernel>(
-    k: &K,
-    batch0: usize,
-    local: &[[u16; 4]],
-    n_tets: usize,
-    x: &[Node4],
-    f: &mut [Node4],
-) -> f64 {
-    block_body::<K, simd_x86::Avx2>(k, batch0, local, n_tets, x, f)
+/// The block driver compiled with `$features` enabled (the SIMD gather and scatter
+/// need AVX2 at least).
+macro_rules! block_with_features {
+    ($name:ident, $features:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name<K: BatchKernel>(
+            k: &K,
+            batch0: usize,
+            local: &[[u16; 4]],
+            n_tets: usize,
+            x: &[Node4],
+            f: &mut [Node4],
+        ) -> f64 {
+            block_body::<K, simd_x86::Avx2>(k, batch0, local, n_tets, x, f)
+        }
+    };
 }
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn block_avx2<K: BatchKernel>(
-    k: &K,
-    batch0: usize,
-    local: &[[u16; 4]],
-    n_tets: usize,
-    x: &[Node4],
-    f: &mut [Node4],
-) -> f64 {
-    block_body::<K, simd_x86::Avx2>(k, batch0, local, n_tets, x, f)
-}
+block_with_features!(block_avx512, "avx512f,avx512dq,avx512vl,avx2,fma");
+block_with_features!(block_avx2, "avx2,fma");
 
 /// Moves one batch's corner positions in and corner forces out: between the
 /// per-node AoS buffers of a block and the SoA lanes of the kernels.

@@ -193,20 +193,6 @@ impl<M: InvariantLaw> HemlField<M> {
         Ok(energy)
     }
 
-    /// The batched kernel run serially over global indices, summing forces in the
-    /// plain kernel's order.
-    pub fn add_forces_batched(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        Ok(self.layout.add_serial(&self.kernel(), x, f))
-    }
-
-    /// The batched kernel on blocks in parallel (rayon's current pool), summed in an
-    /// order independent of the thread count.
-    pub fn add_forces_parallel(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        Ok(self.layout.add_parallel(&self.kernel(), x, f))
-    }
-
     fn kernel(&self) -> HemlKernel<'_, M> {
         HemlKernel {
             law: &self.law,
@@ -374,8 +360,7 @@ impl<M: InvariantLaw> ElasticForces for HemlField<M> {
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         match self.assembly {
             Assembly::Reference => self.add_forces_reference(x, f),
-            Assembly::Batched => self.add_forces_batched(x, f),
-            Assembly::Parallel => self.add_forces_parallel(x, f),
+            a => self.layout.add_batched(&self.kernel(), a == Assembly::Parallel, x, f),
         }
     }
 
