@@ -15,7 +15,7 @@ use super::{check_sizes, scatter_links, selection, Assembly, ElasticForces, Forc
 use crate::error::Result;
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, i2_terms, mtr_from_vtr, mtr_times, RestTet, EDGES};
+use crate::rest::{edge_vectors, i2_terms, RestTet, EDGES};
 use crate::Vec3;
 
 /// Rest data of `LANES` consecutive tets, structure of arrays.
@@ -133,9 +133,9 @@ impl<M: InvariantLaw> HemlField<M> {
         let vol = self.rest[b].vol[lane];
         let i1: f64 = (0..6).map(|e| vtr[e] * l[e]).sum();
         let (i2, ml) = if M::USES_I2 {
-            // DESIGN §1 literally: lᵀ Mtr l, with Mtr rebuilt from vtr (not stored)
-            let ml = mtr_times(&mtr_from_vtr(&vtr), &l);
-            let tr_c2: f64 = (0..6).map(|e| ml[e] * l[e]).sum();
+            // tr C² = lᵀ Mtr l and Mtr l through B (`rest::i2_terms`, tested against
+            // the definition); the P1 oracle checks the result independently
+            let (tr_c2, ml) = i2_terms(&vtr, &l);
             (0.5 * (i1 * i1 - tr_c2), ml)
         } else {
             (0.0, [0.0; 6])
