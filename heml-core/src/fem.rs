@@ -12,7 +12,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::error::Result;
-use crate::force::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
+use crate::force::assembly::{BatchKernel, LaneForces, LanePoints, LawBatches, Layout, LANES};
 use crate::force::{check_sizes, selection, Assembly, ElasticForces, ForceOptions};
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
@@ -106,8 +106,7 @@ impl<M: InvariantLaw> FemField<M> {
 
     /// Bytes of memory per tet this field holds (see `HemlField::bytes_per_tet`).
     pub fn bytes_per_tet(&self) -> f64 {
-        let bytes = self.rest.len() * std::mem::size_of::<FemBatch>() + self.layout.heap_bytes();
-        bytes as f64 / self.layout.n_tets().max(1) as f64
+        self.layout.bytes_per_tet(&self.rest)
     }
 
     fn vol(&self, k: usize) -> f64 {
@@ -143,8 +142,8 @@ impl<M: InvariantLaw> FemField<M> {
         Ok(energy)
     }
 
-    fn kernel(&self) -> FemKernel<'_, M> {
-        FemKernel {
+    fn kernel(&self) -> LawBatches<'_, M, FemBatch> {
+        LawBatches {
             law: &self.law,
             opts: self.opts,
             rest: &self.rest,
@@ -152,13 +151,7 @@ impl<M: InvariantLaw> FemField<M> {
     }
 }
 
-struct FemKernel<'a, M> {
-    law: &'a M,
-    opts: ForceOptions,
-    rest: &'a [FemBatch],
-}
-
-impl<M: InvariantLaw> BatchKernel for FemKernel<'_, M> {
+impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, FemBatch> {
     #[inline(always)]
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
         const L: usize = LANES;

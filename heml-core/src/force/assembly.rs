@@ -40,7 +40,7 @@
 // vectorises); iterator chains over several arrays would obscure that.
 #![allow(clippy::needless_range_loop)]
 
-use super::check_sizes;
+use super::{check_sizes, ForceOptions};
 use crate::error::Result;
 use crate::mesh::reorder::morton_tet_order;
 use crate::mesh::TetMesh;
@@ -186,6 +186,15 @@ impl Node4 {
     fn to_vec(self) -> Vec3 {
         Vec3::new(self.0[0], self.0[1], self.0[2])
     }
+}
+
+/// A batch kernel's data besides the positions: the law, the force options and the
+/// field's rest data, one entry per batch. The HEML and P1 fields implement
+/// [`BatchKernel`] on it for their own rest data type.
+pub(crate) struct LawBatches<'a, M, R> {
+    pub law: &'a M,
+    pub opts: ForceOptions,
+    pub rest: &'a [R],
 }
 
 /// One block of consecutive field tets.
@@ -340,6 +349,13 @@ impl Layout {
     fn block_of(&self, k: usize) -> usize {
         let b = k / LANES;
         self.blocks.partition_point(|blk| blk.batch_end <= b)
+    }
+
+    /// Bytes per tet of a field with this layout and `rest` (its per-batch rest
+    /// data): rest data, indices, blocks, merge lists and the scratch buffers.
+    pub fn bytes_per_tet<R>(&self, rest: &[R]) -> f64 {
+        let bytes = std::mem::size_of_val(rest) + self.heap_bytes();
+        bytes as f64 / self.n_tets.max(1) as f64
     }
 
     /// Heap bytes of the layout (indices, blocks, merge lists, scratch buffers).

@@ -10,7 +10,7 @@
 // vectorises); iterator chains over several arrays would obscure that.
 #![allow(clippy::needless_range_loop)]
 
-use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
+use super::assembly::{BatchKernel, LaneForces, LanePoints, LawBatches, Layout, LANES};
 use super::{check_sizes, scatter_links, selection, Assembly, ElasticForces, ForceOptions};
 use crate::error::Result;
 use crate::law::InvariantLaw;
@@ -114,8 +114,7 @@ impl<M: InvariantLaw> HemlField<M> {
     /// Bytes of memory per tet this field holds: rest data, indices, blocks, merge
     /// lists and the scratch buffers of the parallel path.
     pub fn bytes_per_tet(&self) -> f64 {
-        let bytes = self.rest.len() * std::mem::size_of::<RestBatch>() + self.layout.heap_bytes();
-        bytes as f64 / self.layout.n_tets().max(1) as f64
+        self.layout.bytes_per_tet(&self.rest)
     }
 
     fn vol(&self, k: usize) -> f64 {
@@ -193,8 +192,8 @@ impl<M: InvariantLaw> HemlField<M> {
         Ok(energy)
     }
 
-    fn kernel(&self) -> HemlKernel<'_, M> {
-        HemlKernel {
+    fn kernel(&self) -> LawBatches<'_, M, RestBatch> {
+        LawBatches {
             law: &self.law,
             opts: self.opts,
             rest: &self.rest,
@@ -202,14 +201,7 @@ impl<M: InvariantLaw> HemlField<M> {
     }
 }
 
-/// The batch kernel of a [`HemlField`].
-struct HemlKernel<'a, M> {
-    law: &'a M,
-    opts: ForceOptions,
-    rest: &'a [RestBatch],
-}
-
-impl<M: InvariantLaw> BatchKernel for HemlKernel<'_, M> {
+impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, RestBatch> {
     #[inline(always)]
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
         const L: usize = LANES;
