@@ -119,24 +119,43 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// Seconds per call of each field, interleaved: `repeats` samples of `inner` calls each.
-fn time_fields(fields: &[&dyn ElasticForces], x: &[Vec3], repeats: usize, inner: usize) -> heml::Result<Vec<f64>> {
-    let mut f = vec![Vec3::zeros(); x.len()];
-    for fl in fields {
-        fl.add_forces(x, &mut f)?; // warm-up (allocates scratch)
+/// One timed case: a field evaluated at `x` on `pool`, `inner` calls per sample.
+struct Case<'a> {
+    pool: &'a rayon::ThreadPool,
+    field: &'a dyn ElasticForces,
+    x: &'a [Vec3],
+    inner: usize,
+}
+
+/// Seconds per call of every case, `repeats` samples each, taken round-robin (one
+/// sample of each case per round), so that the machine's slow drifts hit every case
+/// alike and ratios can be taken round by round.
+fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<Vec<Vec<f64>>> {
+    let mut bufs: Vec<Vec<Vec3>> = cases.iter().map(|c| vec![Vec3::zeros(); c.x.len()]).collect();
+    for (c, f) in cases.iter().zip(&mut bufs) {
+        c.pool.install(|| c.field.add_forces(c.x, f))?; // warm-up (allocates scratch)
     }
-    let mut samples = vec![Vec::with_capacity(repeats); fields.len()];
+    let mut samples = vec![Vec::with_capacity(repeats); cases.len()];
     for _ in 0..repeats {
-        for (s, fl) in samples.iter_mut().zip(fields) {
-            let t = Instant::now();
-            for _ in 0..inner {
-                f.fill(Vec3::zeros());
-                std::hint::black_box(fl.add_forces(x, &mut f)?);
-            }
-            s.push(t.elapsed().as_secs_f64() / inner as f64);
+        for ((c, f), s) in cases.iter().zip(&mut bufs).zip(&mut samples) {
+            let t = c.pool.install(|| -> heml::Result<f64> {
+                let t = Instant::now();
+                for _ in 0..c.inner {
+                    f.fill(Vec3::zeros());
+                    std::hint::black_box(c.field.add_forces(c.x, f)?);
+                }
+                Ok(t.elapsed().as_secs_f64() / c.inner as f64)
+            })?;
+            s.push(t);
         }
     }
-    Ok(samples.iter_mut().map(|s| median(s)).collect())
+    Ok(samples)
+}
+
+/// The median over rounds of `a[i] / b[i]`: a ratio robust to drifts that move both.
+fn median_ratio(a: &[f64], b: &[f64]) -> f64 {
+    let mut r: Vec<f64> = a.iter().zip(b).map(|(a, b)| a / b).collect();
+    median(&mut r)
 }
 
 /// `heml bench --scaling`: the cost per tet as the mesh grows, and on a shuffled
@@ -157,38 +176,32 @@ fn scaling(args: &BenchArgs, law: &dyn Material, pool: &rayon::ThreadPool) -> he
         .map(|(_, m)| law.force_field(m, None, &opts))
         .collect::<heml::Result<_>>()?;
     let xs: Vec<Vec<Vec3>> = cases.iter().map(|(_, m)| deformed(m)).collect();
-    let mut bufs: Vec<Vec<Vec3>> = xs.iter().map(|x| vec![Vec3::zeros(); x.len()]).collect();
+    let timed: Vec<Case> = fields
+        .iter()
+        .zip(&xs)
+        .map(|(fl, x)| Case {
+            pool,
+            field: fl.as_ref(),
+            x,
+            // about 20 ms per sample whatever the size
+            inner: (2_000_000 / fl.n_tets().max(1)).clamp(1, 1000),
+        })
+        .collect();
     let repeats = args.repeats.max(1);
-    let mut samples = vec![Vec::with_capacity(repeats); fields.len()];
-    pool.install(|| -> heml::Result<()> {
-        for (fl, (x, f)) in fields.iter().zip(xs.iter().zip(bufs.iter_mut())) {
-            fl.add_forces(x, f)?; // warm-up
-        }
-        for _ in 0..repeats {
-            for (k, fl) in fields.iter().enumerate() {
-                // about 20 ms per sample whatever the size
-                let inner = (2_000_000 / fl.n_tets().max(1)).clamp(1, 1000);
-                let t = Instant::now();
-                for _ in 0..inner {
-                    bufs[k].fill(Vec3::zeros());
-                    std::hint::black_box(fl.add_forces(&xs[k], &mut bufs[k])?);
-                }
-                samples[k].push(t.elapsed().as_secs_f64() / inner as f64 / fl.n_tets() as f64);
-            }
-        }
-        Ok(())
-    })?;
+    let mut samples = time_round_robin(&timed, repeats)?;
+    for (s, fl) in samples.iter_mut().zip(&fields) {
+        s.iter_mut().for_each(|t| *t /= fl.n_tets().max(1) as f64);
+    }
     println!(
-        "cost per tet, {} threads, {} round-robin samples (medians):",
+        "cost per tet, {} threads, {} round-robin samples (medians; ratios: medians of the per-round ratios):",
         pool.current_num_threads(),
         repeats
     );
-    let per: Vec<f64> = samples.iter_mut().map(|s| median(s)).collect();
-    for ((name, _), t) in cases.iter().zip(&per) {
+    for ((name, _), s) in cases.iter().zip(&samples) {
         println!(
             "  {name:<38} {:>7.2} ns/tet   {:>5.2}× the 10k box",
-            t * 1e9,
-            t / per[0]
+            median(&mut s.clone()) * 1e9,
+            median_ratio(s, &samples[0])
         );
     }
     Ok(())
@@ -267,29 +280,46 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         "{:<8} {:>14} {:>10} {:>14} {:>10} {:>12}",
         "threads", "HEML tets/s", "ns/tet", "P1 tets/s", "ns/tet", "HEML vs P1"
     );
-    let mut heml_times = Vec::new();
-    for &n in &counts {
-        let t = pool(n)?.install(|| {
-            let mut list: Vec<&dyn ElasticForces> = vec![heml_field.as_ref()];
-            if let Some(fem) = &fem_field {
-                list.push(fem.as_ref());
-            }
-            time_fields(&list, &x, repeats, inner)
-        })?;
-        let (th, tf) = (t[0], t.get(1).copied());
-        heml_times.push(th);
-        let per = |s: f64| s / n_tets as f64;
-        match tf {
-            Some(tf) => println!(
+    // every (thread count, field) case in one round-robin, so that the speed-up and
+    // the HEML/P1 ratio are taken sample by sample under the same machine load
+    let pools = counts.iter().map(|&n| pool(n)).collect::<heml::Result<Vec<_>>>()?;
+    let mut cases = Vec::new();
+    for p in &pools {
+        cases.push(Case {
+            pool: p,
+            field: heml_field.as_ref(),
+            x: &x,
+            inner,
+        });
+        if let Some(fem) = &fem_field {
+            cases.push(Case {
+                pool: p,
+                field: fem.as_ref(),
+                x: &x,
+                inner,
+            });
+        }
+    }
+    let samples = time_round_robin(&cases, repeats)?;
+    let per_count = cases.len() / counts.len();
+    let per = |s: f64| s / n_tets as f64;
+    for (k, &n) in counts.iter().enumerate() {
+        let heml_s = &samples[k * per_count];
+        let th = median(&mut heml_s.clone());
+        if fem_field.is_some() {
+            let fem_s = &samples[k * per_count + 1];
+            let tf = median(&mut fem_s.clone());
+            println!(
                 "{:<8} {:>14.3e} {:>10.2} {:>14.3e} {:>10.2} {:>11.2}×",
                 n,
                 1.0 / per(th),
                 per(th) * 1e9,
                 1.0 / per(tf),
                 per(tf) * 1e9,
-                tf / th
-            ),
-            None => println!(
+                median_ratio(fem_s, heml_s)
+            );
+        } else {
+            println!(
                 "{:<8} {:>14.3e} {:>10.2} {:>14} {:>10} {:>12}",
                 n,
                 1.0 / per(th),
@@ -297,12 +327,16 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
                 "n/a",
                 "n/a",
                 "n/a"
-            ),
+            );
         }
     }
-    if heml_times.len() == 2 {
-        println!("speed-up {threads} threads vs 1: {:.2}×", heml_times[0] / heml_times[1]);
+    if counts.len() == 2 {
+        println!(
+            "speed-up {threads} threads vs 1: {:.2}×",
+            median_ratio(&samples[0], &samples[per_count])
+        );
     }
+    println!("(ratios: medians of the per-round ratios; all cases timed round-robin)");
     if let Some(b) = heml_field.bytes_per_tet() {
         print!("memory: HEML {b:.1} bytes/tet");
         if let Some(b) = fem_field.as_ref().and_then(|f| f.bytes_per_tet()) {
@@ -319,8 +353,19 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             f.set_assembly(Assembly::Reference);
             list.push(f);
         }
-        let refs: Vec<&dyn ElasticForces> = list.iter().map(|b| b.as_ref()).collect();
-        let t = time_fields(&refs, &x, repeats.min(7), (inner / 4).max(1))?;
+        let cases: Vec<Case> = list
+            .iter()
+            .map(|b| Case {
+                pool: &pools[0],
+                field: b.as_ref(),
+                x: &x,
+                inner: (inner / 4).max(1),
+            })
+            .collect();
+        let t: Vec<f64> = time_round_robin(&cases, repeats.min(7))?
+            .iter_mut()
+            .map(|s| median(s))
+            .collect();
         print!(
             "plain serial reference kernels: HEML {:.2} ns/tet",
             t[0] / n_tets as f64 * 1e9

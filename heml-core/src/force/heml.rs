@@ -300,20 +300,9 @@ impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, RestBatch> {
         for l in 0..L {
             s[l] = wj[l] * (1.0 / 6.0);
         }
-        for c in 0..3 {
-            let mut fe = [[0.0; L]; 6];
-            for (e, &(t, h)) in EDGES.iter().enumerate() {
-                for l in 0..L {
-                    fe[e][l] = (p[h][c][l] - p[t][c][l]) * g2[e][l];
-                }
-            }
-            for l in 0..L {
-                f[0][c][l] = fe[0][l] + fe[1][l] + fe[2][l];
-                f[1][c][l] = -fe[0][l] + fe[3][l] - fe[5][l];
-                f[2][c][l] = -fe[1][l] - fe[3][l] + fe[4][l];
-                f[3][c][l] = -fe[2][l] - fe[4][l] + fe[5][l];
-            }
-            if M::USES_J {
+        super::lanes::link_forces(p, &g2, f);
+        if M::USES_J {
+            for c in 0..3 {
                 for l in 0..L {
                     let (c0, c1, c2) = (cr[0][c][l] * s[l], cr[1][c][l] * s[l], cr[2][c][l] * s[l]);
                     f[1][c][l] -= c0;

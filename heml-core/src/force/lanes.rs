@@ -4,6 +4,8 @@
 //! four lane arrays, the same code measured 10–20 % slower in the HEML kernel
 //! (`heml bench`, side by side), the arrays no longer staying where the kernel uses them.
 
+use super::assembly::{LaneForces, LanePoints, LANES};
+
 /// Binds `w`, `w1`, `w2`, `wj` (arrays of `L` lanes) to w and (∂w/∂I1, ∂w/∂I2, ∂w/∂J)
 /// of `$law` at the lanes' invariants `$i1`, `$i2`, `$j`.
 ///
@@ -38,3 +40,25 @@ macro_rules! law_lanes {
     };
 }
 pub(crate) use law_lanes;
+
+/// Sets `f` to the corner forces of a batch's links: `g2[e]·v_e` added at edge `e`'s
+/// tail and subtracted at its head ([`crate::rest::EDGES`] order, `v_e` = head −
+/// tail), summed in the order of [`super::scatter_links`]. Shared by the HEML and
+/// link-law batch kernels.
+#[inline(always)]
+pub(crate) fn link_forces(p: &LanePoints, g2: &[[f64; LANES]; 6], f: &mut LaneForces) {
+    for c in 0..3 {
+        let mut fe = [[0.0; LANES]; 6];
+        for (e, &(t, h)) in crate::rest::EDGES.iter().enumerate() {
+            for l in 0..LANES {
+                fe[e][l] = (p[h][c][l] - p[t][c][l]) * g2[e][l];
+            }
+        }
+        for l in 0..LANES {
+            f[0][c][l] = fe[0][l] + fe[1][l] + fe[2][l];
+            f[1][c][l] = -fe[0][l] + fe[3][l] - fe[5][l];
+            f[2][c][l] = -fe[1][l] - fe[3][l] + fe[4][l];
+            f[3][c][l] = -fe[2][l] - fe[4][l] + fe[5][l];
+        }
+    }
+}
