@@ -206,13 +206,17 @@ struct Block {
     batch_end: usize,
     /// Global ids of its local nodes.
     nodes: Vec<u32>,
+    /// Slot of its first local node in the scratch buffers (the blocks' local nodes
+    /// lie one block after the other there).
+    slot0: usize,
 }
 
-/// Per-block buffers of the local node positions and forces, kept between calls.
+/// The blocks' local node positions and forces, block after block in two flat
+/// buffers (one indirection for the merge), and their energies; kept between calls.
 #[derive(Debug, Default)]
 struct Scratch {
-    x: Vec<Vec<Node4>>,
-    f: Vec<Vec<Node4>>,
+    x: Vec<Node4>,
+    f: Vec<Node4>,
     energy: Vec<f64>,
 }
 
@@ -227,9 +231,12 @@ pub struct Layout {
     /// to a multiple of `LANES`.
     local: Vec<[u16; 4]>,
     blocks: Vec<Block>,
-    /// CSR: for node i, `merge[merge_off[i]..merge_off[i+1]]` = (block, local index).
+    /// CSR: for node i, `merge[merge_off[i]..merge_off[i+1]]` = the scratch slots of
+    /// its copies, in block order.
     merge_off: Vec<u32>,
-    merge: Vec<(u32, u32)>,
+    merge: Vec<u32>,
+    /// Local nodes of all blocks (scratch slots).
+    n_slots: usize,
     scratch: Mutex<Scratch>,
 }
 
@@ -243,6 +250,7 @@ impl Clone for Layout {
             blocks: self.blocks.clone(),
             merge_off: self.merge_off.clone(),
             merge: self.merge.clone(),
+            n_slots: self.n_slots,
             scratch: Mutex::new(Scratch::default()),
         }
     }
@@ -276,6 +284,7 @@ impl Layout {
         let mut stamp = vec![u32::MAX; mesh.n_nodes()];
         let mut map = vec![0u16; mesh.n_nodes()];
         let mut start = 0;
+        let mut n_slots = 0;
         while start < n_batches {
             let end = (start + bs).min(n_batches);
             let b = blocks.len() as u32;
@@ -291,10 +300,13 @@ impl Layout {
                     local[k][a] = map[g];
                 }
             }
+            let slot0 = n_slots;
+            n_slots += nodes.len();
             blocks.push(Block {
                 batch_start: start,
                 batch_end: end,
                 nodes,
+                slot0,
             });
             start = end;
         }
@@ -309,11 +321,11 @@ impl Layout {
             count[i + 1] += count[i];
         }
         let mut fill = count.clone();
-        let mut merge = vec![(0u32, 0u32); count[mesh.n_nodes()] as usize];
-        for (b, blk) in blocks.iter().enumerate() {
+        let mut merge = vec![0u32; count[mesh.n_nodes()] as usize];
+        for blk in &blocks {
             for (li, &g) in blk.nodes.iter().enumerate() {
                 let p = &mut fill[g as usize];
-                merge[*p as usize] = (b as u32, li as u32);
+                merge[*p as usize] = (blk.slot0 + li) as u32;
                 *p += 1;
             }
         }
@@ -325,6 +337,7 @@ impl Layout {
             blocks,
             merge_off: count,
             merge,
+            n_slots,
             scratch: Mutex::new(Scratch::default()),
         }
     }
@@ -366,7 +379,7 @@ impl Layout {
             + self.blocks.len() * std::mem::size_of::<Block>()
             + nodes * 4
             + self.merge_off.len() * 4
-            + self.merge.len() * 8
+            + self.merge.len() * 4
             // scratch: local positions and forces of every block, once allocated
             + nodes * 2 * std::mem::size_of::<Node4>()
             + self.blocks.len() * 8
@@ -385,18 +398,23 @@ impl Layout {
         let level = SimdLevel::current();
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         let s = &mut *guard;
-        if s.f.len() != self.blocks.len() {
-            s.x = self
-                .blocks
-                .iter()
-                .map(|b| vec![Node4::default(); b.nodes.len()])
-                .collect();
+        if s.f.len() != self.n_slots || s.energy.len() != self.blocks.len() {
+            s.x = vec![Node4::default(); self.n_slots];
             s.f = s.x.clone();
             s.energy = vec![0.0; self.blocks.len()];
         }
+        // each block's own part of the flat buffers
+        type Task<'a> = (&'a Block, &'a mut [Node4], &'a mut [Node4], &'a mut f64);
+        let mut tasks: Vec<Task> = Vec::with_capacity(self.blocks.len());
+        let (mut xs, mut fs) = (&mut s.x[..], &mut s.f[..]);
+        for (blk, e) in self.blocks.iter().zip(s.energy.iter_mut()) {
+            let (xl, xr) = std::mem::take(&mut xs).split_at_mut(blk.nodes.len());
+            let (fl, fr) = std::mem::take(&mut fs).split_at_mut(blk.nodes.len());
+            (xs, fs) = (xr, fr);
+            tasks.push((blk, xl, fl, e));
+        }
         let n_tets = self.n_tets;
-        type Task<'a> = (((&'a Block, &'a mut Vec<Node4>), &'a mut Vec<Node4>), &'a mut f64);
-        let one = |(((blk, xl), fl), e): Task| {
+        let one = |(blk, xl, fl, e): Task| {
             for (xi, &g) in xl.iter_mut().zip(&blk.nodes) {
                 *xi = Node4::from_vec(&x[g as usize]);
             }
@@ -405,28 +423,17 @@ impl Layout {
             *e = run_block(level, k, blk.batch_start, local, blk.nodes.len(), n_tets, xl, fl);
         };
         if parallel {
-            self.blocks
-                .par_iter()
-                .zip(s.x.par_iter_mut())
-                .zip(s.f.par_iter_mut())
-                .zip(s.energy.par_iter_mut())
-                .with_max_len(1)
-                .for_each(one);
+            tasks.into_par_iter().with_max_len(1).for_each(one);
         } else {
-            self.blocks
-                .iter()
-                .zip(s.x.iter_mut())
-                .zip(s.f.iter_mut())
-                .zip(s.energy.iter_mut())
-                .for_each(one);
+            tasks.into_iter().for_each(one);
         }
-        let bufs: &[Vec<Node4>] = &s.f;
+        let bufs: &[Node4] = &s.f;
         let merge = |(c, chunk): (usize, &mut [Vec3])| {
             for (o, fi) in chunk.iter_mut().enumerate() {
                 let i = c * MERGE_CHUNK + o;
                 let (lo, hi) = (self.merge_off[i] as usize, self.merge_off[i + 1] as usize);
-                for &(b, li) in &self.merge[lo..hi] {
-                    *fi += bufs[b as usize][li as usize].to_vec();
+                for &slot in &self.merge[lo..hi] {
+                    *fi += bufs[slot as usize].to_vec();
                 }
             }
         };
