@@ -46,7 +46,7 @@ pub trait ElasticForces: Send + Sync {
     fn tet_ids(&self) -> &[usize];
 
     /// Chooses the evaluation path of [`Self::add_forces`] for fields that have
-    /// several (HEML and P1 fields); a no-op for the others.
+    /// several (HEML, link and P1 fields); a no-op for the others.
     fn set_assembly(&mut self, _assembly: Assembly) {}
     /// Memory the field holds per tet, in bytes, when it reports it.
     fn bytes_per_tet(&self) -> Option<f64> {
