@@ -15,7 +15,7 @@ use super::{check_sizes, scatter_links, selection, Assembly, ElasticForces, Forc
 use crate::error::Result;
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, i2_terms, RestTet, EDGES};
+use crate::rest::{edge_vectors, i2_terms, RestTet};
 use crate::Vec3;
 
 /// Rest data of `LANES` consecutive tets, structure of arrays.
@@ -246,17 +246,7 @@ impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, RestBatch> {
         }
         // Edge vectors are not kept: recomputing them from `p` where needed is cheaper
         // than a 1 kB array (its zeroing alone measured 10 instructions per tet).
-        let mut len = [[0.0; L]; 6];
-        for (e, &(t, h)) in EDGES.iter().enumerate() {
-            for l in 0..L {
-                let (dx, dy, dz) = (
-                    p[h][0][l] - p[t][0][l],
-                    p[h][1][l] - p[t][1][l],
-                    p[h][2][l] - p[t][2][l],
-                );
-                len[e][l] = dx * dx + dy * dy + dz * dz;
-            }
-        }
+        let len = super::lanes::squared_lengths(p);
         let mut i1 = [0.0; L];
         for e in 0..6 {
             for l in 0..L {

@@ -62,3 +62,21 @@ pub(crate) fn link_forces(p: &LanePoints, g2: &[[f64; LANES]; 6], f: &mut LaneFo
         }
     }
 }
+
+/// The squared lengths of a batch's six edges, `[edge][lane]` ([`crate::rest::EDGES`]
+/// order). Shared by the HEML and link-law batch kernels.
+#[inline(always)]
+pub(crate) fn squared_lengths(p: &LanePoints) -> [[f64; LANES]; 6] {
+    let mut len = [[0.0; LANES]; 6];
+    for (e, &(t, h)) in crate::rest::EDGES.iter().enumerate() {
+        for l in 0..LANES {
+            let (dx, dy, dz) = (
+                p[h][0][l] - p[t][0][l],
+                p[h][1][l] - p[t][1][l],
+                p[h][2][l] - p[t][2][l],
+            );
+            len[e][l] = dx * dx + dy * dy + dz * dz;
+        }
+    }
+    len
+}

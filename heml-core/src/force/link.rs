@@ -13,12 +13,12 @@
 
 use super::assembly::{BatchKernel, LaneForces, LanePoints, LawBatches, Layout, LANES};
 use super::heml::signed_j;
-use super::lanes::link_forces;
+use super::lanes::{link_forces, squared_lengths};
 use super::{check_sizes, scatter_links, selection, Assembly, ElasticForces, ForceOptions};
 use crate::error::Result;
 use crate::law::LinkLaw;
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, EDGES};
+use crate::rest::edge_vectors;
 use crate::Vec3;
 
 /// Rest squared edge lengths of `LANES` consecutive tets, `[edge][lane]`.
@@ -120,14 +120,10 @@ impl<M: LinkLaw> BatchKernel for LawBatches<'_, M, LinkBatch> {
         let r = &self.rest[b];
         let mut w = [0.0; L];
         let mut g2 = [[0.0; L]; 6];
-        for (e, &(t, h)) in EDGES.iter().enumerate() {
+        let len = squared_lengths(p);
+        for e in 0..6 {
             for l in 0..L {
-                let (dx, dy, dz) = (
-                    p[h][0][l] - p[t][0][l],
-                    p[h][1][l] - p[t][1][l],
-                    p[h][2][l] - p[t][2][l],
-                );
-                let (we, ge) = self.law.dw(dx * dx + dy * dy + dz * dz, r.rest_l[e][l]);
+                let (we, ge) = self.law.dw(len[e][l], r.rest_l[e][l]);
                 // summed edge by edge from 0, as the plain kernel does
                 w[l] += we;
                 g2[e][l] = 2.0 * ge;
