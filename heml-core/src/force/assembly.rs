@@ -394,6 +394,29 @@ impl Layout {
         Ok(self.evaluate(k, x, f, parallel))
     }
 
+    /// Adds the forces of the plain serial kernel `tet` (energy and the four corner
+    /// forces of field tet `k`, whose global nodes are `idx`) to `f`, one tet at a time
+    /// in field order, node by node, and returns the energy: the reference path of the
+    /// HEML and link fields.
+    pub fn add_plain(
+        &self,
+        x: &[Vec3],
+        f: &mut [Vec3],
+        tet: impl Fn(usize, &[u32; 4]) -> (f64, [Vec3; 4]),
+    ) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        let mut energy = 0.0;
+        for k in 0..self.n_tets {
+            let idx = self.global_tet(k);
+            let (e, fk) = tet(k, &idx);
+            energy += e;
+            for (a, &i) in idx.iter().enumerate() {
+                f[i as usize] += fk[a];
+            }
+        }
+        Ok(energy)
+    }
+
     fn evaluate<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3], parallel: bool) -> f64 {
         let level = SimdLevel::current();
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());

@@ -179,17 +179,10 @@ impl<M: InvariantLaw> HemlField<M> {
     /// forces added node by node. The reference every optimised path is tested
     /// against.
     pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        let mut energy = 0.0;
-        for k in 0..self.layout.n_tets() {
-            let idx = self.layout.global_tet(k);
-            let r = self.tet(k, &idx, x);
-            energy += r.energy;
-            for (a, &i) in idx.iter().enumerate() {
-                f[i as usize] += r.f[a];
-            }
-        }
-        Ok(energy)
+        self.layout.add_plain(x, f, |k, idx| {
+            let r = self.tet(k, idx, x);
+            (r.energy, r.f)
+        })
     }
 
     fn kernel(&self) -> LawBatches<'_, M, RestBatch> {

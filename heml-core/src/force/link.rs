@@ -99,17 +99,7 @@ impl<M: LinkLaw> LinkField<M> {
     /// The plain serial kernel: one tet at a time in field order, forces added node by
     /// node. The reference the optimised paths are tested against.
     pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        let mut energy = 0.0;
-        for k in 0..self.layout.n_tets() {
-            let idx = self.layout.global_tet(k);
-            let (e, fk) = self.tet(k, &idx, x);
-            energy += e;
-            for (a, &i) in idx.iter().enumerate() {
-                f[i as usize] += fk[a];
-            }
-        }
-        Ok(energy)
+        self.layout.add_plain(x, f, |k, idx| self.tet(k, idx, x))
     }
 }
 
