@@ -6,7 +6,7 @@
 //! `tet_ids()` — and cut into fixed blocks of consecutive tets. The block size
 //! depends only on the number of tets (never on the thread count), and is a
 //! multiple of [`LANES`], so that batches of `LANES` tets never straddle blocks.
-//! Each block numbers the nodes it touches locally, in first-touch order, and
+//! Each block numbers the nodes it touches locally, in increasing global order, and
 //! stores its tets with these local indices: evaluating a block gathers its node
 //! positions into a small contiguous buffer (cache-resident whatever the global
 //! node numbering, so shuffled meshes cost the same as sorted ones), runs the batch
@@ -290,14 +290,23 @@ impl Layout {
             let b = blocks.len() as u32;
             let mut nodes = Vec::new();
             for k in start * LANES..(end * LANES).min(n) {
-                for (a, &g) in mesh.tets()[ids[k]].iter().enumerate() {
-                    let g = g as usize;
-                    if stamp[g] != b {
-                        stamp[g] = b;
-                        map[g] = nodes.len() as u16;
-                        nodes.push(g as u32);
+                for &g in &mesh.tets()[ids[k]] {
+                    if stamp[g as usize] != b {
+                        stamp[g as usize] = b;
+                        nodes.push(g);
                     }
-                    local[k][a] = map[g];
+                }
+            }
+            // local numbering in global order: copying positions in and merging
+            // forces out then walk memory forwards, whatever order the tets touch
+            // the nodes in (and the sums are the same: only the slots move)
+            nodes.sort_unstable();
+            for (li, &g) in nodes.iter().enumerate() {
+                map[g as usize] = li as u16;
+            }
+            for k in start * LANES..(end * LANES).min(n) {
+                for (a, &g) in mesh.tets()[ids[k]].iter().enumerate() {
+                    local[k][a] = map[g as usize];
                 }
             }
             let slot0 = n_slots;
@@ -689,4 +698,53 @@ fn block_body<K: BatchKernel, IO: LaneIo>(
         }
     }
     energy
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::generate::box_of_about;
+    use crate::mesh::reorder::Permutation;
+
+    /// A box of about `n` tets with its nodes numbered at random, so that the order
+    /// in which a block's tets first touch its nodes is far from the global order.
+    fn shuffled_box(n: usize) -> TetMesh {
+        let mesh = box_of_about(n).unwrap();
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut order: Vec<usize> = (0..mesh.n_nodes()).collect();
+        for i in (1..order.len()).rev() {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            order.swap(i, (state % (i as u64 + 1)) as usize);
+        }
+        let tets = Permutation::identity(mesh.n_tets());
+        mesh.renumbered(&Permutation::from_new_to_old(order), &tets).unwrap()
+    }
+
+    #[test]
+    fn blocks_number_their_nodes_in_global_order() {
+        let mesh = shuffled_box(5000);
+        let sel: Vec<usize> = (0..mesh.n_tets()).collect();
+        let lay = Layout::new(&mesh, &sel, true);
+        assert!(lay.blocks.len() > 2, "the test needs several blocks");
+        for blk in &lay.blocks {
+            assert!(blk.nodes.windows(2).all(|w| w[0] < w[1]), "block nodes not increasing");
+        }
+        // the local indices still name each tet's own nodes, corner by corner
+        for k in 0..lay.n_tets() {
+            assert_eq!(lay.global_tet(k), mesh.tets()[lay.ids[k]], "field tet {k}");
+        }
+        // every copy of a node is merged exactly once: the merge lists hold every
+        // scratch slot once, each under the node it copies
+        let mut seen = vec![false; lay.n_slots];
+        for i in 0..mesh.n_nodes() {
+            for &slot in &lay.merge[lay.merge_off[i] as usize..lay.merge_off[i + 1] as usize] {
+                let blk = lay.blocks.iter().rfind(|b| b.slot0 <= slot as usize).unwrap();
+                assert_eq!(blk.nodes[slot as usize - blk.slot0] as usize, i);
+                assert!(!std::mem::replace(&mut seen[slot as usize], true), "slot {slot} twice");
+            }
+        }
+        assert!(seen.iter().all(|&s| s), "a slot is never merged");
+    }
 }
