@@ -90,6 +90,7 @@ pub use heml_integrators as integrators;
 pub use heml_materials as materials;
 pub use nalgebra;
 
+pub mod threads;
 pub mod validation;
 
 use heml_core::registry::MaterialEntry;

@@ -6,6 +6,7 @@ use clap::Args;
 use heml::force::{Assembly, ElasticForces, SimdLevel};
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;
+use heml::threads::{placement_for, thread_pool, Placement};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -43,6 +44,10 @@ pub struct BenchArgs {
     /// and kept shuffled), timed interleaved in one run.
     #[arg(long)]
     pub scaling: bool,
+    /// Let the OS place the worker threads. By default the k-th worker of each
+    /// thread pool is pinned to the k-th CPU this process may use.
+    #[arg(long)]
+    pub no_pin: bool,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -192,13 +197,13 @@ fn scaling(args: &BenchArgs, law: &dyn Material, pool: &rayon::ThreadPool) -> he
     for (s, fl) in samples.iter_mut().zip(&fields) {
         s.iter_mut().for_each(|t| *t /= fl.n_tets().max(1) as f64);
     }
-    println!(
+    outln!(
         "cost per tet, {} threads, {} round-robin samples (medians; ratios: medians of the per-round ratios):",
         pool.current_num_threads(),
         repeats
     );
     for ((name, _), s) in cases.iter().zip(&samples) {
-        println!(
+        outln!(
             "  {name:<38} {:>7.2} ns/tet   {:>5.2}× the 10k box",
             median(&mut s.clone()) * 1e9,
             median_ratio(s, &samples[0])
@@ -216,15 +221,15 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     let threads = args
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    let pool = |n: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|e| HemlError::Invalid(format!("cannot start {n} threads: {e}")))
+    let placement = if args.no_pin { Placement::Os } else { Placement::Pinned };
+    let pool = |n: usize| thread_pool(n, placement).map(|(p, _)| p);
+    let workers = match placement_for(threads, placement) {
+        Placement::Pinned => "pinned to CPUs",
+        Placement::Os => "placed by the OS",
     };
     if args.scaling {
-        println!(
-            "law: {}   SIMD: {}   (--mesh, --tets and --shuffle do not apply)",
+        outln!(
+            "law: {}   SIMD: {}   workers {workers}   (--mesh, --tets and --shuffle do not apply)",
             entry.name,
             SimdLevel::detect().name()
         );
@@ -246,7 +251,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     // about 20 ms per sample
     let inner = (2_000_000 / n_tets.max(1)).clamp(1, 1000);
 
-    println!(
+    outln!(
         "mesh: {} ({} nodes, {} tets){}{}",
         args.mesh
             .as_ref()
@@ -260,8 +265,8 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             ", nodes renumbered at load (Morton)"
         }
     );
-    println!(
-        "law: {}   SIMD: {}   threads: {}   repeats: {} × {} calls (medians)",
+    outln!(
+        "law: {}   SIMD: {}   threads: {} ({workers})   repeats: {} × {} calls (medians)",
         entry.name,
         SimdLevel::detect().name(),
         threads,
@@ -275,10 +280,15 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     if threads != 1 {
         counts.push(threads);
     }
-    println!();
-    println!(
+    outln!();
+    outln!(
         "{:<8} {:>14} {:>10} {:>14} {:>10} {:>12}",
-        "threads", "HEML tets/s", "ns/tet", "P1 tets/s", "ns/tet", "HEML vs P1"
+        "threads",
+        "HEML tets/s",
+        "ns/tet",
+        "P1 tets/s",
+        "ns/tet",
+        "HEML vs P1"
     );
     // every (thread count, field) case in one round-robin, so that the speed-up and
     // the HEML/P1 ratio are taken sample by sample under the same machine load
@@ -309,7 +319,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         if fem_field.is_some() {
             let fem_s = &samples[k * per_count + 1];
             let tf = median(&mut fem_s.clone());
-            println!(
+            outln!(
                 "{:<8} {:>14.3e} {:>10.2} {:>14.3e} {:>10.2} {:>11.2}×",
                 n,
                 1.0 / per(th),
@@ -319,7 +329,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
                 median_ratio(fem_s, heml_s)
             );
         } else {
-            println!(
+            outln!(
                 "{:<8} {:>14.3e} {:>10.2} {:>14} {:>10} {:>12}",
                 n,
                 1.0 / per(th),
@@ -331,18 +341,18 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         }
     }
     if counts.len() == 2 {
-        println!(
+        outln!(
             "speed-up {threads} threads vs 1: {:.2}×",
             median_ratio(&samples[0], &samples[per_count])
         );
     }
-    println!("(ratios: medians of the per-round ratios; all cases timed round-robin)");
+    outln!("(ratios: medians of the per-round ratios; all cases timed round-robin)");
     if let Some(b) = heml_field.bytes_per_tet() {
-        print!("memory: HEML {b:.1} bytes/tet");
+        out!("memory: HEML {b:.1} bytes/tet");
         if let Some(b) = fem_field.as_ref().and_then(|f| f.bytes_per_tet()) {
-            print!(", P1 {b:.1} bytes/tet");
+            out!(", P1 {b:.1} bytes/tet");
         }
-        println!();
+        outln!();
     }
 
     if args.reference {
@@ -366,14 +376,14 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             .iter_mut()
             .map(|s| median(s))
             .collect();
-        print!(
+        out!(
             "plain serial reference kernels: HEML {:.2} ns/tet",
             t[0] / n_tets as f64 * 1e9
         );
         if let Some(tf) = t.get(1) {
-            print!(", P1 {:.2} ns/tet", tf / n_tets as f64 * 1e9);
+            out!(", P1 {:.2} ns/tet", tf / n_tets as f64 * 1e9);
         }
-        println!();
+        outln!();
     }
 
     // Full semi-explicit steps through the System. The body vibrates gently about its
@@ -407,7 +417,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     })?;
     let mut st = step_times;
     let m = median(&mut st);
-    println!(
+    outln!(
         "full step (symplectic_euler: forces + update + constraints, energies off, {threads} threads): {:.3} ms median of {steps}, {:.0} steps/s",
         m * 1e3,
         1.0 / m
