@@ -108,3 +108,28 @@ fn bench_prints_a_complete_side_by_side_table() {
     }
     assert!(out.contains("memory: HEML") && out.contains("full step"), "{out}");
 }
+
+/// A reader that stops early (`heml bench | head -1`) must end the command quietly:
+/// no panic, success, nothing on standard error.
+#[test]
+fn a_closed_pipe_ends_the_report_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_heml"))
+        .args(["bench", "--tets", "3000", "--repeats", "1", "--threads", "1"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    // the reader is dropped here: the table, printed after the timings, meets a
+    // closed pipe
+    assert!(first.starts_with("mesh:"), "{first}");
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "status {:?}, stderr:\n{err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}

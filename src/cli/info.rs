@@ -57,27 +57,35 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
     } else {
         mesh.scaled(args.scale)?
     };
-    println!("{report}");
+    outln!("{report}");
     let (lo, hi) = mesh.bounding_box();
     let size = hi - lo;
-    println!("{:<16}{}", "nodes", mesh.n_nodes());
-    println!("{:<16}{} (regions: {:?})", "tets", mesh.n_tets(), mesh.distinct_tags());
-    println!("{:<16}{:.6e}", "volume", mesh.total_volume());
-    println!(
+    outln!("{:<16}{}", "nodes", mesh.n_nodes());
+    outln!("{:<16}{} (regions: {:?})", "tets", mesh.n_tets(), mesh.distinct_tags());
+    outln!("{:<16}{:.6e}", "volume", mesh.total_volume());
+    outln!(
         "{:<16}[{:.4e}, {:.4e}, {:.4e}] – [{:.4e}, {:.4e}, {:.4e}]",
-        "bounding box", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+        "bounding box",
+        lo.x,
+        lo.y,
+        lo.z,
+        hi.x,
+        hi.y,
+        hi.z
     );
-    println!("{:<16}{:.4e} × {:.4e} × {:.4e}", "size", size.x, size.y, size.z);
+    outln!("{:<16}{:.4e} × {:.4e} × {:.4e}", "size", size.x, size.y, size.z);
     let Some(q) = mesh_quality(&mesh, None) else {
-        println!("(no tets: nothing more to report)");
+        outln!("(no tets: nothing more to report)");
         return Ok(());
     };
     let deg = |r: f64| r.to_degrees();
-    println!(
+    outln!(
         "{:<16}min {:.4e}, max {:.4e}",
-        "edge length", q.edge_length.0, q.edge_length.1
+        "edge length",
+        q.edge_length.0,
+        q.edge_length.1
     );
-    println!(
+    outln!(
         "{:<16}min {:.2}° (tet {}), max {:.2}° (tet {})",
         "dihedral angle",
         deg(q.min_dihedral.0),
@@ -85,15 +93,19 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
         deg(q.max_dihedral.0),
         q.max_dihedral.1
     );
-    println!(
+    outln!(
         "{:<16}max {:.3} (tet {}; 1 = regular)",
-        "aspect ratio", q.max_aspect_ratio.0, q.max_aspect_ratio.1
+        "aspect ratio",
+        q.max_aspect_ratio.0,
+        q.max_aspect_ratio.1
     );
-    println!(
+    outln!(
         "{:<16}min {:.4} (tet {}; 1 = regular)",
-        "radius ratio", q.min_radius_ratio.0, q.min_radius_ratio.1
+        "radius ratio",
+        q.min_radius_ratio.0,
+        q.min_radius_ratio.1
     );
-    println!("{:<16}{:.4e} (tet {})", "min height", q.min_height.0, q.min_height.1);
+    outln!("{:<16}{:.4e} (tet {})", "min height", q.min_height.0, q.min_height.1);
 
     let entry = heml::find_material(&args.law)?;
     let mut params = parse_params(&args.params)?;
@@ -107,7 +119,7 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
         .density(args.density)
         .pin_unreferenced()
         .build()?;
-    println!(
+    outln!(
         "{:<16}{:.4e} s  ({} {}, density {} kg/m³, safety factor included)",
         "stable dt",
         stable_time_step(&sys),

@@ -14,16 +14,16 @@ fn print_materials() {
             LawKind::Invariant => "w(I1, I2, J)",
             LawKind::Link => "link w(l, L)",
         };
-        println!("{}  [{kind}]  {}", e.name, e.title());
+        outln!("{}  [{kind}]  {}", e.name, e.title());
         for p in e.params {
-            println!(
+            outln!(
                 "    {:<8} {}{}",
                 p.name,
                 p.doc,
                 if p.signed { " (may be negative)" } else { "" }
             );
         }
-        println!(
+        outln!(
             "    w = {}\n",
             e.energy.split_whitespace().collect::<Vec<_>>().join(" ")
         );

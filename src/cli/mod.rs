@@ -1,8 +1,21 @@
 //! One module per subcommand of the `heml` binary.
 
+/// `println!` for the subcommands' reports, through [`out::write`]: a closed pipe
+/// (`heml bench | head -1`) ends the command quietly instead of panicking.
+macro_rules! outln {
+    () => { $crate::cli::out::write(format_args!("\n")) };
+    ($($arg:tt)*) => { $crate::cli::out::write(format_args!("{}\n", format_args!($($arg)*))) };
+}
+
+/// `print!` through [`out::write`] (see [`outln!`]).
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::cli::out::write(format_args!($($arg)*)) };
+}
+
 pub mod bench;
 pub mod demo;
 pub mod info;
 pub mod materials;
+pub mod out;
 pub mod run;
 pub mod validate;

@@ -53,7 +53,7 @@ pub fn execute(mut scene: Scene, opts: &RunOptions) -> heml::Result<()> {
     }
     let sys = &sim.system;
     if !opts.quiet {
-        println!(
+        outln!(
             "{}: {} nodes, {} tets, {} constrained; {} with dt = {:.3e} s (stable estimate {:.3e} s), {} steps, \
              a frame every {} steps -> {}",
             scene.origin.display(),
@@ -87,6 +87,6 @@ pub fn execute(mut scene: Scene, opts: &RunOptions) -> heml::Result<()> {
     });
     bar.finish_and_clear();
     let summary = result?;
-    println!("done: {summary}");
+    outln!("done: {summary}");
     Ok(())
 }

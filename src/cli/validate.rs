@@ -40,7 +40,7 @@ pub fn run(args: ValidateArgs) -> heml::Result<()> {
         eprintln!("validate: {name} done in {:.1} s", r.seconds);
         reports.push(r);
     }
-    print!("{}", validation::format_table(&reports));
+    out!("{}", validation::format_table(&reports));
     let count = |s: Status| {
         reports
             .iter()
@@ -50,7 +50,7 @@ pub fn run(args: ValidateArgs) -> heml::Result<()> {
     };
     let (pass, fail, skip) = (count(Status::Pass), count(Status::Fail), count(Status::Skip));
     let total: f64 = reports.iter().map(|r| r.seconds).sum();
-    println!("\n{pass} passed, {fail} failed, {skip} skipped ({total:.1} s)");
+    outln!("\n{pass} passed, {fail} failed, {skip} skipped ({total:.1} s)");
     if fail > 0 {
         return Err(heml::HemlError::Numerical(format!("{fail} validation check(s) failed")));
     }
