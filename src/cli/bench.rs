@@ -135,14 +135,20 @@ struct Case<'a> {
 /// Seconds per call of every case, `repeats` samples each, taken round-robin (one
 /// sample of each case per round), so that the machine's slow drifts hit every case
 /// alike and ratios can be taken round by round.
+///
+/// Consecutive cases on the same pool form a group; odd rounds visit each group
+/// backwards, so that whatever the first sample after a change of pool pays (its
+/// workers were idle, its caches hold another case's data) falls on every case of
+/// the group in turn, not always on the first one listed.
 fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<Vec<Vec<f64>>> {
     let mut bufs: Vec<Vec<Vec3>> = cases.iter().map(|c| vec![Vec3::zeros(); c.x.len()]).collect();
     for (c, f) in cases.iter().zip(&mut bufs) {
         c.pool.install(|| c.field.add_forces(c.x, f))?; // warm-up (allocates scratch)
     }
     let mut samples = vec![Vec::with_capacity(repeats); cases.len()];
-    for _ in 0..repeats {
-        for ((c, f), s) in cases.iter().zip(&mut bufs).zip(&mut samples) {
+    for round in 0..repeats {
+        for i in visiting_order(cases, round % 2 == 1) {
+            let (c, f) = (&cases[i], &mut bufs[i]);
             let t = c.pool.install(|| -> heml::Result<f64> {
                 let t = Instant::now();
                 for _ in 0..c.inner {
@@ -151,10 +157,28 @@ fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<Vec<Vec<f64>
                 }
                 Ok(t.elapsed().as_secs_f64() / c.inner as f64)
             })?;
-            s.push(t);
+            samples[i].push(t);
         }
     }
     Ok(samples)
+}
+
+/// The indices of `cases` in list order, each run of cases on the same pool
+/// reversed when `backwards`.
+fn visiting_order(cases: &[Case], backwards: bool) -> Vec<usize> {
+    let mut order = Vec::with_capacity(cases.len());
+    let mut start = 0;
+    while start < cases.len() {
+        let same = |c: &Case| std::ptr::eq(c.pool, cases[start].pool);
+        let end = start + cases[start..].iter().take_while(|c| same(c)).count();
+        if backwards {
+            order.extend((start..end).rev());
+        } else {
+            order.extend(start..end);
+        }
+        start = end;
+    }
+    order
 }
 
 /// The median over rounds of `a[i] / b[i]`: a ratio robust to drifts that move both.
