@@ -4,6 +4,11 @@
 //! six squared edge lengths of each tetrahedron (Goulette et al.). It is P1 finite
 //! elements — same energy, same forces — evaluated as forces along the mesh links.
 //!
+//! This crate is the library: `use heml::prelude::*` brings what a program types
+//! (meshes, parameters, systems, scenes, the look-ups by name); the domains are
+//! modules ([`io`], [`mesh`], [`force`], [`system`], [`scene`], [`registry`],
+//! [`law`]). The `heml` command is the separate crate `heml-cli`.
+//!
 //! ## From plain data to energy and forces
 //!
 //! ```
@@ -28,6 +33,7 @@
 //! compile time and the law is registered by name:
 //!
 //! ```
+//! use heml::law::InvariantLaw;
 //! use heml::prelude::*;
 //!
 //! /// A quadratic-in-I1 toy law.
@@ -76,51 +82,93 @@
 //! ```
 //!
 //! ## Crates
-//! - [`heml_core`]: meshes, rest precomputation, force kernels, FEM oracle, registry;
-//! - [`heml_derive`]: the `#[material]` macro;
-//! - [`heml_materials`]: the built-in laws ([`materials`]);
-//! - [`heml_integrators`]: time integrators ([`integrators`]).
+//! - `heml-core`: meshes and mesh I/O, rest precomputation, the force fields (HEML,
+//!   standard P1, link), systems, solvers, scenes, the registry;
+//! - `heml-derive`: the `#[material]` macro ([`material`]);
+//! - `heml-materials`: the built-in laws ([`materials`]);
+//! - `heml-integrators`: time integrators ([`integrators`]).
 
 #![warn(missing_docs)]
 
-pub use heml_core;
-pub use heml_core::{fem, force, law, mesh, params, rest, HemlError, Result, Vec3};
+pub use heml_core::{force, io, mesh, params, registry, rest, HemlError, Params, Result, TetMesh, Vec3};
 pub use heml_derive::material;
 pub use heml_integrators as integrators;
 pub use heml_materials as materials;
 pub use nalgebra;
 
-pub mod threads;
-pub mod validation;
+/// The crate the generated code of `#[heml::material]` refers to. Not a public API:
+/// use the domain modules of this crate.
+#[doc(hidden)]
+pub use heml_core;
+
+pub mod scene;
+
+/// Systems: model (mesh, laws, masses, supports), state and stepping; static solves;
+/// stable time steps; the [`system::Integrator`] trait and its registry.
+pub mod system {
+    pub use heml_core::system::*;
+}
+
+/// The law contract: what `#[heml::material]` generates and what force fields need
+/// of a law. Programs rarely type these; law authors and kernel writers do.
+pub mod law {
+    pub use heml_core::force::{HemlField, LinkField};
+    pub use heml_core::law::*;
+    pub use heml_core::material::*;
+    pub use heml_core::registry::MaterialEntry;
+}
 
 use heml_core::registry::MaterialEntry;
-use heml_core::system::{IntegratorEntry, SystemBuilder};
-use heml_core::{Integrator, Material, Params, TetMesh};
+use heml_core::system::{Integrator, IntegratorEntry, SystemBuilder};
+use heml_core::Material;
 
-/// The common imports: mesh, laws, parameters, force fields.
+/// What a program types: meshes, parameters, systems and scenes, the look-ups by
+/// name, and the built-in laws.
+///
+/// ```
+/// use heml::prelude::*;
+/// let mesh = heml::mesh::generate::box_of_about(100)?;
+/// let sys: System = heml::system(mesh)
+///     .material("neo_hookean", &Params::from([("E", 3e3), ("nu", 0.45)]))?
+///     .build()?;
+/// assert!(sys.stable_dt() > 0.0);
+/// # Ok::<(), HemlError>(())
+/// ```
 pub mod prelude {
-    pub use heml_core::system::{PronyTerm, Ramp, StepStats, System, TimeStepPolicy};
-    pub use heml_core::Integrator;
-    pub use heml_core::{
-        Derivs, ElasticForces, ForceOptions, HemlError, HemlField, InvariantLaw, LawKind, LinkLaw, Material,
-        MaterialEntry, MaterialInfo, Params, TetMesh, Vec3,
+    pub use crate::scene::Scene;
+    pub use crate::{integrator, material, system};
+    pub use heml_core::io::read_mesh;
+    pub use heml_core::system::{
+        Integrator, PronyTerm, Ramp, StaticOptions, StepStats, System, SystemBuilder, TimeStepPolicy,
     };
+    pub use heml_core::{ElasticForces, ForceOptions, HemlError, Material, Params, Result, TetMesh, Vec3};
     pub use heml_materials::*;
 }
 
 /// Makes sure the linker keeps the registrations of the member crates: `inventory`
 /// entries of a crate that nothing references are silently dropped.
-fn link_members() {
+pub(crate) fn link_members() {
     std::hint::black_box(heml_materials::__link() + heml_integrators::__link());
 }
 
 /// Every registered law (built-in and user-declared), sorted by name.
+///
+/// ```
+/// assert!(heml::materials_list().iter().any(|e| e.name == "neo_hookean"));
+/// ```
 pub fn materials_list() -> Vec<&'static MaterialEntry> {
     link_members();
     heml_core::registry::materials()
 }
 
 /// The registry entry of the law `name`; the error lists the known names.
+///
+/// ```
+/// let entry = heml::find_material("mooney_rivlin")?;
+/// assert!(entry.params.iter().any(|p| p.name == "c10"));
+/// assert!(heml::find_material("neo_hooken").unwrap_err().to_string().contains("neo_hookean"));
+/// # Ok::<(), heml::HemlError>(())
+/// ```
 pub fn find_material(name: &str) -> Result<&'static MaterialEntry> {
     link_members();
     heml_core::registry::find_material(name)
@@ -128,24 +176,53 @@ pub fn find_material(name: &str) -> Result<&'static MaterialEntry> {
 
 /// Builds the law `name` from named parameters (checked: unknown, missing, NaN or
 /// negative values are errors listing the expected parameters).
+///
+/// ```
+/// use heml::prelude::*;
+/// let law = heml::material("neo_hookean", &Params::from([("mu", 1e3), ("lambda", 4e3)]))?;
+/// assert_eq!(law.name(), "neo_hookean");
+/// assert!(heml::material("neo_hookean", &Params::from([("mu", f64::NAN), ("lambda", 1.0)])).is_err());
+/// # Ok::<(), HemlError>(())
+/// ```
 pub fn material(name: &str, params: &Params) -> Result<Box<dyn Material>> {
     find_material(name)?.instantiate(params)
 }
 
 /// Every registered integrator, sorted by name.
+///
+/// ```
+/// assert!(heml::integrators_list().iter().any(|e| e.name == "velocity_verlet"));
+/// ```
 pub fn integrators_list() -> Vec<&'static IntegratorEntry> {
     link_members();
     heml_core::system::integrators()
 }
 
 /// A fresh integrator registered as `name`; the error lists the known names.
+///
+/// ```
+/// let integrator = heml::integrator("symplectic_euler")?;
+/// assert_eq!(integrator.name(), "symplectic_euler");
+/// # Ok::<(), heml::HemlError>(())
+/// ```
 pub fn integrator(name: &str) -> Result<Box<dyn Integrator>> {
     link_members();
     Ok(heml_core::system::find_integrator(name)?.instantiate())
 }
 
-/// Starts building a [`heml_core::System`] on `mesh`, with every built-in law and
-/// integrator registered (see [`heml_core::system::SystemBuilder`]).
+/// Starts building a [`system::System`] on `mesh`, with every built-in law and
+/// integrator registered (see [`system::SystemBuilder`]).
+///
+/// ```
+/// use heml::prelude::*;
+/// let mesh = heml::mesh::generate::box_of_about(50)?;
+/// let sys = heml::system(mesh)
+///     .material("saint_venant_kirchhoff", &Params::from([("E", 1e4), ("nu", 0.3)]))?
+///     .fix_where(|p| p.z < 1e-9)
+///     .build()?;
+/// assert!(sys.n_nodes() > 0);
+/// # Ok::<(), HemlError>(())
+/// ```
 pub fn system(mesh: TetMesh) -> SystemBuilder {
     link_members();
     heml_core::System::builder(mesh)

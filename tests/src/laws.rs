@@ -1,6 +1,7 @@
 //! A law the `materials` crate does not have, declared here through the facade only,
 //! and the parameter ranges in which each registered law is well defined.
 
+use heml::law::*;
 use heml::prelude::*;
 use rand::Rng;
 

@@ -2,6 +2,7 @@
 //! (Speed is measured by `heml bench` and the criterion benches, never asserted.)
 
 use heml::force::ElasticForces;
+use heml::law::*;
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;
 

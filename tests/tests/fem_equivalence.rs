@@ -1,6 +1,7 @@
 //! HEML forces are exactly P1 finite-element forces: the link kernel and the
 //! independent F = Ds·Dm⁻¹ path agree to round-off for every invariant law.
 
+use heml::law::*;
 use heml::prelude::*;
 use heml_tests::*;
 use proptest::prelude::*;

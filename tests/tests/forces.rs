@@ -2,6 +2,7 @@
 //! force-free, and internal forces are balanced (zero net force and torque), for
 //! every registered law, on random meshes under large deformations.
 
+use heml::law::*;
 use heml::prelude::*;
 use heml_tests::*;
 use proptest::prelude::*;

@@ -1,9 +1,9 @@
 //! Integrators and the simulation layer through the `heml` facade: registry lookups,
 //! laws picked by name, and a hanging body whose support reactions carry its weight.
 
-use heml::heml_core::mesh::generate::{box_mesh, HexSplit};
-use heml::heml_core::system::{PronyTerm, Ramp, System};
+use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
+use heml::system::{PronyTerm, Ramp, System};
 
 /// Registry lookups made directly in heml-core (as `System::builder` does) need the
 /// member crates linked; any facade lookup guarantees it.
@@ -99,8 +99,8 @@ fn prony_relaxation_through_registered_law() {
         integ.step(&mut sys, 1e-3).unwrap();
     }
     let ratio = sys.reactions()[7].dot(&r_start) / r_start.norm_squared();
-    let alpha_end = heml::heml_core::system::relaxation(&terms, sys.time());
-    let alpha_start = heml::heml_core::system::relaxation(&terms, 1e-3);
+    let alpha_end = heml::system::relaxation(&terms, sys.time());
+    let alpha_start = heml::system::relaxation(&terms, 1e-3);
     // r_start was measured at t = Δt (Verlet evaluates at the end of the step)
     assert!(
         (ratio - alpha_end / alpha_start).abs() < 2e-3,

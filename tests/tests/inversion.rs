@@ -3,6 +3,7 @@
 //! value, gradient (including ∂/∂I1, ∂/∂I2, which involve third derivatives of w) and
 //! ∂²/∂J², and stay finite for J <= 0.
 
+use heml::law::*;
 use heml::nalgebra::Matrix3;
 use heml::prelude::*;
 use heml_tests::*;

@@ -18,6 +18,7 @@
 //! therefore 1e-14·S_i·max(1, ln(S_i / median S)): e^x ≤ S_i/typical S bounds |x|.
 
 use heml::force::{Assembly, ElasticForces, SimdLevel};
+use heml::law::*;
 use heml::mesh::reorder::{morton_node_order, morton_order, Permutation};
 use heml::prelude::*;
 use heml_tests::*;

@@ -3,9 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
-use heml::heml_core::io::{read_pvd, write_mesh};
-use heml::heml_core::scene::Scene;
+use heml::io::{read_pvd, write_mesh};
 use heml::prelude::*;
+use heml::scene::Scene;
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes")
@@ -69,7 +69,7 @@ fn example_scene_parses_builds_and_runs_at_reduced_duration() {
     assert_eq!(frames.len(), summary.frames);
     assert!(frames.len() >= 3, "t = 0, 0.02, 0.04");
     let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
-    assert!(csv.starts_with(heml::heml_core::scene::CSV_HEADER));
+    assert!(csv.starts_with(heml::scene::CSV_HEADER));
     // the prescribed end moved sideways by r(0.04) * 1 cm with the smooth ramp
     let s = 0.04 / 0.5;
     let expected = 0.01 * s * s * (3.0 - 2.0 * s);
@@ -269,7 +269,7 @@ fn shuffled_bar(dir: &Path) -> TetMesh {
         .unwrap();
     let path = dir.join("bar.msh");
     write_mesh(&path, &shuffled).unwrap();
-    let written = heml::heml_core::io::read_mesh(&path).unwrap().0;
+    let written = heml::io::read_mesh(&path).unwrap().0;
     assert_eq!(written.nodes(), shuffled.nodes());
     written
 }
@@ -308,7 +308,7 @@ every = 10
 }
 
 /// Positions of the system's nodes in the file's numbering.
-fn file_positions(sim: &heml::heml_core::scene::Simulation) -> Vec<Vec3> {
+fn file_positions(sim: &heml::scene::Simulation) -> Vec<Vec3> {
     match &sim.node_order {
         Some(p) => p.unapply(sim.system.positions()),
         None => sim.system.positions().to_vec(),
@@ -319,7 +319,7 @@ fn file_positions(sim: &heml::heml_core::scene::Simulation) -> Vec<Vec3> {
 /// positions per id and the VTU frames are those of the file's numbering.
 #[test]
 fn renumbering_changes_the_internal_order_only() {
-    use heml::heml_core::io::vtu;
+    use heml::io::vtu;
     link();
     let dir = temp_dir("renumber");
     let mesh = shuffled_bar(&dir);

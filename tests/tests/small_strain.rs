@@ -2,7 +2,8 @@
 //! dP/dε at F = I + εH equals λ·tr(H)·I + μ·(H + Hᵀ). This pins down the
 //! parameter mappings (bulk modulus, stable neo-Hookean's reparametrisation, …).
 
-use heml::heml_core::material::Invariant;
+use heml::law::Invariant;
+use heml::law::*;
 use heml::nalgebra::Matrix3;
 use heml::prelude::*;
 

@@ -3,7 +3,7 @@
 //! each case (src/validation/*.rs); the quick settings only coarsen meshes and
 //! shorten runs, and loosen the tolerances that depend on resolution (cantilever).
 
-use heml::validation::{find_case, format_table, run_case, Options, Status, CASES};
+use heml_validation::{find_case, format_table, run_case, Options, Status, CASES};
 
 fn check(name: &str) {
     let report = run_case(name, &Options::quick()).unwrap();

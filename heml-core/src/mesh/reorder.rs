@@ -44,6 +44,35 @@ impl Permutation {
         }
     }
 
+    /// A pseudo-random permutation of `n` elements, the same for the same `seed` on
+    /// every platform (xorshift64 + Fisher–Yates): meshes "as a mesher might number
+    /// them", for tests and benchmarks of the renumbering and of the block driver.
+    ///
+    /// ```
+    /// use heml_core::mesh::reorder::Permutation;
+    /// let p = Permutation::pseudo_random(1000, 7);
+    /// let mut seen = p.apply(&(0..1000).collect::<Vec<usize>>());
+    /// assert_ne!(seen, (0..1000).collect::<Vec<_>>()); // shuffled
+    /// seen.sort();
+    /// assert_eq!(seen, (0..1000).collect::<Vec<_>>()); // a permutation
+    /// assert_eq!(p, Permutation::pseudo_random(1000, 7)); // deterministic
+    /// ```
+    pub fn pseudo_random(n: usize, seed: u64) -> Permutation {
+        // xorshift64 has no zero state: any seed maps to a non-zero one
+        let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
+        if state == 0 {
+            state = 0x2545_F491_4F6C_DD1D;
+        }
+        let mut v: Vec<usize> = (0..n).collect();
+        for i in (1..n).rev() {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            v.swap(i, (state % (i as u64 + 1)) as usize);
+        }
+        Permutation::from_new_to_old(v)
+    }
+
     /// Number of elements.
     pub fn len(&self) -> usize {
         self.new_to_old.len()

@@ -1,0 +1,399 @@
+//! `heml bench`: force-evaluation throughput of HEML and of the standard P1 path,
+//! measured in the same run (interleaved, medians), plus the time of full
+//! semi-explicit steps through the `System`.
+
+use crate::threads::{placement_for, thread_pool, Placement};
+use clap::Args;
+use heml::force::{Assembly, ElasticForces, SimdLevel};
+use heml::mesh::generate::box_of_about;
+use heml::prelude::*;
+use heml::registry::MaterialEntry;
+use heml_validation::fixtures::{self, renumbered_at_load, shuffled, smooth_deformation as deformed};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `heml bench`.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Mesh file (.msh, .vtk, .vtu, .node/.ele, .mesh); default: a generated box.
+    #[arg(long)]
+    pub mesh: Option<PathBuf>,
+    /// Number of tets of the generated box (ignored with --mesh).
+    #[arg(long, default_value_t = 100_000)]
+    pub tets: usize,
+    /// Law (registry name, see `heml materials`).
+    #[arg(long, default_value = "neo_hookean")]
+    pub law: String,
+    /// Threads of the parallel runs (default: all cores). 1 thread is always measured too.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Timed samples per measurement (the median is reported).
+    #[arg(long, default_value_t = 25)]
+    pub repeats: usize,
+    /// Shuffle node and tet numbering randomly before building the fields (as real
+    /// meshes often arrive).
+    #[arg(long)]
+    pub shuffle: bool,
+    /// Also time the plain serial reference kernels.
+    #[arg(long)]
+    pub reference: bool,
+    /// Keep the mesh's node numbering. By default the nodes are renumbered along a
+    /// Morton curve as loaded, as `heml run` does.
+    #[arg(long)]
+    pub keep_order: bool,
+    /// Instead of the usual table: cost per tet of the HEML field on generated boxes
+    /// of about 10k, 100k and 1M tets and on the 1M box shuffled (renumbered at load,
+    /// and kept shuffled), timed interleaved in one run.
+    #[arg(long)]
+    pub scaling: bool,
+    /// Let the OS place the worker threads. By default the k-th worker of each
+    /// thread pool is pinned to the k-th CPU this process may use.
+    #[arg(long)]
+    pub no_pin: bool,
+}
+
+/// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
+/// spring stiffness of 10 N/m per tet edge.
+fn tissue_params(entry: &MaterialEntry) -> heml::Result<Params> {
+    fixtures::tissue_params(entry, 3e3, 0.45).ok_or_else(|| {
+        HemlError::Invalid(format!(
+            "heml bench knows soft-tissue parameters for the built-in laws only, not '{}'",
+            entry.name
+        ))
+    })
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// One timed case: a field evaluated at `x` on `pool`, `inner` calls per sample.
+struct Case<'a> {
+    pool: &'a rayon::ThreadPool,
+    field: &'a dyn ElasticForces,
+    x: &'a [Vec3],
+    inner: usize,
+}
+
+/// Seconds per call of every case, `repeats` samples each, taken round-robin (one
+/// sample of each case per round), so that the machine's slow drifts hit every case
+/// alike and ratios can be taken round by round.
+///
+/// Consecutive cases on the same pool form a group; odd rounds visit each group
+/// backwards, so that whatever the first sample after a change of pool pays (its
+/// workers were idle, its caches hold another case's data) falls on every case of
+/// the group in turn, not always on the first one listed.
+fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<Vec<Vec<f64>>> {
+    let mut bufs: Vec<Vec<Vec3>> = cases.iter().map(|c| vec![Vec3::zeros(); c.x.len()]).collect();
+    for (c, f) in cases.iter().zip(&mut bufs) {
+        c.pool.install(|| c.field.add_forces(c.x, f))?; // warm-up (allocates scratch)
+    }
+    let mut samples = vec![Vec::with_capacity(repeats); cases.len()];
+    for round in 0..repeats {
+        for i in visiting_order(cases, round % 2 == 1) {
+            let (c, f) = (&cases[i], &mut bufs[i]);
+            let t = c.pool.install(|| -> heml::Result<f64> {
+                let t = Instant::now();
+                for _ in 0..c.inner {
+                    f.fill(Vec3::zeros());
+                    std::hint::black_box(c.field.add_forces(c.x, f)?);
+                }
+                Ok(t.elapsed().as_secs_f64() / c.inner as f64)
+            })?;
+            samples[i].push(t);
+        }
+    }
+    Ok(samples)
+}
+
+/// The indices of `cases` in list order, each run of cases on the same pool
+/// reversed when `backwards`.
+fn visiting_order(cases: &[Case], backwards: bool) -> Vec<usize> {
+    let mut order = Vec::with_capacity(cases.len());
+    let mut start = 0;
+    while start < cases.len() {
+        let same = |c: &Case| std::ptr::eq(c.pool, cases[start].pool);
+        let end = start + cases[start..].iter().take_while(|c| same(c)).count();
+        if backwards {
+            order.extend((start..end).rev());
+        } else {
+            order.extend(start..end);
+        }
+        start = end;
+    }
+    order
+}
+
+/// The median over rounds of `a[i] / b[i]`: a ratio robust to drifts that move both.
+fn median_ratio(a: &[f64], b: &[f64]) -> f64 {
+    let mut r: Vec<f64> = a.iter().zip(b).map(|(a, b)| a / b).collect();
+    median(&mut r)
+}
+
+/// `heml bench --scaling`: the cost per tet as the mesh grows, and on a shuffled
+/// mesh, all fields timed round-robin in one run so that machine noise hits them
+/// alike.
+fn scaling(args: &BenchArgs, law: &dyn Material, pool: &rayon::ThreadPool) -> heml::Result<()> {
+    let opts = ForceOptions::default();
+    let mut cases: Vec<(String, TetMesh)> = Vec::new();
+    for n in [10_000, 100_000, 1_000_000] {
+        let mesh = box_of_about(n)?;
+        cases.push((format!("box {} tets", mesh.n_tets()), mesh));
+    }
+    let big = shuffled(&cases[2].1)?;
+    cases.push(("same, shuffled, renumbered at load".into(), renumbered_at_load(&big)?));
+    cases.push(("same, shuffled, order kept".into(), big));
+    let fields: Vec<Box<dyn ElasticForces>> = cases
+        .iter()
+        .map(|(_, m)| law.force_field(m, None, &opts))
+        .collect::<heml::Result<_>>()?;
+    let xs: Vec<Vec<Vec3>> = cases.iter().map(|(_, m)| deformed(m)).collect();
+    let timed: Vec<Case> = fields
+        .iter()
+        .zip(&xs)
+        .map(|(fl, x)| Case {
+            pool,
+            field: fl.as_ref(),
+            x,
+            // about 20 ms per sample whatever the size
+            inner: (2_000_000 / fl.n_tets().max(1)).clamp(1, 1000),
+        })
+        .collect();
+    let repeats = args.repeats.max(1);
+    let mut samples = time_round_robin(&timed, repeats)?;
+    for (s, fl) in samples.iter_mut().zip(&fields) {
+        s.iter_mut().for_each(|t| *t /= fl.n_tets().max(1) as f64);
+    }
+    outln!(
+        "cost per tet, {} threads, {} round-robin samples (medians; ratios: medians of the per-round ratios):",
+        pool.current_num_threads(),
+        repeats
+    );
+    for ((name, _), s) in cases.iter().zip(&samples) {
+        outln!(
+            "  {name:<38} {:>7.2} ns/tet   {:>5.2}× the 10k box",
+            median(&mut s.clone()) * 1e9,
+            median_ratio(s, &samples[0])
+        );
+    }
+    Ok(())
+}
+
+/// Runs `heml bench`.
+pub fn run(args: BenchArgs) -> heml::Result<()> {
+    let entry = heml::find_material(&args.law)?;
+    let params = tissue_params(entry)?;
+    let law = entry.instantiate(&params)?;
+    let opts = ForceOptions::default();
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let placement = if args.no_pin { Placement::Os } else { Placement::Pinned };
+    let pool = |n: usize| thread_pool(n, placement).map(|(p, _)| p);
+    let workers = match placement_for(threads, placement) {
+        Placement::Pinned => "pinned to CPUs",
+        Placement::Os => "placed by the OS",
+    };
+    if args.scaling {
+        outln!(
+            "law: {}   SIMD: {}   workers {workers}   (--mesh, --tets and --shuffle do not apply)",
+            entry.name,
+            SimdLevel::detect().name()
+        );
+        return scaling(&args, law.as_ref(), &pool(threads)?);
+    }
+    let mut mesh = match &args.mesh {
+        Some(path) => heml::io::read_mesh(path)?.0,
+        None => box_of_about(args.tets)?,
+    };
+    if args.shuffle {
+        mesh = shuffled(&mesh)?;
+    }
+    if !args.keep_order {
+        mesh = renumbered_at_load(&mesh)?;
+    }
+    let n_tets = mesh.n_tets();
+    let x = deformed(&mesh);
+    let repeats = args.repeats.max(1);
+    // about 20 ms per sample
+    let inner = (2_000_000 / n_tets.max(1)).clamp(1, 1000);
+
+    outln!(
+        "mesh: {} ({} nodes, {} tets){}{}",
+        args.mesh
+            .as_ref()
+            .map_or("generated box".to_string(), |p| p.display().to_string()),
+        mesh.n_nodes(),
+        n_tets,
+        if args.shuffle { ", shuffled" } else { "" },
+        if args.keep_order {
+            ", node order kept"
+        } else {
+            ", nodes renumbered at load (Morton)"
+        }
+    );
+    outln!(
+        "law: {}   SIMD: {}   threads: {} ({workers})   repeats: {} × {} calls (medians)",
+        entry.name,
+        SimdLevel::detect().name(),
+        threads,
+        repeats,
+        inner
+    );
+
+    let heml_field = law.force_field(&mesh, None, &opts)?;
+    let fem_field = law.fem_field(&mesh, None, &opts)?;
+    let mut counts = vec![1];
+    if threads != 1 {
+        counts.push(threads);
+    }
+    outln!();
+    outln!(
+        "{:<8} {:>14} {:>10} {:>14} {:>10} {:>12}",
+        "threads",
+        "HEML tets/s",
+        "ns/tet",
+        "P1 tets/s",
+        "ns/tet",
+        "HEML vs P1"
+    );
+    // every (thread count, field) case in one round-robin, so that the speed-up and
+    // the HEML/P1 ratio are taken sample by sample under the same machine load
+    let pools = counts.iter().map(|&n| pool(n)).collect::<heml::Result<Vec<_>>>()?;
+    let mut cases = Vec::new();
+    for p in &pools {
+        cases.push(Case {
+            pool: p,
+            field: heml_field.as_ref(),
+            x: &x,
+            inner,
+        });
+        if let Some(fem) = &fem_field {
+            cases.push(Case {
+                pool: p,
+                field: fem.as_ref(),
+                x: &x,
+                inner,
+            });
+        }
+    }
+    let samples = time_round_robin(&cases, repeats)?;
+    let per_count = cases.len() / counts.len();
+    let per = |s: f64| s / n_tets as f64;
+    for (k, &n) in counts.iter().enumerate() {
+        let heml_s = &samples[k * per_count];
+        let th = median(&mut heml_s.clone());
+        if fem_field.is_some() {
+            let fem_s = &samples[k * per_count + 1];
+            let tf = median(&mut fem_s.clone());
+            outln!(
+                "{:<8} {:>14.3e} {:>10.2} {:>14.3e} {:>10.2} {:>11.2}×",
+                n,
+                1.0 / per(th),
+                per(th) * 1e9,
+                1.0 / per(tf),
+                per(tf) * 1e9,
+                median_ratio(fem_s, heml_s)
+            );
+        } else {
+            outln!(
+                "{:<8} {:>14.3e} {:>10.2} {:>14} {:>10} {:>12}",
+                n,
+                1.0 / per(th),
+                per(th) * 1e9,
+                "n/a",
+                "n/a",
+                "n/a"
+            );
+        }
+    }
+    if counts.len() == 2 {
+        outln!(
+            "speed-up {threads} threads vs 1: {:.2}×",
+            median_ratio(&samples[0], &samples[per_count])
+        );
+    }
+    outln!("(ratios: medians of the per-round ratios; all cases timed round-robin)");
+    if let Some(b) = heml_field.bytes_per_tet() {
+        out!("memory: HEML {b:.1} bytes/tet");
+        if let Some(b) = fem_field.as_ref().and_then(|f| f.bytes_per_tet()) {
+            out!(", P1 {b:.1} bytes/tet");
+        }
+        outln!();
+    }
+
+    if args.reference {
+        let mut h = law.force_field(&mesh, None, &opts)?;
+        h.set_assembly(Assembly::Reference);
+        let mut list: Vec<Box<dyn ElasticForces>> = vec![h];
+        if let Some(mut f) = law.fem_field(&mesh, None, &opts)? {
+            f.set_assembly(Assembly::Reference);
+            list.push(f);
+        }
+        let cases: Vec<Case> = list
+            .iter()
+            .map(|b| Case {
+                pool: &pools[0],
+                field: b.as_ref(),
+                x: &x,
+                inner: (inner / 4).max(1),
+            })
+            .collect();
+        let t: Vec<f64> = time_round_robin(&cases, repeats.min(7))?
+            .iter_mut()
+            .map(|s| median(s))
+            .collect();
+        out!(
+            "plain serial reference kernels: HEML {:.2} ns/tet",
+            t[0] / n_tets as f64 * 1e9
+        );
+        if let Some(tf) = t.get(1) {
+            out!(", P1 {:.2} ns/tet", tf / n_tets as f64 * 1e9);
+        }
+        outln!();
+    }
+
+    // Full semi-explicit steps through the System. The body vibrates gently about its
+    // rest shape (1 mm/s initial velocity): a step costs the same at any deformation,
+    // and a large sag (a soft 10 cm block under gravity) would stiffen the material
+    // under compression until the rest-state stable time step no longer holds.
+    let (lo, hi) = mesh.bounding_box();
+    let clamp = lo.x + 1e-9 * (hi - lo).norm();
+    let size = hi - lo;
+    let mut sys = heml::system(mesh.clone())
+        .material(entry.name, &params)?
+        .density(1000.0)
+        .initial_velocity(move |p| Vec3::new(0.0, 0.0, 1e-3 * ((p.x - lo.x) / size.x).powi(2)))
+        .fix_where(|p| p.x <= clamp)
+        .energy_every(0)
+        .build()?;
+    let mut integ = heml::integrator("symplectic_euler")?;
+    let dt = 0.9 * sys.stable_dt();
+    let steps = (repeats * inner).clamp(20, 2000);
+    let step_times = pool(threads)?.install(|| -> heml::Result<Vec<f64>> {
+        for _ in 0..5 {
+            integ.step(&mut sys, dt)?;
+        }
+        let mut v = Vec::with_capacity(steps);
+        for _ in 0..steps {
+            let t = Instant::now();
+            integ.step(&mut sys, dt)?;
+            v.push(t.elapsed().as_secs_f64());
+        }
+        Ok(v)
+    })?;
+    let mut st = step_times;
+    let m = median(&mut st);
+    outln!(
+        "full step (symplectic_euler: forces + update + constraints, energies off, {threads} threads): {:.3} ms median of {steps}, {:.0} steps/s",
+        m * 1e3,
+        1.0 / m
+    );
+    Ok(())
+}

@@ -1,0 +1,131 @@
+//! `heml info MESH`: what a mesh holds, how good its elements are, and the explicit
+//! time step it allows for a given law — the questions to ask before a run.
+
+use clap::Args;
+use heml::io::read_mesh;
+use heml::mesh::quality::mesh_quality;
+use heml::prelude::*;
+use heml::system::stable_time_step;
+use std::path::PathBuf;
+
+/// Arguments of `heml info`.
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    /// Mesh file (.msh, .vtk, .vtu, .node/.ele, .mesh).
+    pub mesh: PathBuf,
+    /// Multiply coordinates by this factor (e.g. 0.001 for a mesh in millimetres).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// Law for the stable time step (registry name, see `heml materials`).
+    #[arg(long, default_value = "neo_hookean")]
+    pub law: String,
+    /// Law parameter NAME=VALUE (repeatable). Default for Lamé laws: E=3000, nu=0.45.
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    pub params: Vec<String>,
+    /// Mass density (kg/m³).
+    #[arg(long, default_value_t = 1000.0)]
+    pub density: f64,
+}
+
+/// Parses `NAME=VALUE` pairs into [`Params`].
+pub fn parse_params(pairs: &[String]) -> heml::Result<Params> {
+    let mut p = Params::new();
+    for pair in pairs {
+        let (name, value) = pair
+            .split_once('=')
+            .ok_or_else(|| HemlError::Invalid(format!("--param '{pair}': expected NAME=VALUE, e.g. E=3000")))?;
+        let value: f64 = value
+            .trim()
+            .parse()
+            .map_err(|_| HemlError::Invalid(format!("--param '{pair}': '{value}' is not a number")))?;
+        p.set(name.trim(), value);
+    }
+    Ok(p)
+}
+
+/// Prints the report.
+pub fn run(args: InfoArgs) -> heml::Result<()> {
+    if !(args.scale.is_finite() && args.scale > 0.0) {
+        return Err(HemlError::Invalid(format!(
+            "--scale {} must be a positive number",
+            args.scale
+        )));
+    }
+    let (mesh, report) = read_mesh(&args.mesh)?;
+    let mesh = if args.scale == 1.0 {
+        mesh
+    } else {
+        mesh.scaled(args.scale)?
+    };
+    outln!("{report}");
+    let (lo, hi) = mesh.bounding_box();
+    let size = hi - lo;
+    outln!("{:<16}{}", "nodes", mesh.n_nodes());
+    outln!("{:<16}{} (regions: {:?})", "tets", mesh.n_tets(), mesh.distinct_tags());
+    outln!("{:<16}{:.6e}", "volume", mesh.total_volume());
+    outln!(
+        "{:<16}[{:.4e}, {:.4e}, {:.4e}] – [{:.4e}, {:.4e}, {:.4e}]",
+        "bounding box",
+        lo.x,
+        lo.y,
+        lo.z,
+        hi.x,
+        hi.y,
+        hi.z
+    );
+    outln!("{:<16}{:.4e} × {:.4e} × {:.4e}", "size", size.x, size.y, size.z);
+    let Some(q) = mesh_quality(&mesh, None) else {
+        outln!("(no tets: nothing more to report)");
+        return Ok(());
+    };
+    let deg = |r: f64| r.to_degrees();
+    outln!(
+        "{:<16}min {:.4e}, max {:.4e}",
+        "edge length",
+        q.edge_length.0,
+        q.edge_length.1
+    );
+    outln!(
+        "{:<16}min {:.2}° (tet {}), max {:.2}° (tet {})",
+        "dihedral angle",
+        deg(q.min_dihedral.0),
+        q.min_dihedral.1,
+        deg(q.max_dihedral.0),
+        q.max_dihedral.1
+    );
+    outln!(
+        "{:<16}max {:.3} (tet {}; 1 = regular)",
+        "aspect ratio",
+        q.max_aspect_ratio.0,
+        q.max_aspect_ratio.1
+    );
+    outln!(
+        "{:<16}min {:.4} (tet {}; 1 = regular)",
+        "radius ratio",
+        q.min_radius_ratio.0,
+        q.min_radius_ratio.1
+    );
+    outln!("{:<16}{:.4e} (tet {})", "min height", q.min_height.0, q.min_height.1);
+
+    let entry = heml::find_material(&args.law)?;
+    let mut params = parse_params(&args.params)?;
+    let lame_law = entry.params.iter().map(|p| p.name).eq(["mu", "lambda"]);
+    if params.0.is_empty() && lame_law {
+        params = Params::from([("E", 3000.0), ("nu", 0.45)]);
+    }
+    let shown: Vec<String> = params.0.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    let sys = heml::system(mesh)
+        .material(&args.law, &params)?
+        .density(args.density)
+        .pin_unreferenced()
+        .build()?;
+    outln!(
+        "{:<16}{:.4e} s  ({} {}, density {} kg/m³, safety factor included)",
+        "stable dt",
+        stable_time_step(&sys),
+        args.law,
+        shown.join(" "),
+        args.density
+    );
+    Ok(())
+}

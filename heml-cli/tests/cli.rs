@@ -1,0 +1,135 @@
+//! End-to-end tests of the `heml` binary.
+#[path = "support/bin.rs"]
+mod support;
+use support::heml;
+
+/// The binary names the facade only; the registrations of `heml-materials` must
+/// survive linking all the same: every law the library registers is listed.
+#[test]
+fn materials_lists_every_built_in_law_from_the_binary() {
+    let (ok, out, err) = heml(&["materials"]);
+    assert!(ok, "{err}");
+    let laws = heml::materials_list();
+    assert!(laws.len() >= 10, "the library registers only {} laws", laws.len());
+    for law in laws {
+        assert!(
+            out.contains(&format!("{}  [", law.name)),
+            "{} missing from:\n{out}",
+            law.name
+        );
+    }
+    assert!(out.contains("w = mu / 2.0 * (I1 - 3.0)"), "energy text missing:\n{out}");
+}
+
+/// A 2 × 1 × 1 box of 6-tet cells written to a temporary .vtu: `heml info` must
+/// report its exact counts and volume, right-angle dihedral angles (every tet of the
+/// 6-split of a cube has some), and a stable time step for the chosen law.
+#[test]
+fn info_reports_counts_quality_and_stable_dt() {
+    use heml::io::write_mesh;
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = support::temp_dir("cli", "info");
+    let path = dir.join("box.vtu");
+    let mesh = box_mesh([2.0, 1.0, 1.0], [4, 2, 2], HexSplit::Six).unwrap();
+    write_mesh(&path, &mesh).unwrap();
+    let (ok, out, err) = heml(&["info", path.to_str().unwrap(), "--scale", "0.5", "--density", "1200"]);
+    assert!(ok, "{err}");
+    let line = |key: &str| {
+        out.lines()
+            .find(|l| l.starts_with(key))
+            .unwrap_or_else(|| panic!("no '{key}' in\n{out}"))
+    };
+    assert!(line("nodes").ends_with(&mesh.n_nodes().to_string()), "{out}");
+    assert!(line("tets").contains(&mesh.n_tets().to_string()), "{out}");
+    // volume scales with the cube of --scale: 2 m³ × 0.125
+    let volume: f64 = line("volume").split_whitespace().last().unwrap().parse().unwrap();
+    assert!((volume - 0.25).abs() < 1e-12, "{out}");
+    assert!(line("dihedral angle").contains("max 90.00°"), "{out}");
+    let dt: f64 = line("stable dt").split_whitespace().nth(2).unwrap().parse().unwrap();
+    assert!(dt > 0.0 && dt.is_finite(), "{out}");
+    assert!(
+        line("stable dt").contains("neo_hookean E=3000 nu=0.45, density 1200"),
+        "{out}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn info_errors_name_the_problem() {
+    let (ok, _, err) = heml(&["info", "no/such/mesh.msh"]);
+    assert!(!ok && err.contains("no/such/mesh.msh"), "{err}");
+    let (ok, _, err) = heml(&["info", "mesh.xyz"]);
+    assert!(
+        !ok && err.contains(".msh"),
+        "unsupported extension should list the supported ones: {err}"
+    );
+    let shared = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/meshes/msh/sofa_liver.msh");
+    if std::path::Path::new(shared).exists() {
+        let (ok, _, err) = heml(&["info", shared, "--param", "E=abc"]);
+        assert!(!ok && err.contains("'abc' is not a number"), "{err}");
+        let (ok, _, err) = heml(&["info", shared, "--law", "neo_hokean"]);
+        assert!(!ok && err.contains("did you mean 'neo_hookean'"), "{err}");
+        let (ok, out, err) = heml(&["info", shared]);
+        assert!(ok && out.contains("596"), "sofa_liver has 596 tets: {out}{err}");
+    } else {
+        eprintln!("skipping the real-mesh part: ../shared/meshes not found");
+    }
+}
+
+/// `heml bench` on a small generated box: the table names the mesh it measured
+/// (the same box the library generates), both thread counts, HEML and P1 side by side
+/// with positive rates, and the memory of both fields.
+#[test]
+fn bench_prints_a_complete_side_by_side_table() {
+    let (ok, out, err) = heml(&["bench", "--tets", "3000", "--repeats", "1", "--threads", "2"]);
+    assert!(ok, "{err}");
+    let mesh = heml::mesh::generate::box_of_about(3000).unwrap();
+    assert!(
+        out.contains(&format!("({} nodes, {} tets)", mesh.n_nodes(), mesh.n_tets())),
+        "{out}"
+    );
+    assert!(out.contains("nodes renumbered at load"), "{out}");
+    for threads in ["1", "2"] {
+        let row: Vec<f64> = out
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(threads))
+            .unwrap_or_else(|| panic!("no row for {threads} threads:\n{out}"))
+            .split_whitespace()
+            .skip(1)
+            .map(|v| v.trim_end_matches('×').parse().unwrap())
+            .collect();
+        // HEML tets/s, ns/tet, P1 tets/s, ns/tet, ratio
+        assert_eq!(row.len(), 5, "{out}");
+        assert!(row.iter().all(|v| v.is_finite() && *v > 0.0), "{row:?}");
+        assert!(
+            (row[0] * row[1] * 1e-9 - 1.0).abs() < 0.01,
+            "tets/s and ns/tet disagree: {row:?}"
+        );
+    }
+    assert!(out.contains("memory: HEML") && out.contains("full step"), "{out}");
+}
+
+/// A reader that stops early (`heml bench | head -1`) must end the command quietly:
+/// no panic, success, nothing on standard error.
+#[test]
+fn a_closed_pipe_ends_the_report_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_heml"))
+        .args(["bench", "--tets", "3000", "--repeats", "1", "--threads", "1"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    // the reader is dropped here: the table, printed after the timings, meets a
+    // closed pipe
+    assert!(first.starts_with("mesh:"), "{first}");
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "status {:?}, stderr:\n{err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}
