@@ -103,6 +103,11 @@ pub use heml_core;
 
 pub mod scene;
 
+/// The README's Rust examples, compiled and run as doctests so that they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
 /// Systems: model (mesh, laws, masses, supports), state and stepping; static solves;
 /// stable time steps; the [`system::Integrator`] trait and its registry.
 pub mod system {
@@ -220,7 +225,7 @@ pub fn integrator(name: &str) -> Result<Box<dyn Integrator>> {
 ///     .material("saint_venant_kirchhoff", &Params::from([("E", 1e4), ("nu", 0.3)]))?
 ///     .fix_where(|p| p.z < 1e-9)
 ///     .build()?;
-/// assert!(sys.n_nodes() > 0);
+/// assert!(sys.mesh().n_nodes() > 0);
 /// # Ok::<(), HemlError>(())
 /// ```
 pub fn system(mesh: TetMesh) -> SystemBuilder {
