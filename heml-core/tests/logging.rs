@@ -111,7 +111,8 @@ fn warnings_are_collected_and_logged() {
     let tet = box_mesh([1.0, 1.0, 1.0], [1, 1, 1], HexSplit::Six).unwrap();
     let mut nodes = tet.nodes().to_vec();
     nodes.push(Vec3::new(5.0, 5.0, 5.0));
-    let mesh = TetMesh::new(nodes, tet.tets().to_vec()).unwrap();
+    let tets = tet.tets().iter().map(|t| t.map(|i| i as usize)).collect();
+    let mesh = TetMesh::new(nodes, tets).unwrap();
     let mut sys = System::builder(mesh)
         .material_law(Box::new(Link(Spring { k: 10.0 })))
         .fix_where(|p| p.z < 1e-9)
