@@ -137,6 +137,22 @@ fn skip_ws(c: &[char], mut i: usize) -> usize {
     i
 }
 
+/// The index of the bracket closing the one `open` at `at` (or the end of `c`).
+fn closing(c: &[char], at: usize, open: char, close: char) -> usize {
+    let mut depth = 0;
+    for (k, &ch) in c.iter().enumerate().skip(at) {
+        if ch == open {
+            depth += 1;
+        } else if ch == close {
+            depth -= 1;
+            if depth == 0 {
+                return k;
+            }
+        }
+    }
+    c.len()
+}
+
 /// If an attribute `#[…]` starts at `i`: (its end, whether it is `#[cfg(test)]`).
 fn attribute(c: &[char], i: usize) -> Option<(usize, bool)> {
     if c.get(i) != Some(&'#') {
@@ -146,21 +162,7 @@ fn attribute(c: &[char], i: usize) -> Option<(usize, bool)> {
     if c.get(j) != Some(&'[') {
         return None;
     }
-    let mut depth = 0;
-    let mut k = j;
-    while k < c.len() {
-        match c[k] {
-            '[' => depth += 1,
-            ']' => {
-                depth -= 1;
-                if depth == 0 {
-                    break;
-                }
-            }
-            _ => {}
-        }
-        k += 1;
-    }
+    let k = closing(c, j, '[', ']');
     let body: String = c[j + 1..k.min(c.len())]
         .iter()
         .filter(|ch| !ch.is_whitespace())
@@ -197,20 +199,7 @@ fn drop_test_items(code: &str) -> (String, Vec<String>) {
         }
         let mut k = j + head.chars().count();
         if c.get(k) == Some(&'{') {
-            let mut depth = 0;
-            while k < c.len() {
-                match c[k] {
-                    '{' => depth += 1,
-                    '}' => {
-                        depth -= 1;
-                        if depth == 0 {
-                            break;
-                        }
-                    }
-                    _ => {}
-                }
-                k += 1;
-            }
+            k = closing(&c, k, '{', '}');
         }
         let stop = (k + 1).min(c.len());
         for ch in &mut c[i..stop] {
