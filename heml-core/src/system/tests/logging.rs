@@ -167,7 +167,7 @@ fn static_progress_is_logged_only_when_asked() {
             // one line every `every` iterations from 0, plus the converged one
             assert_eq!(
                 logged.len(),
-                it / every + 1 + usize::from(it % every != 0),
+                it / every + 1 + usize::from(!it.is_multiple_of(every)),
                 "{it}: {logged:?}"
             );
             assert!(
