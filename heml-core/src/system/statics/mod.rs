@@ -13,8 +13,9 @@
 //! tangent), the free degrees of freedom ordered by reverse Cuthill–McKee, and K
 //! factored as a banded LDLᵀ (no pivoting; indefinite tangents, e.g. SVK past its
 //! compression peak, are fine while no pivot vanishes). Each step is damped by
-//! backtracking on the Euclidean residual norm. If the band is too wide for memory, a
-//! pivot vanishes or the line search stalls, the solver continues with:
+//! backtracking until the total potential does not increase or the Euclidean residual
+//! norm decreases. If the band is too wide for memory, a pivot vanishes or the line
+//! search stalls, the solver continues with:
 //!
 //! **Dynamic relaxation** (any law): a fictitious, damped motion integrated until
 //! it stops. The damping is FIRE (Bitzek et al., "Structural relaxation made simple", PRL 97 (2006), with
