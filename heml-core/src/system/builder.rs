@@ -455,7 +455,7 @@ impl SystemBuilder {
                 "{} unreferenced node(s) pinned in place: ids {list}",
                 unreferenced.len()
             );
-            eprintln!("heml warning: {msg}");
+            log::warn!("{msg}");
             warnings.push(msg);
             for &i in &unreferenced {
                 if !mask[i] {

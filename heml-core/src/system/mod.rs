@@ -295,7 +295,9 @@ impl System {
     pub fn set_time_step_policy(&mut self, policy: TimeStepPolicy) {
         self.policy = policy;
     }
-    /// Warnings issued so far (also printed to stderr).
+    /// Warnings issued so far, oldest first. Each was also logged at the `Warn` level
+    /// through the `log` facade when it was issued (the library never prints; install
+    /// a logger to see them as they come).
     pub fn warnings(&self) -> &[String] {
         &self.warnings
     }
@@ -631,8 +633,9 @@ impl System {
         Ok(Energies::new(kinetic, self.elastic_energy()?, gravity, loads))
     }
 
+    /// Logs a warning (`log::warn!`) and keeps it in [`System::warnings`].
     fn warn(&mut self, msg: String) {
-        eprintln!("heml warning: {msg}");
+        log::warn!("{msg}");
         self.warnings.push(msg);
     }
 

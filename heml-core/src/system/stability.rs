@@ -53,7 +53,8 @@ pub const WAVE_FACTOR: f64 = 0.8;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum TimeStepPolicy {
-    /// Print a warning to stderr (once per system) and go on.
+    /// Issue a warning (once per system: logged with `log::warn!` and kept in
+    /// [`System::warnings`](crate::system::System::warnings)) and go on.
     #[default]
     Warn,
     /// Refuse the step with an error.

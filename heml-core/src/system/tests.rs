@@ -9,6 +9,8 @@ use crate::mesh::generate::{box_mesh, HexSplit};
 use crate::params::Params;
 use crate::registry::MaterialEntry;
 
+mod logging;
+
 /// Mass–spring: w = k/2 (√l − √L)².
 #[derive(Debug, Clone, Copy)]
 struct Spring {

@@ -1,0 +1,88 @@
+//! The unknowns of a Newton solve: the free coordinates of the nodes, numbered node
+//! by node in reverse Cuthill–McKee order so that the tangent is banded.
+
+use super::rcm::rcm_order;
+use crate::Vec3;
+
+/// Marks a coordinate that is held (no degree of freedom).
+const HELD: usize = usize::MAX;
+
+/// Numbering of the free coordinates and the half-bandwidth it gives the tangent.
+pub(super) struct DofMap {
+    /// Per node and axis, the degree of freedom, or [`HELD`].
+    dof: Vec<[usize; 3]>,
+    /// Number of degrees of freedom.
+    n: usize,
+    /// Half-bandwidth of any matrix coupling the nodes of one tet.
+    band: usize,
+}
+
+impl DofMap {
+    /// Numbers the coordinates not marked in `held` (one entry per node), nodes in
+    /// reverse Cuthill–McKee order of the tets' graph.
+    pub(super) fn new(held: &[[bool; 3]], tets: &[[u32; 4]]) -> Self {
+        let order = rcm_order(held.len(), tets);
+        let mut dof = vec![[HELD; 3]; held.len()];
+        let mut n = 0;
+        for &i in &order {
+            for a in 0..3 {
+                if !held[i][a] {
+                    dof[i][a] = n;
+                    n += 1;
+                }
+            }
+        }
+        let mut band = 0;
+        for tet in tets {
+            let ids: Vec<usize> = tet
+                .iter()
+                .flat_map(|&i| dof[i as usize])
+                .filter(|&d| d != HELD)
+                .collect();
+            if let (Some(lo), Some(hi)) = (ids.iter().min(), ids.iter().max()) {
+                band = band.max(hi - lo);
+            }
+        }
+        DofMap { dof, n, band }
+    }
+
+    /// Number of degrees of freedom.
+    pub(super) fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Half-bandwidth of the tangent.
+    pub(super) fn band(&self) -> usize {
+        self.band
+    }
+
+    /// The degree of freedom of coordinate `axis` of `node`, if free.
+    pub(super) fn get(&self, node: usize, axis: usize) -> Option<usize> {
+        let d = self.dof[node][axis];
+        (d != HELD).then_some(d)
+    }
+
+    /// The free components of a nodal vector field, by degree of freedom.
+    pub(super) fn gather(&self, field: &[Vec3]) -> Vec<f64> {
+        let mut out = vec![0.0; self.n];
+        for (i, d) in self.dof.iter().enumerate() {
+            for a in 0..3 {
+                if d[a] != HELD {
+                    out[d[a]] = field[i][a];
+                }
+            }
+        }
+        out
+    }
+
+    /// x = x0 + step·dx on the free coordinates (held ones are left as they are).
+    pub(super) fn step(&self, x: &mut [Vec3], x0: &[Vec3], dx: &[f64], step: f64) {
+        for (i, d) in self.dof.iter().enumerate() {
+            for a in 0..3 {
+                if d[a] != HELD {
+                    x[i][a] = x0[i][a] + step * dx[d[a]];
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! Damped Newton iterations over the free coordinates of a [`DofMap`], independent
+//! of what the residual is: the caller's [`NewtonProblem`] evaluates the residual,
+//! adds its tangent and gives the line-search merit. The static equilibrium is one
+//! such problem (`equilibrium.rs`); an implicit time step (residual f − M a, tangent
+//! K + M/(β dt²), merit the incremental potential) is meant to be another.
+//!
+//! Each iteration factors the tangent (banded LDLᵀ), solves for the full step and
+//! backtracks (halving, at most [`MAX_HALVINGS`] times) until the merit does not
+//! increase or the residual norm decreases. A vanishing pivot, a failed line search
+//! or [`MAX_ITERATIONS`] without convergence ends the iteration without an error, so
+//! that the caller can go on with a more robust method from the current iterate.
+
+use super::banded::BandLdl;
+use super::dofs::DofMap;
+use crate::error::Result;
+use crate::system::System;
+use crate::Vec3;
+
+/// Newton iterations before giving up (a converging Newton needs far fewer).
+const MAX_ITERATIONS: usize = 50;
+/// Step halvings of the line search before giving up (2⁻¹² ≈ 2.4e-4 of the step).
+const MAX_HALVINGS: usize = 12;
+
+/// What a Newton solve needs from the problem it solves. The unknowns are the free
+/// coordinates of the system's positions, numbered by the [`DofMap`] passed along.
+pub(super) trait NewtonProblem {
+    /// What a converged solve returns.
+    type Report;
+
+    /// Evaluates the residual at the system's current positions. An error makes a
+    /// line-search trial fail (and, for the starting point, ends the solve with it).
+    fn evaluate(&mut self, sys: &mut System) -> Result<()>;
+
+    /// The out-of-balance force per node from the last [`NewtonProblem::evaluate`]:
+    /// the Newton step solves K dx = residual.
+    fn residual<'s>(&'s self, sys: &'s System) -> &'s [Vec3];
+
+    /// `Some(report)` when the last evaluation meets the convergence criterion;
+    /// `it` is the iteration count and `step` the line-search factor of the last
+    /// step taken (0 before the first).
+    fn converged(&self, sys: &System, it: usize, step: f64) -> Option<Self::Report>;
+
+    /// Adds the tangent −∂residual/∂x at the current positions into the lower
+    /// triangle of `k`.
+    fn add_tangent(&self, sys: &System, dofs: &DofMap, k: &mut BandLdl);
+
+    /// The merit the line search must not increase (e.g. the total potential), at
+    /// the current positions.
+    fn merit(&self, sys: &System) -> Result<f64>;
+}
+
+/// Runs damped Newton iterations from the system's current positions.
+///
+/// `Ok(Some(report))` when converged; `Ok(None)` when the tangent has a vanishing
+/// pivot, the line search stalls (positions restored to the last iterate) or the
+/// iterations run out (positions left at the last iterate). Errors come from the
+/// first evaluation and from the merit.
+pub(super) fn newton<P: NewtonProblem>(sys: &mut System, dofs: &DofMap, problem: &mut P) -> Result<Option<P::Report>> {
+    let norm2 = |f: &[Vec3]| f.iter().map(|v| v.norm_squared()).sum::<f64>();
+    problem.evaluate(sys)?;
+    let mut step_taken = 0.0;
+    for it in 0..=MAX_ITERATIONS {
+        if let Some(report) = problem.converged(sys, it, step_taken) {
+            return Ok(Some(report));
+        }
+        if it == MAX_ITERATIONS {
+            break;
+        }
+        let mut k = BandLdl::new(dofs.len(), dofs.band());
+        problem.add_tangent(sys, dofs, &mut k);
+        if !k.factor() {
+            return Ok(None);
+        }
+        let mut dx = dofs.gather(problem.residual(sys));
+        k.solve(&mut dx);
+        let x0 = sys.x.clone();
+        let r0 = norm2(problem.residual(sys));
+        let e0 = problem.merit(sys)?;
+        let mut step = 1.0;
+        let mut accepted = false;
+        for _ in 0..MAX_HALVINGS {
+            dofs.step(&mut sys.x, &x0, &dx, step);
+            sys.invalidate();
+            if problem.evaluate(sys).is_ok() {
+                // the merit descends along the Newton step when K is positive
+                // definite; else a smaller residual norm is progress too
+                let e = problem.merit(sys)?;
+                if e <= e0 + 1e-13 * e0.abs() || norm2(problem.residual(sys)) < r0 {
+                    accepted = true;
+                    step_taken = step;
+                    break;
+                }
+            }
+            step *= 0.5;
+        }
+        if !accepted {
+            sys.x.copy_from_slice(&x0);
+            sys.invalidate();
+            return Ok(None);
+        }
+    }
+    Ok(None)
+}

@@ -1,0 +1,90 @@
+//! The public settings and outcome of a quasi-static solve, and the single-coordinate
+//! supports it accepts.
+
+#[cfg(doc)]
+use crate::system::System;
+
+/// One coordinate of a node held at a given value while the other two move freely:
+/// a frictionless roller or symmetry-plane support, used by
+/// [`System::solve_static_with`] (e.g. the unconstrained uniaxial test, whose
+/// loaded faces must slide laterally).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Slider {
+    /// Node id.
+    pub node: usize,
+    /// Axis (0 = x, 1 = y, 2 = z).
+    pub axis: usize,
+    /// The value the coordinate is held at.
+    pub value: f64,
+}
+
+/// Settings of [`System::solve_static`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticOptions {
+    /// Relative residual tolerance: converged when max |f_i| over the free nodes is
+    /// at most `tol` × the load scale (default 1e-6).
+    pub tol: f64,
+    /// Absolute residual (N) below which the solve counts as converged whatever the
+    /// load scale (default 0: off; useful for unloaded systems).
+    pub abs_tol: f64,
+    /// Iteration (force evaluation) cap (default 500 000).
+    pub max_iterations: usize,
+    /// Log the residual (`log::info!`, target `heml_core::system::statics`) every
+    /// this many iterations (0: silent, default). Every Newton iteration is logged
+    /// when this is non-zero, since there are few of them.
+    pub progress_every: usize,
+}
+
+impl Default for StaticOptions {
+    fn default() -> Self {
+        StaticOptions {
+            tol: 1e-6,
+            abs_tol: 0.0,
+            max_iterations: 500_000,
+            progress_every: 0,
+        }
+    }
+}
+
+/// What a quasi-static solve reached.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaticReport {
+    /// Whether the criterion was met (always true in an `Ok` result).
+    pub converged: bool,
+    /// Iterations (force evaluations) used.
+    pub iterations: usize,
+    /// Final max |f_i| over the free nodes.
+    pub residual: f64,
+    /// Final load scale: max over nodes of |external load| and |reaction|.
+    pub load_scale: f64,
+    /// The relative tolerance asked for.
+    pub tol: f64,
+    /// Reaction force component on each slider of [`System::solve_static_with`], in
+    /// the order given (empty for [`System::solve_static`]).
+    pub slider_reactions: Vec<f64>,
+}
+
+impl StaticReport {
+    /// residual / load scale (0 when both vanish).
+    pub fn relative_residual(&self) -> f64 {
+        if self.load_scale > 0.0 {
+            self.residual / self.load_scale
+        } else if self.residual == 0.0 {
+            0.0
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// The criterion in words, with the values reached, e.g.
+    /// `max|f_free| / max|load| = 3.1e-7 <= 1e-6 (1234 it.)`.
+    pub fn criterion(&self) -> String {
+        format!(
+            "max|f_free| / max|load| = {:.1e} {} {:.0e} ({} it.)",
+            self.relative_residual(),
+            if self.converged { "<=" } else { ">" },
+            self.tol,
+            self.iterations
+        )
+    }
+}

@@ -1,0 +1,66 @@
+//! The public entry points of the quasi-static solver: validate the request, try
+//! Newton, fall back on dynamic relaxation, and leave the system at rest.
+
+use super::options::{Slider, StaticOptions, StaticReport};
+use crate::error::{HemlError, Result};
+use crate::system::System;
+use crate::Vec3;
+
+impl System {
+    /// Moves the clock to `t` without any dynamics and imposes the constraints there
+    /// (prescribed displacements follow their ramps): the load parameter of a
+    /// quasi-static load-stepping loop. Velocities are zeroed.
+    pub fn set_load_time(&mut self, t: f64) -> Result<()> {
+        if !t.is_finite() {
+            return Err(HemlError::Invalid(format!("load time {t} must be finite")));
+        }
+        self.t = t;
+        self.v.fill(Vec3::zeros());
+        self.invalidate();
+        self.apply_constraints(t);
+        Ok(())
+    }
+
+    /// Relaxes the system to static equilibrium at the current time (see the
+    /// [module docs](crate::system::statics) for the method and the criterion).
+    /// Rayleigh damping is switched off during the solve and restored afterwards;
+    /// velocities end at zero.
+    ///
+    /// Errors: non-finite forces (with the node), or no convergence within
+    /// `max_iterations` (the message states the residual reached; the system keeps
+    /// the last iterate).
+    pub fn solve_static(&mut self, opts: &StaticOptions) -> Result<StaticReport> {
+        self.solve_static_with(&[], opts)
+    }
+
+    /// [`System::solve_static`] with additional single-coordinate supports
+    /// ([`Slider`]s) on top of the system's constraints. Their reaction components
+    /// are returned in [`StaticReport::slider_reactions`] and count in the load scale.
+    pub fn solve_static_with(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<StaticReport> {
+        if let Some(s) = sliders
+            .iter()
+            .find(|s| s.node >= self.x.len() || s.axis > 2 || !s.value.is_finite())
+        {
+            return Err(HemlError::Invalid(format!(
+                "slider on node {} axis {} at {}: node or axis out of range, or value not finite",
+                s.node, s.axis, s.value
+            )));
+        }
+        if !(opts.tol.is_finite() && opts.tol > 0.0 && opts.abs_tol.is_finite() && opts.abs_tol >= 0.0) {
+            return Err(HemlError::Invalid(format!(
+                "static tolerances tol = {}, abs_tol = {} must be finite, tol > 0, abs_tol >= 0",
+                opts.tol, opts.abs_tol
+            )));
+        }
+        let damping = std::mem::take(&mut self.damping);
+        let result = match self.static_newton(sliders, opts) {
+            Ok(Some(report)) => Ok(report),
+            Ok(None) => self.fire(sliders, opts),
+            Err(e) => Err(e),
+        };
+        self.damping = damping;
+        self.v.fill(Vec3::zeros());
+        self.invalidate();
+        result
+    }
+}
