@@ -416,7 +416,7 @@ fn mutate(b: &mut Vec<u8>, other: &[u8], rng: &mut ChaCha8Rng) {
         2 => {
             b.truncate(rng.gen_range(0..=len));
         }
-        3 | 4 | 5 => {
+        3..=5 => {
             let spans = line_spans(b);
             if spans.is_empty() {
                 return;
@@ -440,7 +440,7 @@ fn mutate(b: &mut Vec<u8>, other: &[u8], rng: &mut ChaCha8Rng) {
                 }
             }
         }
-        6 | 7 => {
+        6..=7 => {
             // replace a token (most often a number) by an interesting value
             if len == 0 {
                 return;

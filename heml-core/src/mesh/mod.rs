@@ -210,15 +210,20 @@ impl TetMesh {
     }
 
     /// The same mesh with every coordinate multiplied by `factor` (unit conversion,
-    /// e.g. 0.001 for millimetres → metres).
+    /// e.g. 0.001 for millimetres → metres). The result is validated again: a
+    /// factor such as 1e300 overflows coordinates or volumes, and 1e-300 collapses
+    /// them, which must be an error rather than a mesh with NaN volumes.
     pub fn scaled(&self, factor: f64) -> Result<TetMesh> {
         if !(factor.is_finite() && factor > 0.0) {
             return Err(HemlError::Invalid(format!(
                 "scale factor {factor} must be positive and finite"
             )));
         }
-        let mut out = self.clone();
-        out.nodes.iter_mut().for_each(|p| *p *= factor);
+        let nodes = self.nodes.iter().map(|p| p * factor).collect();
+        let tets = self.tets.iter().map(|t| t.map(|i| i as usize)).collect();
+        let mut out = Self::with_tags(nodes, tets, self.tags.clone())
+            .map_err(|e| HemlError::Invalid(format!("scaling the mesh by {factor:e}: {e}")))?;
+        out.reoriented = self.reoriented;
         Ok(out)
     }
 
@@ -313,6 +318,18 @@ mod tests {
                 "×{factor:e}: {e}"
             );
         }
+        // scaling a valid mesh into overflow is caught the same way
+        let m = TetMesh::from_arrays(&unit, &[[0, 1, 2, 3]]).unwrap();
+        for factor in [1e300, 1e120] {
+            let e = m.scaled(factor).unwrap_err().to_string();
+            assert!(
+                e.contains("scaling the mesh") && e.contains("overflow") && e.contains("ids 0"),
+                "{e}"
+            );
+        }
+        // a normal unit conversion still works (volume to a few ulps: 1e-3 is inexact)
+        let v = m.scaled(1e-3).unwrap().tet_volume(0);
+        assert!((v - 1e-9 / 6.0).abs() <= 1e-24, "{v}");
         // the largest scale that still works is accepted with a finite volume
         let ok: Vec<[f64; 3]> = unit.iter().map(|p| p.map(|c| c * 1e100)).collect();
         let m = TetMesh::from_arrays(&ok, &[[0, 1, 2, 3]]).unwrap();
