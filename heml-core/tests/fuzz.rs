@@ -238,7 +238,12 @@ fn check_data(r: heml_core::Result<MeshData>, tally: &mut Tally) -> Result<(), S
     if let Some(i) = data.nodes.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         return Err(format!("node {i} is not finite"));
     }
-    match data.into_mesh() {
+    tally_mesh(data.into_mesh(), tally)
+}
+
+/// Counts a validated mesh (checked) or an error.
+fn tally_mesh(r: heml_core::Result<TetMesh>, tally: &mut Tally) -> Result<(), String> {
+    match r {
         Ok(m) => {
             check_mesh(&m)?;
             tally.meshes += 1;
@@ -338,14 +343,7 @@ fn target(name: &str) -> Target {
                 if let Some(g) = scene.mesh.generate.as_mut() {
                     g.max_tets = Some(g.max_tets.unwrap_or(usize::MAX).min(20_000));
                 }
-                match scene.load_mesh() {
-                    Ok(m) => {
-                        check_mesh(&m)?;
-                        t.meshes += 1;
-                    }
-                    Err(_) => t.errors += 1,
-                }
-                Ok(())
+                tally_mesh(scene.load_mesh(), t)
             },
         },
         other => panic!("no target {other}"),
