@@ -166,7 +166,8 @@ pub fn lame_from_young(e: f64, nu: f64) -> std::result::Result<(f64, f64), Strin
 /// Lamé parameters from Young's modulus and Poisson's ratio, unchecked (see
 /// [`lame_from_young`] for the checked form used on user input).
 pub fn lame(e: f64, nu: f64) -> (f64, f64) {
-    (e / (2.0 * (1.0 + nu)), e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)))
+    let m = Moduli::from_young(e, nu);
+    (m.mu0, m.lambda0)
 }
 
 fn quoted(names: &[&str]) -> String {

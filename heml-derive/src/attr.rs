@@ -474,4 +474,38 @@ mod tests {
         );
         assert!(e.is_err_and(|e| e.to_string().contains("missing the energy")));
     }
+
+    #[test]
+    fn small_strain_assignments_are_checked_and_put_in_field_order() {
+        let parse = |mapping: TokenStream, kind| {
+            parse_declaration(
+                quote! {
+                    #[energy(a * (I1 - 3.0) + b * (J - 1.0).powi(2))]
+                    #mapping
+                    struct Law { a: f64, b: f64, c: f64 }
+                },
+                kind,
+            )
+        };
+        let d = parse(quote!(#[small_strain(b = K0, a = mu0 / 2.0,)]), Kind::Invariant).expect("valid");
+        let s = d.small_strain.expect("declared");
+        let order: Vec<String> = s.assignments.iter().map(|(f, _)| f.to_string()).collect();
+        assert_eq!(order, ["a", "b"]);
+        let out = quote::ToTokens::to_token_stream(&d.item).to_string();
+        assert!(!out.contains("small_strain"), "{out}");
+        assert!(parse(quote!(), Kind::Invariant).expect("valid").small_strain.is_none());
+        let err = |mapping, kind| parse(mapping, kind).expect_err("invalid").to_string();
+        assert!(err(quote!(#[small_strain(d = mu0)]), Kind::Invariant).contains("`d` is not a parameter"));
+        assert!(err(quote!(#[small_strain(a = mu0, a = K0)]), Kind::Invariant).contains("set twice"));
+        assert!(err(quote!(#[small_strain()]), Kind::Invariant).contains("expected `#[small_strain("));
+        assert!(err(quote!(#[small_strain(a = mu0)]), Kind::Link).contains("link law has no small-strain moduli"));
+        assert!(err(
+            quote!(#[small_strain(a = mu0)] #[small_strain(b = K0)]),
+            Kind::Invariant
+        )
+        .contains("only one"));
+        let reserved = parse_declaration(quote!(#[energy(I1)] struct L { K0: f64 }), Kind::Invariant);
+        assert!(reserved.is_err_and(|e| e.to_string().contains("rename it")));
+        assert!(parse_options(quote!(name = "p", allow_prestress)).is_ok_and(|o| o.allow_prestress));
+    }
 }

@@ -405,6 +405,25 @@ mod tests {
     }
 
     #[test]
+    fn small_strain_mappings_read_moduli_and_unset_parameters_only() {
+        let lower_mapping = |src: &str| {
+            let expr: Expr = syn::parse_str(src).expect("test source parses");
+            let params = ["mu".to_string(), "lambda".to_string()];
+            lower(&mut Graph::new(), &expr, Scope::SmallStrain, &params, &params[..1])
+        };
+        assert!(lower_mapping("mu0 / 2.0 + lambda * K0.ln() - lambda0").is_ok());
+        let msg = |src| lower_mapping(src).expect_err(src).to_string();
+        assert!(msg("mu0 * mu").contains("set by this small-strain mapping"));
+        assert!(msg("mu0 * self.mu").contains("set by this small-strain mapping"));
+        assert!(msg("mu0 * I1bar").contains("energy variable"));
+        assert!(msg("mu0 * L").contains("energy variable"));
+        let unknown = msg("nu0 * 2.0");
+        assert!(unknown.contains("in a small-strain mapping") && unknown.contains("did you mean `mu0`"), "{unknown}");
+        assert!(!unknown.contains("`mu`,"), "{unknown}");
+        assert!(message("mu0 * J", Kind::Invariant).contains("small-strain modulus"));
+    }
+
+    #[test]
     fn bindings_are_scoped_to_their_block() {
         let msg = message("{ let a = I1; a } + a", Kind::Invariant);
         assert!(msg.contains("unknown identifier `a`"), "{msg}");
