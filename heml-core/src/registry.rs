@@ -68,7 +68,12 @@ impl MaterialEntry {
             let RestState { energy, stress } = (self.rest)(values);
             let tol = 1e-9 * values.iter().fold(1.0, |m: f64, v| m.max(v.abs()));
             (!(energy.abs() <= tol && stress.abs() <= tol)).then(|| {
-                let shown: Vec<String> = self.params.iter().zip(values).map(|(p, v)| format!("{}={v}", p.name)).collect();
+                let shown: Vec<String> = self
+                    .params
+                    .iter()
+                    .zip(values)
+                    .map(|(p, v)| format!("{}={v}", p.name))
+                    .collect();
                 format!(
                     "material law '{}' ({}) is not at rest when undeformed: with {} its energy is {energy:e} \
                      and its stress {stress:e}; subtract the rest value and slope from the energy, or declare \

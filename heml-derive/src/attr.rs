@@ -259,7 +259,11 @@ fn check_small_strain(assignments: Vec<Assignment>, text: String, params: &[Para
             let fields: Vec<String> = params.iter().map(|p| format!("`{}`", p.ident)).collect();
             return Err(syn::Error::new_spanned(
                 &a.field,
-                format!("`{}` is not a parameter of this law; its parameters are {}", a.field, fields.join(", ")),
+                format!(
+                    "`{}` is not a parameter of this law; its parameters are {}",
+                    a.field,
+                    fields.join(", ")
+                ),
             ));
         };
         if slots[i].replace(a.value).is_some() {
@@ -504,7 +508,15 @@ mod tests {
             Kind::Invariant
         )
         .contains("only one"));
-        let reserved = parse_declaration(quote!(#[energy(I1)] struct L { K0: f64 }), Kind::Invariant);
+        let reserved = parse_declaration(
+            quote!(
+                #[energy(I1)]
+                struct L {
+                    K0: f64,
+                }
+            ),
+            Kind::Invariant,
+        );
         assert!(reserved.is_err_and(|e| e.to_string().contains("rename it")));
         assert!(parse_options(quote!(name = "p", allow_prestress)).is_ok_and(|o| o.allow_prestress));
     }

@@ -70,7 +70,12 @@ pub fn material_info(
 
 /// The `SmallStrain` value: the set fields, the text, and the function that
 /// computes them from the moduli and the other (given) fields.
-fn small_strain_mapping(core: &TokenStream, decl: &Declaration, lowered: &SmallStrainValues, text: &str) -> TokenStream {
+fn small_strain_mapping(
+    core: &TokenStream,
+    decl: &Declaration,
+    lowered: &SmallStrainValues,
+    text: &str,
+) -> TokenStream {
     let ty = &decl.item.ident;
     let fields: Vec<Ident> = decl.params.iter().map(|p| p.ident.clone()).collect();
     let set: Vec<String> = lowered.values.iter().map(|&(i, _)| fields[i].to_string()).collect();
@@ -83,7 +88,11 @@ fn small_strain_mapping(core: &TokenStream, decl: &Declaration, lowered: &SmallS
     let roots: Vec<Id> = lowered.values.iter().map(|&(_, id)| id).collect();
     let block = straight_line::block(&lowered.graph, &names, &roots);
     let lets = block.lets;
-    let stores = lowered.values.iter().zip(&block.outputs).map(|(&(i, _), value)| quote!(values[#i] = #value;));
+    let stores = lowered
+        .values
+        .iter()
+        .zip(&block.outputs)
+        .map(|(&(i, _), value)| quote!(values[#i] = #value;));
     let allows = allows();
     quote! {
         #core::law::SmallStrain {

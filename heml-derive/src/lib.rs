@@ -125,7 +125,10 @@ fn lower_small_strain(s: &attr::SmallStrain, params: &[String]) -> syn::Result<e
     let mut values = Vec::new();
     for (field, value) in &s.assignments {
         let index = params.iter().position(|p| field == p).expect("checked by attr");
-        values.push((index, lower::lower(&mut graph, value, Scope::SmallStrain, params, &assigned)?));
+        values.push((
+            index,
+            lower::lower(&mut graph, value, Scope::SmallStrain, params, &assigned)?,
+        ));
     }
     Ok(emit_registry::SmallStrainValues { graph, values })
 }

@@ -60,7 +60,10 @@ impl Lowerer<'_> {
                     let a = self.expr(&u.expr)?;
                     Ok(self.g.neg(a))
                 }
-                _ => err(u.op, format!("unsupported unary operator; only `-` is allowed in {}", self.what())),
+                _ => err(
+                    u.op,
+                    format!("unsupported unary operator; only `-` is allowed in {}", self.what()),
+                ),
             },
             Expr::Binary(b) => {
                 let (l, r) = (self.expr(&b.left)?, self.expr(&b.right)?);
@@ -192,7 +195,12 @@ impl Lowerer<'_> {
 
     fn unknown_message(&self, name: &str) -> String {
         let vars: Vec<&str> = vocab::variables(self.scope).collect();
-        let readable = || self.params.iter().filter(|p| !self.assigned.contains(p)).map(String::as_str);
+        let readable = || {
+            self.params
+                .iter()
+                .filter(|p| !self.assigned.contains(p))
+                .map(String::as_str)
+        };
         let quote_all =
             |names: &mut dyn Iterator<Item = &str>| names.map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ");
         let mut msg = format!(
@@ -235,7 +243,10 @@ impl Lowerer<'_> {
                 Some(i) => self.param(name, i),
                 None => err(name, format!("`{name}` is not a parameter (field) of this law")),
             },
-            _ => err(f, format!("only `self.<parameter>` field accesses are allowed in {}", self.what())),
+            _ => err(
+                f,
+                format!("only `self.<parameter>` field accesses are allowed in {}", self.what()),
+            ),
         }
     }
 
@@ -246,7 +257,10 @@ impl Lowerer<'_> {
         if args.len() != function.arity() {
             return err(
                 name,
-                format!("`{name}` takes {} argument(s) besides the receiver", function.arity() - 1),
+                format!(
+                    "`{name}` takes {} argument(s) besides the receiver",
+                    function.arity() - 1
+                ),
             );
         }
         let a = self.expr(args[0])?;
@@ -418,7 +432,10 @@ mod tests {
         assert!(msg("mu0 * I1bar").contains("energy variable"));
         assert!(msg("mu0 * L").contains("energy variable"));
         let unknown = msg("nu0 * 2.0");
-        assert!(unknown.contains("in a small-strain mapping") && unknown.contains("did you mean `mu0`"), "{unknown}");
+        assert!(
+            unknown.contains("in a small-strain mapping") && unknown.contains("did you mean `mu0`"),
+            "{unknown}"
+        );
         assert!(!unknown.contains("`mu`,"), "{unknown}");
         assert!(message("mu0 * J", Kind::Invariant).contains("small-strain modulus"));
     }

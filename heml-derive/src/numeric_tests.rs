@@ -3,8 +3,8 @@
 //! [`Graph::eval`] as the reference: every symbolic derivative is compared with a
 //! central finite difference of the expression it differentiates.
 
-use crate::expr::{Graph, Id, Var};
 use crate::derivatives::{Derivatives, InvariantKernels, LinkKernels, INVARIANTS};
+use crate::expr::{Graph, Id, Var};
 use crate::lower::lower;
 use crate::vocab::{Kind, Scope};
 use rand::rngs::StdRng;

@@ -66,12 +66,19 @@ fn laws_not_at_rest_are_reported_once_unless_allowed() {
         .collect();
     assert_eq!(warned, ["test_energy_offset", "test_prestressed"], "{recorded:#?}");
     assert_eq!(recorded.len(), 2, "{recorded:#?}");
-    assert!(recorded[0].contains("allow_prestress") && recorded[0].contains("rest_check"), "{recorded:#?}");
+    assert!(
+        recorded[0].contains("allow_prestress") && recorded[0].contains("rest_check"),
+        "{recorded:#?}"
+    );
 
     // the same answer from the entry itself
     let entry = |name| heml::find_material(name).unwrap();
-    assert!(entry("test_prestressed").rest_check().is_some_and(|w| w.contains("its stress 2")));
-    assert!(entry("test_energy_offset").rest_check().is_some_and(|w| w.contains("its energy is 1")));
+    assert!(entry("test_prestressed")
+        .rest_check()
+        .is_some_and(|w| w.contains("its stress 2")));
+    assert!(entry("test_energy_offset")
+        .rest_check()
+        .is_some_and(|w| w.contains("its energy is 1")));
     // the opt-out is what silences a law that is stressed at rest
     let allowed = entry("test_prestress_allowed");
     assert!(allowed.allow_prestress && allowed.rest_check().is_none());

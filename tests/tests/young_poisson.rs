@@ -101,14 +101,24 @@ fn young_and_poisson_require_the_shape_parameters_and_are_refused_without_a_mapp
     assert!(err.contains("missing parameter(s) 'jm' besides E/nu"), "{err}");
     assert!(err.contains("mu, jm, kappa (or E, nu and jm)"), "{err}");
     let err = heml::material("mass_spring", &young).unwrap_err().to_string();
-    assert!(err.contains("does not take Young's modulus") && err.contains("expected parameters: k"), "{err}");
-    let err = heml::material("neo_hookean", &young.clone().with("mu", 1.0)).unwrap_err().to_string();
+    assert!(
+        err.contains("does not take Young's modulus") && err.contains("expected parameters: k"),
+        "{err}"
+    );
+    let err = heml::material("neo_hookean", &young.clone().with("mu", 1.0))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("not both"), "{err}");
     // c10 = μ/2 − c01 < 0: the computed value is refused, with where it came from
     let err = heml::material("mooney_rivlin", &young.clone().with("c01", 20e3))
         .unwrap_err()
         .to_string();
-    assert!(err.contains("'c10'") && err.contains("must not be negative") && err.contains("E = 60000"), "{err}");
-    let err = heml::material("veronda_westmann", &young.with("c2", 0.0)).unwrap_err().to_string();
+    assert!(
+        err.contains("'c10'") && err.contains("must not be negative") && err.contains("E = 60000"),
+        "{err}"
+    );
+    let err = heml::material("veronda_westmann", &young.with("c2", 0.0))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("'c1' is inf"), "{err}");
 }
