@@ -124,6 +124,13 @@ pub struct Declaration {
     pub small_strain: Option<SmallStrain>,
 }
 
+impl Declaration {
+    /// The field names, in order.
+    pub fn fields(&self) -> Vec<Ident> {
+        self.params.iter().map(|p| p.ident.clone()).collect()
+    }
+}
+
 /// `#[small_strain(field = <expr>, ...)]`: how the small-strain moduli set some of
 /// the law's parameters, so that E/ν (or μ0/K0) can be given instead of them.
 #[derive(Debug)]

@@ -108,12 +108,8 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
 /// `impl InvariantLaw`.
 pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernels) -> TokenStream {
     let ty = &decl.item.ident;
-    let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
-    let names = Names {
-        params: &fields,
-        receiver: None,
-        fast: None,
-    };
+    let fields = decl.fields();
+    let names = Names::of_self(&fields);
     let plain = invariant_fns(core, k, &names, &k.plain, false);
     let ext = match &k.ext {
         Some(d) => invariant_fns(core, k, &names, d, true),
@@ -155,12 +151,8 @@ pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernel
 /// `impl LinkLaw`.
 pub fn link_law(core: &TokenStream, decl: &Declaration, k: &LinkKernels) -> TokenStream {
     let ty = &decl.item.ident;
-    let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
-    let names = Names {
-        params: &fields,
-        receiver: None,
-        fast: None,
-    };
+    let fields = decl.fields();
+    let names = Names::of_self(&fields);
     let g = &k.graph;
     let args = |roots: &[Id]| {
         let [l, rest] = [Var::LinkL, Var::RestL].map(|v| Names::arg(v, g.uses(roots, v)));

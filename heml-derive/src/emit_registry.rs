@@ -77,7 +77,7 @@ fn small_strain_mapping(
     text: &str,
 ) -> TokenStream {
     let ty = &decl.item.ident;
-    let fields: Vec<Ident> = decl.params.iter().map(|p| p.ident.clone()).collect();
+    let fields = decl.fields();
     let set: Vec<String> = lowered.values.iter().map(|&(i, _)| fields[i].to_string()).collect();
     let this = Ident::new("this", Span::call_site());
     let names = Names {

@@ -29,7 +29,16 @@ pub struct Names<'a> {
     pub fast: Option<&'a TokenStream>,
 }
 
-impl Names<'_> {
+impl<'a> Names<'a> {
+    /// The parameters `params` read as `self.<name>`, with `f64`'s own functions.
+    pub fn of_self(params: &'a [Ident]) -> Self {
+        Self {
+            params,
+            receiver: None,
+            fast: None,
+        }
+    }
+
     /// The argument name of `var` in the generated functions, prefixed with `_`
     /// when unused so that unused arguments do not warn.
     pub fn arg(var: Var, used: bool) -> Ident {
