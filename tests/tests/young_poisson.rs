@@ -76,9 +76,11 @@ fn young_and_poisson_give_the_small_strain_moduli_of_every_law() {
         );
         covered.push(entry.name);
     }
-    let invariant = |name: &&str| heml::find_material(name).unwrap().kind == LawKind::Invariant;
-    for law in heml_tests::BUILT_IN.iter().filter(invariant) {
-        assert!(covered.contains(law), "{law} takes no E/nu: {covered:?}");
+    for law in heml_tests::BUILT_IN {
+        if heml::find_material(law).unwrap().kind == LawKind::Link {
+            continue;
+        }
+        assert!(covered.contains(&law), "{law} takes no E/nu: {covered:?}");
     }
 }
 
