@@ -80,7 +80,7 @@ impl Params {
             .collect();
         if !both.is_empty() {
             return Err(bad(format!(
-                "{} set from E/nu here; give either E/nu or {}, not both",
+                "{} would be set from E/nu; give either E/nu or {}, not both",
                 quoted(&both),
                 quoted(&both)
             )));
