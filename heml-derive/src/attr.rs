@@ -171,7 +171,7 @@ pub fn parse_declaration(item: TokenStream, kind: Kind) -> syn::Result<Declarati
     }
     let (energy, energy_text) = take_energy(&mut item)?;
     let small_strain = take_small_strain(&mut item, kind)?;
-    let params = take_params(&mut item, kind)?;
+    let params = take_params(&mut item, kind, small_strain.is_some())?;
     let small_strain = small_strain
         .map(|(assignments, text)| check_small_strain(assignments, text, &params))
         .transpose()?;
@@ -297,7 +297,7 @@ fn tidy_source(text: &str) -> String {
 }
 
 /// Checks the fields and removes their `#[param(...)]` attributes.
-fn take_params(item: &mut ItemStruct, kind: Kind) -> syn::Result<Vec<Param>> {
+fn take_params(item: &mut ItemStruct, kind: Kind, has_mapping: bool) -> syn::Result<Vec<Param>> {
     let fields = match &mut item.fields {
         Fields::Named(named) => &mut named.named,
         Fields::Unnamed(f) => {
@@ -322,7 +322,7 @@ fn take_params(item: &mut ItemStruct, kind: Kind) -> syn::Result<Vec<Param>> {
                 format!("the parameter `{ident}` must be of type `f64`"),
             ));
         }
-        if vocab::reserved(kind, &ident.to_string()) {
+        if vocab::reserved(kind, has_mapping, &ident.to_string()) {
             return Err(syn::Error::new_spanned(
                 &ident,
                 format!("the parameter `{ident}` has the name of a variable of the law's expressions; rename it"),
@@ -515,16 +515,15 @@ mod tests {
             Kind::Invariant
         )
         .contains("only one"));
-        let reserved = parse_declaration(
-            quote!(
-                #[energy(I1)]
-                struct L {
-                    K0: f64,
-                }
-            ),
-            Kind::Invariant,
-        );
-        assert!(reserved.is_err_and(|e| e.to_string().contains("rename it")));
+        // a modulus name is a variable only for a law with a mapping
+        let with_field = |mapping: TokenStream| {
+            parse_declaration(
+                quote!(#[energy(K0 * I1)] #mapping struct L { K0: f64 }),
+                Kind::Invariant,
+            )
+        };
+        assert!(with_field(quote!()).is_ok());
+        assert!(with_field(quote!(#[small_strain(K0 = mu0)])).is_err_and(|e| e.to_string().contains("rename it")));
         assert!(parse_options(quote!(name = "p", allow_prestress)).is_ok_and(|o| o.allow_prestress));
     }
 }

@@ -69,10 +69,11 @@ pub fn symbol(scope: Scope, name: &str) -> Option<Symbol> {
     symbols(scope).iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
 }
 
-/// Every name a parameter may not take because some expression of a law of kind
-/// `kind` would read it as a variable (its energy's, or its small-strain mapping's).
-pub fn reserved(kind: Kind, name: &str) -> bool {
-    symbol(Scope::Energy(kind), name).is_some() || symbol(Scope::SmallStrain, name).is_some()
+/// Whether a parameter may not be called `name` because an expression of the law
+/// would read it as a variable: its energy (of kind `kind`) and, when the law has
+/// one, its small-strain mapping.
+pub fn reserved(kind: Kind, has_mapping: bool, name: &str) -> bool {
+    symbol(Scope::Energy(kind), name).is_some() || (has_mapping && symbol(Scope::SmallStrain, name).is_some())
 }
 
 /// A function of the language.
