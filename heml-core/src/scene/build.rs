@@ -341,7 +341,7 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
     let entry = find_material(&m.law)
         .map_err(|e| HemlError::Invalid(format!("{e}{}", registry_hint(materials().is_empty()))))?;
     let mut names: Vec<&str> = entry.params.iter().map(|p| p.name).collect();
-    if names == ["mu", "lambda"] {
+    if entry.small_strain.is_some() {
         names.extend(["E", "nu"]);
     }
     let law = entry.instantiate(&m.params).map_err(|e| {
