@@ -271,7 +271,10 @@ fn the_demo_writes_less_than_25_mb() {
     assert!(ok, "{err}");
     let files: Vec<_> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().path()).collect();
     let total: u64 = files.iter().map(|p| std::fs::metadata(p).unwrap().len()).sum();
-    let frames = files.iter().filter(|p| p.extension().is_some_and(|e| e == "vtu")).count();
+    let frames = files
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "vtu"))
+        .count();
     assert!(frames >= 50, "{frames} frames");
     assert!(total < 25 << 20, "{frames} frames, {total} bytes");
     std::fs::remove_dir_all(&dir).unwrap();

@@ -4,8 +4,8 @@
 //! mean. The registry is iterated, so a newly declared law is covered automatically
 //! (a law with shape parameters needs an entry in `SHAPE`, or the test says so).
 
-use heml::nalgebra::Matrix3;
 use heml::law::*;
+use heml::nalgebra::Matrix3;
 use heml::prelude::*;
 
 const E: f64 = 60e3;
