@@ -84,7 +84,7 @@
 #![warn(missing_docs)]
 
 pub use heml_core;
-pub use heml_core::{fem, force, law, mesh, params, rest, HemlError, Result, Vec3};
+pub use heml_core::{force, law, mesh, params, rest, HemlError, Result, Vec3};
 pub use heml_derive::material;
 pub use heml_integrators as integrators;
 pub use heml_materials as materials;
