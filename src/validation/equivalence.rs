@@ -11,7 +11,7 @@
 //! expression graph) + the fixed link/volume work of the HEML tet kernel, which
 //! depends on `USES_I2`/`USES_J`; next to the standard P1 path's count for the same
 //! law. The fixed counts are taken from the code paths of the scalar kernels
-//! (`force/heml.rs` `HemlField::tet` + node scatter, `fem.rs` `FemField::add_forces`),
+//! (`force/heml.rs` `HemlKernel::tet` + node scatter, `force/p1.rs` `P1Kernel::tet`),
 //! term by term, see [`heml_fixed_ops`] and [`p1_fixed_ops`].
 
 use super::plot::{draw, Chart, ChartKind};
@@ -211,7 +211,7 @@ fn sum(parts: &[OpCount]) -> OpCount {
     })
 }
 
-/// The HEML tet kernel's own arithmetic (without the law), from `HemlField::tet`
+/// The HEML tet kernel's own arithmetic (without the law), from `HemlKernel::tet`
 /// and the scatter into the global force array:
 ///
 /// | term | add | mul | div |
@@ -257,7 +257,7 @@ pub fn heml_fixed_ops(uses_i2: bool, uses_j: bool) -> OpCount {
 }
 
 /// The standard P1 path's own arithmetic (without the law), from
-/// `FemField::add_forces` / `energy_and_piola`, which evaluates every term whatever
+/// `P1Kernel::tet` / `energy_and_piola`, which evaluates every term whatever
 /// the law uses (as a generic P1 code does):
 ///
 /// | term | add | mul | div |

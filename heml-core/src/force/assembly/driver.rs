@@ -5,8 +5,10 @@
 // The lanes are indexed in lock-step on purpose (it is what vectorises).
 #![allow(clippy::needless_range_loop)]
 
+#[cfg(target_arch = "x86_64")]
+use super::lane_io::Avx2;
 use super::lane_io::{scatter_lane, LaneIo, Node4, Portable};
-use super::layout::{BlockBuffers, Layout, LANES};
+use super::layout::{BlockBuffers, Layout, LocalBatch, LANES};
 use super::simd::Isa;
 use crate::error::Result;
 use crate::force::field::check_sizes;
@@ -122,33 +124,43 @@ impl Layout {
 
 /// Runs the batches of one block with the driver compiled for `isa`.
 fn run_block<K: BatchKernel>(isa: Isa, k: &K, batch0: usize, n_tets: usize, blk: BlockBuffers) -> f64 {
+    // separate references, so that the driver knows the buffers do not alias
+    let (tets, x, f) = blk.into_parts();
     match isa {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the token proves the CPU has avx512f, avx512dq, avx512vl, avx2 and
-        // fma, the features `block_avx512` enables.
-        Isa::Avx512(t) => unsafe { block_avx512(super::lane_io::Avx2(t.avx2()), k, batch0, n_tets, blk) },
+        // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
+        // of one `BlockBuffers`, so every index is below both buffers' length.
+        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, tets, x, f) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the token proves the CPU has avx2 and fma, the features
-        // `block_avx2` enables.
-        Isa::Avx2(t) => unsafe { block_avx2(super::lane_io::Avx2(t), k, batch0, n_tets, blk) },
-        _ => block_body(Portable, k, batch0, n_tets, blk),
+        // `block_avx2` enables; the indices as above.
+        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, tets, x, f) },
+        // SAFETY: the indices as above (and the portable I/O checks them anyway).
+        _ => unsafe { block_body(Portable, k, batch0, n_tets, tets, x, f) },
     }
 }
 
 /// The block driver compiled with `$features` enabled (the SIMD gather and scatter
-/// need AVX2 at least); callable once a token proves the CPU has them.
+/// need AVX2 at least).
+///
+/// # Safety
+/// The CPU has `$features`, and the preconditions of [`block_body`] hold.
 macro_rules! block_with_features {
     ($name:ident, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        fn $name<K: BatchKernel>(
-            io: super::lane_io::Avx2,
+        unsafe fn $name<K: BatchKernel>(
+            io: Avx2,
             k: &K,
             batch0: usize,
             n_tets: usize,
-            blk: BlockBuffers,
+            tets: &[LocalBatch],
+            x: &[Node4],
+            f: &mut [Node4],
         ) -> f64 {
-            block_body(io, k, batch0, n_tets, blk)
+            // SAFETY: the caller's preconditions.
+            unsafe { block_body(io, k, batch0, n_tets, tets, x, f) }
         }
     };
 }
@@ -157,26 +169,40 @@ block_with_features!(block_avx2, "avx2,fma");
 
 /// The batches of one block: gather, kernel, scatter (all lanes at once for full
 /// batches, lane by lane for the padded last one).
+///
+/// # Safety
+/// Every index of `tets` is below `x.len()` and `f.len()` (the parts of one
+/// [`BlockBuffers`]), as `IO` requires.
 #[inline(always)]
-fn block_body<K: BatchKernel, IO: LaneIo>(io: IO, k: &K, batch0: usize, n_tets: usize, mut blk: BlockBuffers) -> f64 {
+unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
+    io: IO,
+    k: &K,
+    batch0: usize,
+    n_tets: usize,
+    tets: &[LocalBatch],
+    x: &[Node4],
+    f: &mut [Node4],
+) -> f64 {
     let mut energy = 0.0;
     let mut p = [[[0.0; LANES]; 3]; 4];
     let mut fl = [[[0.0; LANES]; 3]; 4];
     let mut el = [0.0; LANES];
-    for bo in 0..blk.batches().len() {
+    for (bo, idx) in tets.iter().enumerate() {
         let b = batch0 + bo;
-        io.gather(&blk, bo, &mut p);
+        // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
+        unsafe { io.gather(idx, x, &mut p) };
         k.batch(b, &p, &mut fl, &mut el);
         let count = (n_tets - b * LANES).min(LANES);
         if count == LANES {
-            io.scatter(&mut blk, bo, &fl);
+            // SAFETY: as for the gather, below `f.len()`
+            unsafe { io.scatter(idx, &fl, f) };
             for l in 0..LANES {
                 energy += el[l];
             }
         } else {
             for l in 0..count {
                 energy += el[l];
-                scatter_lane(&mut blk, bo, &fl, l);
+                scatter_lane(idx, &fl, f, l);
             }
         }
     }

@@ -6,7 +6,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::driver::{LaneForces, LanePoints};
-use super::layout::{BlockBuffers, LocalBatch, LANES};
+use super::layout::{LocalBatch, LANES};
 use crate::Vec3;
 
 /// A node position or force padded to four `f64` (32-byte aligned), so that one
@@ -26,24 +26,35 @@ impl Node4 {
     }
 }
 
-/// Moves batch `b` of a block between the block's buffers and the kernels' lanes.
-/// Safe for any `b` and block: the indices come from the block's own checked batches.
+/// Moves one batch between a block's buffers and the kernels' lanes.
+///
+/// # Safety
+/// Both methods require every index of `idx` to be below the buffer's length: true
+/// of the parts of one [`super::layout::BlockBuffers`] (checked once, when the
+/// layout was built). The AVX2 implementation can only exist once the CPU is proven
+/// to have AVX2 (it holds an [`super::simd::Avx2Token`]).
 pub(crate) trait LaneIo: Copy {
-    /// `p[a][c][l] = x[idx[l][a]][c]`, with `idx` the block's batch `b`.
-    fn gather(self, blk: &BlockBuffers, b: usize, p: &mut LanePoints);
+    /// `p[a][c][l] = x[idx[l][a]][c]`.
+    ///
+    /// # Safety
+    /// Every index of `idx` is below `x.len()`.
+    unsafe fn gather(self, idx: &LocalBatch, x: &[Node4], p: &mut LanePoints);
     /// `f[idx[l][a]][c] += fl[a][c][l]` for every lane, corner by corner then lane
     /// by lane.
-    fn scatter(self, blk: &mut BlockBuffers, b: usize, fl: &LaneForces);
+    ///
+    /// # Safety
+    /// Every index of `idx` is below `f.len()`.
+    unsafe fn scatter(self, idx: &LocalBatch, fl: &LaneForces, f: &mut [Node4]);
 }
 
-/// Plain indexed loads and stores (the baseline target).
+/// Plain indexed loads and stores (the baseline target; bounds-checked, so sound
+/// whatever the indices).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Portable;
 
 impl LaneIo for Portable {
     #[inline(always)]
-    fn gather(self, blk: &BlockBuffers, b: usize, p: &mut LanePoints) {
-        let (idx, x) = (&blk.batches()[b], blk.x());
+    unsafe fn gather(self, idx: &LocalBatch, x: &[Node4], p: &mut LanePoints) {
         for l in 0..LANES {
             for a in 0..4 {
                 let q = &x[idx[l][a] as usize].0;
@@ -54,9 +65,7 @@ impl LaneIo for Portable {
         }
     }
     #[inline(always)]
-    fn scatter(self, blk: &mut BlockBuffers, b: usize, fl: &LaneForces) {
-        let idx = &blk.batches()[b];
-        let f = blk.f_mut();
+    unsafe fn scatter(self, idx: &LocalBatch, fl: &LaneForces, f: &mut [Node4]) {
         // corner by corner, then lane by lane: the order of the SIMD scatter, so
         // that every instruction set gives the same bits
         for a in 0..4 {
@@ -70,12 +79,10 @@ impl LaneIo for Portable {
     }
 }
 
-/// Adds the four corner forces of lane `l` of batch `b` to the block's forces (the
-/// padded last batch, lane by lane).
+/// Adds the four corner forces of lane `l` to `f` (the padded last batch, lane by
+/// lane; bounds-checked).
 #[inline(always)]
-pub(crate) fn scatter_lane(blk: &mut BlockBuffers, b: usize, fl: &LaneForces, l: usize) {
-    let idx: &LocalBatch = &blk.batches()[b];
-    let f = blk.f_mut();
+pub(crate) fn scatter_lane(idx: &LocalBatch, fl: &LaneForces, f: &mut [Node4], l: usize) {
     for a in 0..4 {
         let q = &mut f[idx[l][a] as usize].0;
         for c in 0..3 {
@@ -89,7 +96,7 @@ pub(crate) fn scatter_lane(blk: &mut BlockBuffers, b: usize, fl: &LaneForces, l:
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::super::driver::{LaneForces, LanePoints};
-    use super::super::layout::{BlockBuffers, LocalBatch, LANES};
+    use super::super::layout::{LocalBatch, LANES};
     use super::super::simd::Avx2Token;
     use super::{LaneIo, Node4};
     use std::arch::x86_64::*;
@@ -100,17 +107,16 @@ mod avx2 {
 
     impl LaneIo for Avx2 {
         #[inline(always)]
-        fn gather(self, blk: &BlockBuffers, b: usize, p: &mut LanePoints) {
+        unsafe fn gather(self, idx: &LocalBatch, x: &[Node4], p: &mut LanePoints) {
             // SAFETY: `self.0` is an `Avx2Token`, made only when run-time detection
-            // saw AVX2 on this CPU; every index of the block's batches is below
-            // `blk.x().len()` (`BlockBuffers`, checked once by `Blocks::new`).
-            unsafe { gather(&blk.batches()[b], blk.x(), p) }
+            // saw AVX2 on this CPU; the indices are below `x.len()` (the caller's
+            // contract, met by the parts of a `BlockBuffers`).
+            unsafe { gather(idx, x, p) }
         }
         #[inline(always)]
-        fn scatter(self, blk: &mut BlockBuffers, b: usize, fl: &LaneForces) {
-            let idx = &blk.batches()[b];
-            // SAFETY: as for `gather`, every index below `blk.f_mut().len()`.
-            unsafe { scatter(idx, fl, blk.f_mut()) }
+        unsafe fn scatter(self, idx: &LocalBatch, fl: &LaneForces, f: &mut [Node4]) {
+            // SAFETY: as for `gather`, with the indices below `f.len()`.
+            unsafe { scatter(idx, fl, f) }
         }
     }
 

@@ -3,6 +3,10 @@
 //! order. Every local index is checked against its block's node count once, here,
 //! when the layout is built: the SIMD lane I/O relies on it.
 
+// The tets of a block are walked by field position on purpose (the same positions
+// index `ids` and `local`).
+#![allow(clippy::needless_range_loop)]
+
 use super::driver::Scratch;
 use super::lane_io::Node4;
 use crate::mesh::reorder::morton_tet_order;
@@ -114,29 +118,24 @@ pub(crate) struct BlockBuffers<'a> {
 }
 
 impl<'a> BlockBuffers<'a> {
-    /// The block's batches of local indices: each below `x().len()` and
-    /// `f().len()`.
-    #[inline(always)]
-    pub(crate) fn batches(&self) -> &'a [LocalBatch] {
-        self.batches
-    }
-
-    /// The local positions (one per block node).
-    #[inline(always)]
-    pub(crate) fn x(&self) -> &[Node4] {
-        self.x
-    }
-
     /// The local positions, to fill them.
     #[inline(always)]
     pub(super) fn x_mut(&mut self) -> &mut [Node4] {
         self.x
     }
 
-    /// The local forces (one per block node).
+    /// The local forces, to clear them.
     #[inline(always)]
-    pub(crate) fn f_mut(&mut self) -> &mut [Node4] {
+    pub(super) fn f_mut(&mut self) -> &mut [Node4] {
         self.f
+    }
+
+    /// The block's batches of local indices, positions and forces, as separate
+    /// references (so that the block driver's arguments are known not to alias):
+    /// every index of every batch is below the length of both buffers.
+    #[inline(always)]
+    pub(crate) fn into_parts(self) -> (&'a [LocalBatch], &'a [Node4], &'a mut [Node4]) {
+        (self.batches, self.x, self.f)
     }
 }
 
@@ -301,7 +300,7 @@ impl Layout {
         let nodes: usize = blocks.iter().map(|b| b.nodes.len()).sum();
         self.ids.len() * std::mem::size_of::<usize>()
             + self.blocks.n_batches() * std::mem::size_of::<LocalBatch>()
-            + blocks.len() * std::mem::size_of::<Block>()
+            + std::mem::size_of_val(blocks)
             + nodes * 4
             + self.merge_off.len() * 4
             + self.merge.len() * 4
@@ -382,11 +381,11 @@ mod tests {
         let (mut xs, mut fs) = (&mut x[..], &mut f[..]);
         let mut batches = 0;
         for (b, blk) in lay.blocks.list().iter().enumerate() {
-            let mut bufs = lay.blocks.buffers(b, &mut xs, &mut fs);
-            assert_eq!(bufs.x().len(), blk.nodes.len());
-            assert_eq!(bufs.f_mut().len(), blk.nodes.len());
-            assert_eq!(bufs.batches().len(), blk.batch_end - blk.batch_start);
-            batches += bufs.batches().len();
+            let (tets, x, f) = lay.blocks.buffers(b, &mut xs, &mut fs).into_parts();
+            assert_eq!(x.len(), blk.nodes.len());
+            assert_eq!(f.len(), blk.nodes.len());
+            assert_eq!(tets.len(), blk.batch_end - blk.batch_start);
+            batches += tets.len();
         }
         assert!(xs.is_empty() && fs.is_empty(), "scratch slots left over");
         assert_eq!(batches, lay.n_batches());
