@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use heml_core::io::{vtu, write_vtu, VtuEncoding, VtuFrame};
+use heml_core::io::{vtu, write_vtu, FieldPrecision, VtuEncoding, VtuFrame};
 use heml_core::mesh::generate::{box_mesh, HexSplit};
 use heml_core::{TetMesh, Vec3};
 
@@ -134,4 +134,45 @@ np.asarray(np.concatenate(m.cell_data['tag']), dtype='<i4').tofile(d + '/tags.bi
         .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
         .collect();
     assert_eq!(tags, mesh.tags());
+}
+
+/// `FieldPrecision::Single` writes the fields as Float32 and the positions still as
+/// Float64 (read back bitwise), and shrinks a frame: the fields' mantissas are what
+/// compression cannot remove.
+#[test]
+fn single_precision_fields_keep_exact_positions_and_shrink_frames() {
+    let dir = scratch("precision");
+    let (mesh, x, u) = deformed();
+    let j: Vec<f64> = (0..mesh.n_tets()).map(|t| 1.0 + 1e-3 * (t as f64).sin()).collect();
+    let write = |precision, name: &str| {
+        let path = dir.join(name);
+        let frame = VtuFrame::deformed(&mesh, &x)
+            .point_vectors("displacement", &u)
+            .point_vectors("velocity", &u)
+            .cell_scalars("J", &j)
+            .precision(precision);
+        write_vtu(&path, &frame).unwrap();
+        path
+    };
+    let double = write(FieldPrecision::default(), "double.vtu");
+    let single = write(FieldPrecision::Single, "single.vtu");
+    let text = std::fs::read_to_string(&single).unwrap();
+    for field in ["displacement", "velocity", "J"] {
+        assert!(text.contains(&format!("type=\"Float32\" Name=\"{field}\"")), "{field}");
+    }
+    assert!(text.contains("type=\"Float64\" Name=\"Points\""));
+    let data = vtu::read(&single).unwrap();
+    let exact = data
+        .nodes
+        .iter()
+        .zip(&x)
+        .all(|(a, b)| a.iter().zip(b.iter()).all(|(p, q)| p.to_bits() == q.to_bits()));
+    assert!(exact, "positions must stay exact in single-precision frames");
+    let (d, s) = (
+        std::fs::metadata(&double).unwrap().len(),
+        std::fs::metadata(&single).unwrap().len(),
+    );
+    // three of the four float arrays halve (before compression, which removes little
+    // of them): the file must lose at least a quarter
+    assert!((s as f64) < 0.75 * d as f64, "single {s} bytes, double {d}");
 }

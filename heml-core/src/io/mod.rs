@@ -37,7 +37,7 @@ use crate::mesh::TetMesh;
 use crate::Vec3;
 
 pub use pvd::{read_pvd, PvdWriter};
-pub use vtu::{write_vtu, VtuEncoding, VtuFrame};
+pub use vtu::{write_vtu, FieldPrecision, VtuEncoding, VtuFrame};
 
 /// The raw content of a mesh file, before validation: what a reader found.
 #[derive(Debug, Clone, Default, PartialEq)]

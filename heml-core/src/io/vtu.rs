@@ -21,7 +21,7 @@ use super::{no_tets_message, MeshData};
 use crate::error::{HemlError, Result};
 use crate::Vec3;
 
-pub use super::vtu_write::{write_vtu, VtuEncoding, VtuFrame};
+pub use super::vtu_write::{write_vtu, FieldPrecision, VtuEncoding, VtuFrame};
 
 /// Reads a `.vtu` unstructured grid.
 pub fn read(path: &Path) -> Result<MeshData> {

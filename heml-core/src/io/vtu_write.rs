@@ -26,6 +26,23 @@ pub enum VtuEncoding {
     Ascii,
 }
 
+/// The floating-point type of a frame's point and cell *fields* (the positions are
+/// always written in double precision, so that a configuration is stored exactly).
+///
+/// Single precision keeps 7 significant digits — what ParaView computes with — and
+/// halves the part of a frame that compression cannot shrink (the mantissas of
+/// simulated fields are close to random): the embedded demo's frames drop from 37 to
+/// about 24 MB.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FieldPrecision {
+    /// `Float64`: the values exactly (default).
+    #[default]
+    Double,
+    /// `Float32`: the values rounded to single precision.
+    Single,
+}
+
 /// One output frame: a tet mesh in some configuration plus fields on it.
 ///
 /// ```
@@ -54,6 +71,8 @@ pub struct VtuFrame<'a> {
     pub cell_scalars: Vec<(&'a str, &'a [f64])>,
     /// Storage of the arrays.
     pub encoding: VtuEncoding,
+    /// Floating-point type of the fields (not of the positions).
+    pub precision: FieldPrecision,
 }
 
 impl<'a> VtuFrame<'a> {
@@ -67,6 +86,7 @@ impl<'a> VtuFrame<'a> {
             point_scalars: Vec::new(),
             cell_scalars: Vec::new(),
             encoding: VtuEncoding::default(),
+            precision: FieldPrecision::default(),
         }
     }
 
@@ -107,6 +127,12 @@ impl<'a> VtuFrame<'a> {
     /// Sets the encoding.
     pub fn encoding(mut self, encoding: VtuEncoding) -> Self {
         self.encoding = encoding;
+        self
+    }
+
+    /// Sets the floating-point type of the fields.
+    pub fn precision(mut self, precision: FieldPrecision) -> Self {
+        self.precision = precision;
         self
     }
 
@@ -160,10 +186,10 @@ pub fn write_vtu(path: &Path, frame: &VtuFrame<'_>) -> Result<()> {
         s.push_str("<PointData>\n");
         for (name, v) in &frame.point_vectors {
             let flat: Vec<f64> = v.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
-            array(&mut s, enc, name, 3, &Floats(&flat));
+            field(&mut s, frame, name, 3, &flat);
         }
         for (name, v) in &frame.point_scalars {
-            array(&mut s, enc, name, 1, &Floats(v));
+            field(&mut s, frame, name, 1, v);
         }
         s.push_str("</PointData>\n");
     }
@@ -173,7 +199,7 @@ pub fn write_vtu(path: &Path, frame: &VtuFrame<'_>) -> Result<()> {
             array(&mut s, enc, "tag", 1, &Ints32(tags));
         }
         for (name, v) in &frame.cell_scalars {
-            array(&mut s, enc, name, 1, &Floats(v));
+            field(&mut s, frame, name, 1, v);
         }
         s.push_str("</CellData>\n");
     }
@@ -199,6 +225,7 @@ trait Payload {
 }
 
 struct Floats<'a>(&'a [f64]);
+struct Floats32<'a>(&'a [f32]);
 struct Ints32<'a>(&'a [i32]);
 struct Ints64<'a>(&'a [i64]);
 struct Bytes<'a>(&'a [u8]);
@@ -219,9 +246,21 @@ macro_rules! payload {
     };
 }
 payload!(Floats, "Float64", "{:e} ");
+payload!(Floats32, "Float32", "{:e} ");
 payload!(Ints32, "Int32", "{} ");
 payload!(Ints64, "Int64", "{} ");
 payload!(Bytes, "UInt8", "{} ");
+
+/// A field in the frame's precision.
+fn field(s: &mut String, frame: &VtuFrame<'_>, name: &str, comps: usize, values: &[f64]) {
+    match frame.precision {
+        FieldPrecision::Double => array(s, frame.encoding, name, comps, &Floats(values)),
+        FieldPrecision::Single => {
+            let single: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+            array(s, frame.encoding, name, comps, &Floats32(&single))
+        }
+    }
+}
 
 fn array<P: Payload>(s: &mut String, enc: VtuEncoding, name: &str, comps: usize, data: &P) {
     let format = if enc == VtuEncoding::Ascii { "ascii" } else { "binary" };
