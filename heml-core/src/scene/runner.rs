@@ -135,8 +135,10 @@ impl Simulation {
         let mut k = 0u64;
         loop {
             k += 1;
-            let (dt, reason) = match &mut adapt {
-                None => (self.dt, DtReason::Fixed),
+            // the step taken, and the controller's step and reason (the CSV's: a step
+            // shortened to land on an output time is not a decision of the controller)
+            let (dt, chosen, reason) = match &mut adapt {
+                None => (self.dt, self.dt, DtReason::Fixed),
                 Some(a) => {
                     if k > self.max_steps {
                         let e = HemlError::Numerical(format!(
@@ -155,11 +157,8 @@ impl Simulation {
                     let stop = (next_frame as f64 * frame_span)
                         .min(next_row as f64 * row_span)
                         .min(self.duration);
-                    if t + dt >= stop - tol {
-                        (stop - t, if t + dt > stop + tol { DtReason::Output } else { reason })
-                    } else {
-                        (dt, reason)
-                    }
+                    let step = if t + dt >= stop - tol { stop - t } else { dt };
+                    (step, dt, reason)
                 }
             };
             if let Err(e) = self.integrator.step(sys, dt) {
@@ -187,7 +186,7 @@ impl Simulation {
             };
             if out.wants_csv() && row_due {
                 let e = sys.energies()?;
-                out.row(sys, &e, dt, reason);
+                out.row(sys, &e, chosen, reason);
             }
             if frame_due {
                 out.frame(sys)?;

@@ -62,8 +62,6 @@ pub enum DtReason {
     Stiffness,
     /// Being raised back towards the base step after a stiff phase.
     Recovering,
-    /// Shortened to land exactly on an output time or the end of the run.
-    Output,
 }
 
 impl DtReason {
@@ -74,7 +72,6 @@ impl DtReason {
             DtReason::Base => "base",
             DtReason::Stiffness => "stiffness",
             DtReason::Recovering => "recovering",
-            DtReason::Output => "output",
         }
     }
 }
@@ -295,7 +292,11 @@ impl AdaptiveStep {
         self.checks += 1;
         self.min_j = self.min_j.min(j);
         // falling: assume it falls as much again before the next check
-        let predicted = if e < self.last { e * (e / self.last) } else { e };
+        let predicted = if e < self.last && self.last.is_finite() {
+            e * (e / self.last)
+        } else {
+            e
+        };
         self.last = e;
         let target = predicted.min(self.base);
         let before = self.dt;
