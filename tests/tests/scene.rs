@@ -497,3 +497,111 @@ fn kidney_crush_and_release_at_default_settings() {
     assert!(e.contains("non-finite"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The demo block (8 x 6 x 5 cm, clamped, gravity, a tool) as a scene text with the
+/// given `[solver]` and `[output]` lines.
+fn demo_block(solver: &str, output: &str) -> String {
+    let demo = std::fs::read_to_string(scenes_dir().join("demo.toml")).unwrap();
+    let head = demo.split("[solver]").next().unwrap();
+    format!("{head}[solver]\n{solver}\n[output]\n{output}\n")
+}
+
+#[test]
+fn a_blow_up_keeps_a_last_good_state_with_finite_forces() {
+    link();
+    let dir = temp_dir("blowup");
+    // dt = 2e-2 s, ~40x the stable estimate, with the check off: blows up in a few steps
+    let text = demo_block(
+        "duration = 1.0\ndt = 2e-2\ndt_policy = \"ignore\"",
+        &format!("dir = {:?}\nevery = 1", dir.to_string_lossy()),
+    );
+    let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+    let e = sim.run(|_| {}).unwrap_err().to_string();
+    assert!(e.contains("non-finite") && e.contains("last good state"), "{e}");
+    // the state kept — and saved as the last frame — has finite positions,
+    // velocities and forces (the frame is written with the forces of that state)
+    sim.system
+        .compute_forces()
+        .expect("the last good state has finite forces");
+    let sys = &sim.system;
+    assert!(sys.step_count() >= 1, "{e}");
+    let finite = |a: &[Vec3]| a.iter().all(|v| v.iter().all(|c| c.is_finite()));
+    assert!(finite(sys.positions()) && finite(sys.velocities()) && finite(sys.forces()));
+    assert!(sys.energies().unwrap().total.is_finite());
+    let umax = sys.displacements().iter().map(|d| d.norm()).fold(0.0, f64::max);
+    eprintln!("last good state: step {}, max displacement {umax:e} m", sys.step_count());
+    let frames = read_pvd(&dir.join("frames.pvd")).unwrap();
+    assert_eq!(frames.len() as u64, sys.step_count() + 1, "a frame per accepted step");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn energy_csv_is_appended_whole_rows_at_frame_boundaries() {
+    link();
+    let dir = temp_dir("csv");
+    let text = format!(
+        "{BASE}dt = 1e-4\n[output]\ndir = {:?}\nevery = 25\ncsv_every = 1\nvtu = false\n",
+        dir.to_string_lossy()
+    );
+    let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+    assert_eq!(sim.steps, 100);
+    let s = sim.run(|_| {}).unwrap();
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    // a row per step and one at t = 0, each complete, steps in order
+    assert_eq!(rows.len(), 101);
+    for (k, r) in rows.iter().enumerate() {
+        let cols: Vec<&str> = r.split(',').collect();
+        assert_eq!(cols.len(), 13, "{r}");
+        assert_eq!(cols[1].parse::<u64>().unwrap(), k as u64);
+        assert_eq!(cols[12], "fixed");
+    }
+    // appended, never rewritten: the bytes written are the file's length, in one
+    // write for the header and one per frame boundary (t = 0 and every 25 steps),
+    // not one per row — whereas rewriting the file at every frame would write
+    // ~2.5x its length here and grow quadratically with the run
+    assert_eq!(s.csv_bytes, csv.len() as u64);
+    assert_eq!(s.csv_writes, 1 + 1 + 100 / 25);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
+    link();
+    // 1e11 steps: refused before anything is built, naming the key
+    let e = err_of(&BASE.replace("duration = 0.01", "duration = 1e5\ndt = 1e-6"));
+    assert!(e.contains("<scene>:9: [solver]") && e.contains("max_steps = 100000000"), "{e}");
+    // raised limit, but a frame per step over 1e6 steps of a 27-node box: ~5 GB
+    let text = BASE.replace("duration = 0.01", "duration = 100.1\ndt = 1e-4\nmax_steps = 2000000")
+        + "[output]\nevery = 1\n";
+    let e = err_of(&format!("{text}max_output_bytes = 1000000000\n"));
+    assert!(e.contains("[output]") && e.contains("max_output_bytes = 1.0 GB"), "{e}");
+    // under the hard limits, over the warning thresholds: built, with both warnings
+    let sim = Scene::from_toml_str(&format!("{text}max_output_bytes = 100000000000\n"), ".")
+        .unwrap()
+        .build()
+        .unwrap();
+    let p = &sim.plan;
+    assert_eq!((p.steps, p.frames, p.csv_rows), (1_001_000, 1_001_001, 1_001_001));
+    assert!(p.warnings.iter().any(|w| w.contains("warn_steps = 1000000")), "{:?}", p.warnings);
+    assert!(p.warnings.iter().any(|w| w.contains("warn_output_bytes")), "{:?}", p.warnings);
+    // and the estimate matches what a run writes (within 10 %: the XML header and
+    // the CSV's number widths vary)
+    let dir = temp_dir("plan");
+    let text = format!(
+        "{BASE}dt = 1e-4\n[output]\ndir = {:?}\nevery = 10\n",
+        dir.to_string_lossy()
+    );
+    let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+    let plan = sim.plan.clone();
+    assert!(plan.warnings.is_empty() && !plan.adaptive);
+    let s = sim.run(|_| {}).unwrap();
+    assert_eq!(plan.frames, s.frames as u64);
+    let written: u64 = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|f| f.unwrap().metadata().unwrap().len())
+        .sum();
+    let ratio = plan.est_bytes as f64 / written as f64;
+    assert!((0.9..1.1).contains(&ratio), "estimated {} B, written {written} B", plan.est_bytes);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
