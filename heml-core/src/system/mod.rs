@@ -571,24 +571,50 @@ impl System {
         Ok(())
     }
 
-    /// Ends the step: time t + dt, constraints imposed, NaN/∞ check of the new state
-    /// — positions, velocities, and the forces at the new state, computed here when
-    /// the integrator did not (the next step reuses them) — then the step counted and
-    /// its statistics. A state is accepted only when all three are finite, so the
-    /// last good state always has finite forces; on failure: an error naming the step
-    /// and the first bad node, and the state of the previous step restored.
+    /// Ends the step: time t + dt, constraints imposed, checks of the new state —
+    /// finite positions and velocities, no node moved by more than the body's size
+    /// (bounding-box diagonal) in the step, finite forces at the new state, computed
+    /// here when the integrator did not (the next step reuses them) — then the step
+    /// counted and its statistics. A state is accepted only when it passes all of
+    /// them, so the last good state of a blow-up has finite forces and displacements
+    /// of the order of the body; on failure: an error naming the step and the node,
+    /// and the state of the previous step restored.
     pub fn finish_step(&mut self) -> Result<StepStats> {
         self.advance_time()?;
         let (_, dt) = self.in_step.unwrap_or_default();
         let bad = first_non_finite(&self.x)
             .map(|i| ("position", i, self.x[i]))
             .or_else(|| first_non_finite(&self.v).map(|i| ("velocity", i, self.v[i])));
+        // the fastest node: a step that moves a node by more than the body's size is a
+        // blow-up in progress even while every number is still finite (a physical
+        // run would need speeds of ~1000 m/s at the usual steps)
+        let (fastest, max_speed) = self
+            .v
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (i, v.norm()))
+            .fold((0, 0.0_f64), |a, b| if b.1 > a.1 { b } else { a });
+        let diverging = bad.is_none() && max_speed * dt > self.length_scale;
         if let Some((what, i, value)) = bad {
             let msg = format!(
                 "step {}: non-finite {what} {:?} at node {} (t = {}); {}",
                 self.step + 1,
                 value.as_slice(),
                 self.input_id(i),
+                self.t,
+                self.kept_state()
+            );
+            self.rollback();
+            return Err(HemlError::Numerical(msg));
+        }
+        if diverging {
+            let msg = format!(
+                "step {}: diverging at node {}: it moved {:e} m in one step (speed {max_speed:e} m/s), more than the \
+                 size of the body ({:e} m) (t = {}); {}",
+                self.step + 1,
+                self.input_id(fastest),
+                max_speed * dt,
+                self.length_scale,
                 self.t,
                 self.kept_state()
             );
@@ -611,7 +637,7 @@ impl System {
             step: self.step,
             time: self.t,
             dt,
-            max_speed: self.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
+            max_speed,
             reaction: self.reaction_total,
             energies,
         })

@@ -441,7 +441,7 @@ fn constraints_hold_and_ramps_are_followed_exactly() {
     let mut sys = System::builder(mesh)
         .material_law(neo(1e4, 1e4))
         .fix_where(|p| p.z < 1e-9)
-        .prescribe(&top, u, ramp)
+        .prescribe(&top, u, ramp.clone())
         .gravity(Vec3::new(1.0, 0.0, -9.81))
         .build()
         .unwrap();
