@@ -420,7 +420,10 @@ fn renumbered_scenes_name_nodes_by_file_id() {
          [[fix]]\nnodes = [{k}]\n"
     );
     let e = err_of_in(&both, &dir);
-    assert!(e.contains(&format!("node {k} is both fixed and prescribed")), "{e}");
+    assert!(
+        e.contains(&format!("[[prescribe]] #1: node {k} is already fixed by")) && e.contains("[[fix]] #2"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -607,5 +610,104 @@ fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
         .sum();
     let ratio = plan.est_bytes as f64 / written as f64;
     assert!((0.9..1.1).contains(&ratio), "estimated {} B, written {written} B", plan.est_bytes);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn scene_messages_name_the_key_and_line() {
+    // scale = 1e300: the overflow is blamed on `scale`, not on a default tolerance
+    let e = err_of(&BASE.replace("cells = [2, 2, 2] }", "cells = [2, 2, 2] }\nscale = 1e300"));
+    assert!(e.contains("<scene>:2: [mesh]") && e.contains("check `scale` or `units`"), "{e}");
+    assert!(!e.contains("tolerance"), "{e}");
+    // a spring constant of zero: no stable estimate, and the message says why
+    let spring = BASE.replace("law = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }", "law = \"mass_spring\"\nparams = { k = 0.0 }");
+    let e = err_of(&spring);
+    assert!(e.contains("<scene>:9: [solver]") && e.contains("no stiffness at rest"), "{e}");
+    // a wrong value type names its key (and its line)
+    let e = err_of(&BASE.replace("E = 3e3", "E = \"1.0\""));
+    assert!(e.contains("<scene>:7:") && e.contains("`E`: invalid type: string \"1.0\""), "{e}");
+    // a node both fixed and prescribed: both entries named, with their lines
+    let e = err_of(&format!(
+        "{BASE}[[fix]]\nnodes = [0, 1]\n[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.001]\nramp = {{ kind = \"step\" }}\n"
+    ));
+    assert!(
+        e.contains("<scene>:13: [[prescribe]] #1: node 1 is already fixed by <scene>:11: [[fix]] #1"),
+        "{e}"
+    );
+    // a material tag the mesh does not have: the entry and its line
+    let e = err_of(&BASE.replace("law = \"neo_hookean\"", "law = \"neo_hookean\"\ntag = 9"));
+    assert!(e.contains("<scene>:5: [[material]] #1: tag = 9 has no tets (the mesh's tags are [0])"), "{e}");
+    // keyframes: one direction, increasing times
+    let kf = |k: &str| format!("{BASE}[[prescribe]]\nnodes = [1]\nkeyframes = {k}\n");
+    let e = err_of(&kf("[[1.0, 0, 0, 0.01], [2.0, 0.01, 0, 0]]"));
+    assert!(e.contains("[[prescribe]] #1: keyframes: keyframe #1") && e.contains("one direction"), "{e}");
+    let e = err_of(&kf("[[1.0, 0, 0, 0.01], [1.0, 0, 0, 0]]"));
+    assert!(e.contains("times must increase strictly"), "{e}");
+    let e = err_of(&format!("{BASE}[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.01]\n"));
+    assert!(e.contains("`displacement` needs a `ramp`"), "{e}");
+}
+
+#[test]
+fn unreferenced_nodes_name_the_scene_key() {
+    link();
+    let dir = temp_dir("loose");
+    // a one-tet mesh with a fifth node that no tet uses
+    let mesh = dir.join("loose.node");
+    std::fs::write(&mesh, "5 3 0 0\n0 0 0 0\n1 0.01 0 0\n2 0 0.01 0\n3 0 0 0.01\n4 1 1 1\n").unwrap();
+    std::fs::write(dir.join("loose.ele"), "1 4 0\n0 0 1 2 3\n").unwrap();
+    let text = "[mesh]\nfile = \"loose.node\"\n[[material]]\nlaw = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }\n[solver]\nduration = 0.01\n";
+    let e = Scene::from_toml_str(text, &dir).unwrap().build().unwrap_err().to_string();
+    assert!(e.contains("<scene>:1: [mesh]: 1 node(s) belong to no tet") && e.contains("ids 4"), "{e}");
+    assert!(e.contains("`pin_unreferenced = true` in [mesh]") && !e.contains(".pin_unreferenced()"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_killed_writer_leaves_no_temporary_for_the_next_run() {
+    link();
+    let dir = temp_dir("stale");
+    // what a kill -9 between creating and renaming a frame leaves: an empty
+    // temporary of a process that is gone (pid above Linux's pid_max)
+    let stale = dir.join(".frame_00002.vtu.tmp-4194305-0");
+    std::fs::write(&stale, b"").unwrap();
+    let text = format!("{BASE}dt = 1e-3\n[output]\ndir = {:?}\n", dir.to_string_lossy());
+    Scene::from_toml_str(&text, ".").unwrap().build().unwrap().run(|_| {}).unwrap();
+    if Path::new("/proc/self").exists() {
+        assert!(!stale.exists(), "stale temporary kept");
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty() || !Path::new("/proc/self").exists(), "{leftovers:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn keyframed_prescribed_motion_goes_down_and_back_up_adaptively() {
+    link();
+    let dir = temp_dir("keyframes");
+    // press the top of the cube 4 mm down over 0.05 s, release by 0.1 s
+    let text = format!(
+        "{BASE}[[fix]]\nplane = {{ point = [0, 0, 0], normal = [0, 0, 1] }}\n[[prescribe]]\n\
+         plane = {{ point = [0, 0, 0.02], normal = [0, 0, 1] }}\n\
+         keyframes = [[0.05, 0, 0, -0.004], [0.1, 0, 0, 0]]\n[damping]\nmass = 50.0\n[output]\ndir = {:?}\nvtu = false\n",
+        dir.to_string_lossy()
+    )
+    .replace("duration = 0.01", "duration = 0.15");
+    let scene = Scene::from_toml_str(&text, ".").unwrap();
+    let mut sim = scene.build().unwrap();
+    assert_eq!(sim.dt_policy, TimeStepPolicy::Adapt);
+    let p = sim.system.constraints().prescribed[0].clone();
+    assert_eq!(p.displacement, Vec3::new(0.0, 0.0, -0.004));
+    let s = sim.run(|_| {}).unwrap();
+    // back at rest: the plate returned, and the time is exact
+    let i = p.node;
+    assert!((sim.system.positions()[i] - sim.system.rest_positions()[i]).norm() < 1e-15);
+    assert!((s.time - 0.15).abs() < 1e-12, "{}", s.time);
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    let reasons: Vec<&str> = csv.lines().skip(1).map(|l| l.rsplit(',').next().unwrap()).collect();
+    assert!(reasons.iter().all(|r| ["base", "stiffness", "recovering"].contains(r)), "{reasons:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

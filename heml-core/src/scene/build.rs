@@ -182,6 +182,20 @@ impl Scene {
             .map_err(|e| HemlError::Invalid(format!("{solver_what}: {e}{}", registry_hint(integrators().is_empty()))))?
             .instantiate();
 
+        if !self.mesh.pin_unreferenced {
+            let loose = mesh.unreferenced_nodes();
+            if !loose.is_empty() {
+                let listed: Vec<String> = loose.iter().take(20).map(|i| i.to_string()).collect();
+                return invalid(format!(
+                    "{}: {} node(s) belong to no tet and would have no mass: ids {}{} (remove them from \
+                     the file, or set `pin_unreferenced = true` in [mesh] to hold them in place)",
+                    self.table_name("mesh"),
+                    loose.len(),
+                    listed.join(", "),
+                    if loose.len() > 20 { ", …" } else { "" }
+                ));
+            }
+        }
         let mut b = SystemBuilder::new(internal_mesh);
         if let Some(p) = &node_order {
             b = b.input_node_ids(p.new_to_old.clone());
@@ -210,6 +224,14 @@ impl Scene {
         let mut untagged = None;
         for (i, m) in self.materials.iter().enumerate() {
             let what = self.entry_name("material", i);
+            if let Some(tag) = m.tag {
+                if !mesh.tags().contains(&tag) {
+                    let mut tags = mesh.tags().to_vec();
+                    tags.sort_unstable();
+                    tags.dedup();
+                    return invalid(format!("{what}: tag = {tag} has no tets (the mesh's tags are {tags:?})"));
+                }
+            }
             if m.tag.is_none() {
                 if let Some(first) = untagged {
                     return invalid(format!(
@@ -222,13 +244,36 @@ impl Scene {
             }
             b = add_material(b, m).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         }
+        // which entry holds each node (file ids), to name both entries of a conflict
+        let mut holder: Vec<Option<(&str, usize)>> = vec![None; mesh.n_nodes()];
+        let mut hold = |table: &'static str, i: usize, ids: &[usize]| -> Result<()> {
+            for &id in ids {
+                match holder[id] {
+                    Some((t, j)) if t == "prescribe" || table == "prescribe" => {
+                        return invalid(format!(
+                            "{}: node {id} is already {} by {}; a node is fixed or prescribed once",
+                            self.entry_name(table, i),
+                            if t == "fix" { "fixed" } else { "prescribed" },
+                            self.entry_name(t, j)
+                        ));
+                    }
+                    Some(_) => {}
+                    None => holder[id] = Some((table, i)),
+                }
+            }
+            Ok(())
+        };
         for (i, f) in self.fix.iter().enumerate() {
             let what = self.entry_name("fix", i);
-            b = b.fix_nodes(to_internal(f.selection(&what)?.resolve(&what, &mesh)?));
+            let ids = f.selection(&what)?.resolve(&what, &mesh)?;
+            hold("fix", i, &ids)?;
+            b = b.fix_nodes(to_internal(ids));
         }
         for (i, p) in self.prescribe.iter().enumerate() {
             let what = self.entry_name("prescribe", i);
-            let ids = to_internal(p.selection(&what)?.resolve(&what, &mesh)?);
+            let ids = p.selection(&what)?.resolve(&what, &mesh)?;
+            hold("prescribe", i, &ids)?;
+            let ids = to_internal(ids);
             let (displacement, ramp) = prescribed_motion(p, &what)?;
             b = b.prescribe(&ids, displacement, ramp);
         }
@@ -269,9 +314,16 @@ impl Scene {
         let requested = match s.dt {
             Some(dt) => dt,
             None if stable.is_finite() => stable,
+            None if (0..system.mesh().n_nodes()).any(|i| system.is_free(i)) => {
+                return invalid(format!(
+                    "{solver_what}: no dt given, and the stable estimate is {stable}: the materials give no \
+                     stiffness at rest (a zero modulus or spring constant in [[material]] params?): fix the \
+                     parameters, or set dt"
+                ))
+            }
             None => {
                 return invalid(format!(
-                    "{solver_what}: no dt given and no stable estimate (no free node?): set dt"
+                    "{solver_what}: no dt given, and no stable estimate: every node is fixed or prescribed; set dt"
                 ))
             }
         };
@@ -362,10 +414,28 @@ impl Scene {
     }
 }
 
+/// Largest coordinate (m) a converted mesh may have: the laws work with squared
+/// edge lengths and their products, which overflow f64 (1.8e308) above ~1e77 m; a
+/// body of 1e50 m is already far outside any physical use.
+const MAX_COORDINATE: f64 = 1e50;
+
 fn finish_mesh(mut data: MeshData, scale: f64, translate: [f64; 3], what: &str) -> Result<TetMesh> {
     let t = Vec3::from(translate);
     for p in &mut data.nodes {
         *p = *p * scale + t;
+    }
+    // `!(a <= b)` so that NaN and ∞ fail too
+    if let Some((i, p)) = data
+        .nodes
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !(p.amax() <= MAX_COORDINATE))
+    {
+        return invalid(format!(
+            "{what}: node {i} is at {:?} m after `scale`/`units` ({scale:e}) and `translate`: coordinates \
+             beyond {MAX_COORDINATE:e} m overflow the squared lengths the laws compute; check `scale` or `units`",
+            p.as_slice()
+        ));
     }
     data.into_mesh().map_err(|e| HemlError::Invalid(format!("{what}: {e}")))
 }

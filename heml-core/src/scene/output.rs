@@ -60,6 +60,7 @@ impl Output {
         node_order: Option<&Permutation>,
     ) -> Result<Output> {
         std::fs::create_dir_all(dir).map_err(|e| HemlError::io(dir, e))?;
+        crate::io::atomic::remove_stale_temporaries(dir);
         let pvd = if vtu {
             Some(PvdWriter::create(dir.join("frames.pvd"))?)
         } else {
