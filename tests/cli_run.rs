@@ -42,7 +42,9 @@ fn csv_rows(dir: &Path, last_may_blow_up: bool) -> Vec<Vec<f64>> {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm,dt,dt_reason")
+        Some(
+            "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm,dt,dt_reason"
+        )
     );
     // the last column (dt_reason) is a word: the numbers are the first 12
     let rows: Vec<Vec<f64>> = lines

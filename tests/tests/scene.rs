@@ -471,13 +471,21 @@ fn kidney_crush_and_release_at_default_settings() {
     scene.output.dir = Some(dir.to_string_lossy().into_owned());
     scene.output.vtu = false;
     let mut sim = scene.build().unwrap();
-    assert_eq!(sim.dt_policy, TimeStepPolicy::Adapt, "prescribed motion defaults to adapt");
+    assert_eq!(
+        sim.dt_policy,
+        TimeStepPolicy::Adapt,
+        "prescribed motion defaults to adapt"
+    );
     let (lo, hi) = sim.system.mesh().bounding_box();
     let height = hi.x - lo.x;
     // the plate goes down to 10 % of the thickness: plate nodes start within 2 mm of
     // the top and move by 0.9 of the height
     let p = &sim.system.constraints().prescribed[0];
-    assert!((p.displacement.x + 0.9 * height).abs() < 1e-4 * height, "{:?}", p.displacement);
+    assert!(
+        (p.displacement.x + 0.9 * height).abs() < 1e-4 * height,
+        "{:?}",
+        p.displacement
+    );
     let summary = sim.run(|_| {}).expect("the crush must finish with no NaN");
     eprintln!("kidney crush: {summary}");
     let min_j = summary.min_j.expect("the adaptive run reports min J");
@@ -486,13 +494,19 @@ fn kidney_crush_and_release_at_default_settings() {
     assert!(min_j < 0.4, "min J {min_j}");
     assert!(summary.dt_range.0 < 0.5 * summary.dt_range.1, "{:?}", summary.dt_range);
     let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
-    assert!(csv.lines().any(|l| l.ends_with(",stiffness")), "no row limited by stiffness");
+    assert!(
+        csv.lines().any(|l| l.ends_with(",stiffness")),
+        "no row limited by stiffness"
+    );
     assert!(!csv.contains("NaN") && !csv.contains("inf"));
     // recovered: after the release and 2 s of damping the RMS displacement is below
     // 1 % of the height (the criterion)
     let u = sim.system.displacements();
     let rms = (u.iter().map(|d| d.norm_squared()).sum::<f64>() / u.len() as f64).sqrt();
-    eprintln!("kidney crush: min J {min_j:.3}, RMS displacement after release {:.3e} of the height", rms / height);
+    eprintln!(
+        "kidney crush: min J {min_j:.3}, RMS displacement after release {:.3e} of the height",
+        rms / height
+    );
     assert!(rms < 1e-2 * height, "RMS displacement {rms:e} m, height {height:e} m");
     // the same crush with the step fixed at the rest estimate (the old default) blows up
     scene.solver.dt_policy = Some(TimeStepPolicy::Warn);
@@ -577,10 +591,13 @@ fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
     link();
     // 1e11 steps: refused before anything is built, naming the key
     let e = err_of(&BASE.replace("duration = 0.01", "duration = 1e5\ndt = 1e-6"));
-    assert!(e.contains("<scene>:9: [solver]") && e.contains("max_steps = 100000000"), "{e}");
+    assert!(
+        e.contains("<scene>:9: [solver]") && e.contains("max_steps = 100000000"),
+        "{e}"
+    );
     // raised limit, but a frame per step over 1e6 steps of a 27-node box: ~5 GB
-    let text = BASE.replace("duration = 0.01", "duration = 100.1\ndt = 1e-4\nmax_steps = 2000000")
-        + "[output]\nevery = 1\n";
+    let text =
+        BASE.replace("duration = 0.01", "duration = 100.1\ndt = 1e-4\nmax_steps = 2000000") + "[output]\nevery = 1\n";
     let e = err_of(&format!("{text}max_output_bytes = 1000000000\n"));
     assert!(e.contains("[output]") && e.contains("max_output_bytes = 1.0 GB"), "{e}");
     // under the hard limits, over the warning thresholds: built, with both warnings
@@ -590,8 +607,16 @@ fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
         .unwrap();
     let p = &sim.plan;
     assert_eq!((p.steps, p.frames, p.csv_rows), (1_001_000, 1_001_001, 1_001_001));
-    assert!(p.warnings.iter().any(|w| w.contains("warn_steps = 1000000")), "{:?}", p.warnings);
-    assert!(p.warnings.iter().any(|w| w.contains("warn_output_bytes")), "{:?}", p.warnings);
+    assert!(
+        p.warnings.iter().any(|w| w.contains("warn_steps = 1000000")),
+        "{:?}",
+        p.warnings
+    );
+    assert!(
+        p.warnings.iter().any(|w| w.contains("warn_output_bytes")),
+        "{:?}",
+        p.warnings
+    );
     // and the estimate matches what a run writes (within 10 %: the XML header and
     // the CSV's number widths vary)
     let dir = temp_dir("plan");
@@ -609,7 +634,11 @@ fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
         .map(|f| f.unwrap().metadata().unwrap().len())
         .sum();
     let ratio = plan.est_bytes as f64 / written as f64;
-    assert!((0.9..1.1).contains(&ratio), "estimated {} B, written {written} B", plan.est_bytes);
+    assert!(
+        (0.9..1.1).contains(&ratio),
+        "estimated {} B, written {written} B",
+        plan.est_bytes
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -617,15 +646,27 @@ fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
 fn scene_messages_name_the_key_and_line() {
     // scale = 1e300: the overflow is blamed on `scale`, not on a default tolerance
     let e = err_of(&BASE.replace("cells = [2, 2, 2] }", "cells = [2, 2, 2] }\nscale = 1e300"));
-    assert!(e.contains("<scene>:2: [mesh]") && e.contains("check `scale` or `units`"), "{e}");
+    assert!(
+        e.contains("<scene>:2: [mesh]") && e.contains("check `scale` or `units`"),
+        "{e}"
+    );
     assert!(!e.contains("tolerance"), "{e}");
     // a spring constant of zero: no stable estimate, and the message says why
-    let spring = BASE.replace("law = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }", "law = \"mass_spring\"\nparams = { k = 0.0 }");
+    let spring = BASE.replace(
+        "law = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }",
+        "law = \"mass_spring\"\nparams = { k = 0.0 }",
+    );
     let e = err_of(&spring);
-    assert!(e.contains("<scene>:9: [solver]") && e.contains("no stiffness at rest"), "{e}");
+    assert!(
+        e.contains("<scene>:9: [solver]") && e.contains("no stiffness at rest"),
+        "{e}"
+    );
     // a wrong value type names its key (and its line)
     let e = err_of(&BASE.replace("E = 3e3", "E = \"1.0\""));
-    assert!(e.contains("<scene>:7:") && e.contains("`E`: invalid type: string \"1.0\""), "{e}");
+    assert!(
+        e.contains("<scene>:7:") && e.contains("`E`: invalid type: string \"1.0\""),
+        "{e}"
+    );
     // a node both fixed and prescribed: both entries named, with their lines
     let e = err_of(&format!(
         "{BASE}[[fix]]\nnodes = [0, 1]\n[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.001]\nramp = {{ kind = \"step\" }}\n"
@@ -636,14 +677,22 @@ fn scene_messages_name_the_key_and_line() {
     );
     // a material tag the mesh does not have: the entry and its line
     let e = err_of(&BASE.replace("law = \"neo_hookean\"", "law = \"neo_hookean\"\ntag = 9"));
-    assert!(e.contains("<scene>:5: [[material]] #1: tag = 9 has no tets (the mesh's tags are [0])"), "{e}");
+    assert!(
+        e.contains("<scene>:5: [[material]] #1: tag = 9 has no tets (the mesh's tags are [0])"),
+        "{e}"
+    );
     // keyframes: one direction, increasing times
     let kf = |k: &str| format!("{BASE}[[prescribe]]\nnodes = [1]\nkeyframes = {k}\n");
     let e = err_of(&kf("[[1.0, 0, 0, 0.01], [2.0, 0.01, 0, 0]]"));
-    assert!(e.contains("[[prescribe]] #1: keyframes: keyframe #1") && e.contains("one direction"), "{e}");
+    assert!(
+        e.contains("[[prescribe]] #1: keyframes: keyframe #1") && e.contains("one direction"),
+        "{e}"
+    );
     let e = err_of(&kf("[[1.0, 0, 0, 0.01], [1.0, 0, 0, 0]]"));
     assert!(e.contains("times must increase strictly"), "{e}");
-    let e = err_of(&format!("{BASE}[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.01]\n"));
+    let e = err_of(&format!(
+        "{BASE}[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.01]\n"
+    ));
     assert!(e.contains("`displacement` needs a `ramp`"), "{e}");
 }
 
@@ -656,9 +705,19 @@ fn unreferenced_nodes_name_the_scene_key() {
     std::fs::write(&mesh, "5 3 0 0\n0 0 0 0\n1 0.01 0 0\n2 0 0.01 0\n3 0 0 0.01\n4 1 1 1\n").unwrap();
     std::fs::write(dir.join("loose.ele"), "1 4 0\n0 0 1 2 3\n").unwrap();
     let text = "[mesh]\nfile = \"loose.node\"\n[[material]]\nlaw = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }\n[solver]\nduration = 0.01\n";
-    let e = Scene::from_toml_str(text, &dir).unwrap().build().unwrap_err().to_string();
-    assert!(e.contains("<scene>:1: [mesh]: 1 node(s) belong to no tet") && e.contains("ids 4"), "{e}");
-    assert!(e.contains("`pin_unreferenced = true` in [mesh]") && !e.contains(".pin_unreferenced()"), "{e}");
+    let e = Scene::from_toml_str(text, &dir)
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("<scene>:1: [mesh]: 1 node(s) belong to no tet") && e.contains("ids 4"),
+        "{e}"
+    );
+    assert!(
+        e.contains("`pin_unreferenced = true` in [mesh]") && !e.contains(".pin_unreferenced()"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -671,7 +730,12 @@ fn a_killed_writer_leaves_no_temporary_for_the_next_run() {
     let stale = dir.join(".frame_00002.vtu.tmp-4194305-0");
     std::fs::write(&stale, b"").unwrap();
     let text = format!("{BASE}dt = 1e-3\n[output]\ndir = {:?}\n", dir.to_string_lossy());
-    Scene::from_toml_str(&text, ".").unwrap().build().unwrap().run(|_| {}).unwrap();
+    Scene::from_toml_str(&text, ".")
+        .unwrap()
+        .build()
+        .unwrap()
+        .run(|_| {})
+        .unwrap();
     if Path::new("/proc/self").exists() {
         assert!(!stale.exists(), "stale temporary kept");
     }
@@ -680,7 +744,10 @@ fn a_killed_writer_leaves_no_temporary_for_the_next_run() {
         .filter_map(|e| e.ok())
         .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
         .collect();
-    assert!(leftovers.is_empty() || !Path::new("/proc/self").exists(), "{leftovers:?}");
+    assert!(
+        leftovers.is_empty() || !Path::new("/proc/self").exists(),
+        "{leftovers:?}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -708,6 +775,9 @@ fn keyframed_prescribed_motion_goes_down_and_back_up_adaptively() {
     assert!((s.time - 0.15).abs() < 1e-12, "{}", s.time);
     let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
     let reasons: Vec<&str> = csv.lines().skip(1).map(|l| l.rsplit(',').next().unwrap()).collect();
-    assert!(reasons.iter().all(|r| ["base", "stiffness", "recovering"].contains(r)), "{reasons:?}");
+    assert!(
+        reasons.iter().all(|r| ["base", "stiffness", "recovering"].contains(r)),
+        "{reasons:?}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -229,7 +229,9 @@ impl Scene {
                     let mut tags = mesh.tags().to_vec();
                     tags.sort_unstable();
                     tags.dedup();
-                    return invalid(format!("{what}: tag = {tag} has no tets (the mesh's tags are {tags:?})"));
+                    return invalid(format!(
+                        "{what}: tag = {tag} has no tets (the mesh's tags are {tags:?})"
+                    ));
                 }
             }
             if m.tag.is_none() {
@@ -452,15 +454,24 @@ fn prescribed_motion(p: &PrescribeSpec, what: &str) -> Result<(Vec3, Ramp)> {
         }
         (None, None, Some(k)) => keyframed(k).map_err(|e| HemlError::Invalid(format!("{what}: keyframes: {e}")))?,
         (None, Some(_), None) => return invalid(format!("{what}: `ramp` without `displacement`")),
-        (Some(_), None, None) => return invalid(format!(
-            "{what}: `displacement` needs a `ramp` (e.g. ramp = {{ kind = \"smooth\", duration = 1.0 }})"
-        )),
-        (None, None, None) => return invalid(format!(
-            "{what}: give `displacement` with `ramp`, or `keyframes = [[t, ux, uy, uz], ...]`"
-        )),
-        _ => return invalid(format!("{what}: give `displacement` with `ramp`, or `keyframes`, not both")),
+        (Some(_), None, None) => {
+            return invalid(format!(
+                "{what}: `displacement` needs a `ramp` (e.g. ramp = {{ kind = \"smooth\", duration = 1.0 }})"
+            ))
+        }
+        (None, None, None) => {
+            return invalid(format!(
+                "{what}: give `displacement` with `ramp`, or `keyframes = [[t, ux, uy, uz], ...]`"
+            ))
+        }
+        _ => {
+            return invalid(format!(
+                "{what}: give `displacement` with `ramp`, or `keyframes`, not both"
+            ))
+        }
     };
-    ramp.validate().map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
+    ramp.validate()
+        .map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
     Ok((u, ramp))
 }
 
@@ -472,7 +483,11 @@ fn keyframed(k: &[[f64; 4]]) -> std::result::Result<(Vec3, Ramp), String> {
         return Err("every time and displacement must be finite".into());
     }
     let u = |r: &[f64; 4]| Vec3::new(r[1], r[2], r[3]);
-    let top = k.iter().map(u).max_by(|a, b| a.norm().total_cmp(&b.norm())).unwrap_or_else(Vec3::zeros);
+    let top = k
+        .iter()
+        .map(u)
+        .max_by(|a, b| a.norm().total_cmp(&b.norm()))
+        .unwrap_or_else(Vec3::zeros);
     let n2 = top.norm_squared();
     let mut points = Vec::with_capacity(k.len());
     for (i, row) in k.iter().enumerate() {

@@ -118,8 +118,13 @@ impl Simulation {
         if let Err(e) = sys.compute_forces() {
             return Err(fail(&mut out, sys, e));
         }
-        let mut adapt = (self.dt_policy == TimeStepPolicy::Adapt).then(|| AdaptiveStep::new(sys, self.dt, self.adapt_every));
-        let first_reason = if adapt.is_some() { DtReason::Base } else { DtReason::Fixed };
+        let mut adapt =
+            (self.dt_policy == TimeStepPolicy::Adapt).then(|| AdaptiveStep::new(sys, self.dt, self.adapt_every));
+        let first_reason = if adapt.is_some() {
+            DtReason::Base
+        } else {
+            DtReason::Fixed
+        };
         if out.wants_csv() {
             let e = sys.energies()?;
             out.row(sys, &e, self.dt, first_reason);
@@ -181,7 +186,11 @@ impl Simulation {
                         hit
                     };
                     let last = t >= self.duration - tol;
-                    (last, due(&mut next_row, row_span) || last, due(&mut next_frame, frame_span) || last)
+                    (
+                        last,
+                        due(&mut next_row, row_span) || last,
+                        due(&mut next_frame, frame_span) || last,
+                    )
                 }
             };
             if out.wants_csv() && row_due {

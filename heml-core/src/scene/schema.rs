@@ -245,7 +245,7 @@ pub struct SolverSpec {
     /// `adapt` when the scene has `[[prescribe]]` motion (tools press tissue hard),
     /// `warn` otherwise.
     pub dt_policy: Option<TimeStepPolicy>,
-    /// Steps between two re-estimates of the adaptive step (default 10).
+    /// Steps between two re-estimates of the adaptive step (default 20).
     pub adapt_every: Option<u64>,
     /// Steps above which the run starts with a warning (default 1e6).
     pub warn_steps: Option<u64>,

@@ -223,9 +223,15 @@ mod tests {
             points: vec![[1.0, 1.0], [2.0, 1.0], [3.0, 0.0]],
         };
         k.validate().unwrap();
-        assert_eq!((k.value(-1.0), k.value(0.5), k.value(1.5), k.value(2.25)), (0.0, 0.5, 1.0, 0.75));
+        assert_eq!(
+            (k.value(-1.0), k.value(0.5), k.value(1.5), k.value(2.25)),
+            (0.0, 0.5, 1.0, 0.75)
+        );
         assert_eq!((k.value(3.0), k.value(9.0)), (0.0, 0.0));
-        assert_eq!((k.rate(0.5), k.rate(1.5), k.rate(2.5), k.rate(3.5)), (1.0, 0.0, -1.0, 0.0));
+        assert_eq!(
+            (k.rate(0.5), k.rate(1.5), k.rate(2.5), k.rate(3.5)),
+            (1.0, 0.0, -1.0, 0.0)
+        );
         // the rate is the derivative of the value inside each interval
         let h = 1e-6;
         for t in [0.3, 1.7, 2.4] {
