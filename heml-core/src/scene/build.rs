@@ -426,12 +426,12 @@ fn finish_mesh(mut data: MeshData, scale: f64, translate: [f64; 3], what: &str) 
     for p in &mut data.nodes {
         *p = *p * scale + t;
     }
-    // `!(a <= b)` so that NaN and ∞ fail too
+    // NaN compares as None: it fails too
     if let Some((i, p)) = data
         .nodes
         .iter()
         .enumerate()
-        .find(|(_, p)| !(p.amax() <= MAX_COORDINATE))
+        .find(|(_, p)| p.amax().partial_cmp(&MAX_COORDINATE) != Some(std::cmp::Ordering::Less))
     {
         return invalid(format!(
             "{what}: node {i} is at {:?} m after `scale`/`units` ({scale:e}) and `translate`: coordinates \

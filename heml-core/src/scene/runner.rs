@@ -174,7 +174,11 @@ impl Simulation {
             let (last, row_due, frame_due) = match adapt {
                 None => {
                     let last = k == self.steps;
-                    (last, k % self.csv_every == 0 || last, k % self.frame_every == 0 || last)
+                    (
+                        last,
+                        k.is_multiple_of(self.csv_every) || last,
+                        k.is_multiple_of(self.frame_every) || last,
+                    )
                 }
                 Some(_) => {
                     let t = sys.time();
