@@ -8,12 +8,13 @@
 //! parallel pass over the tets and a handful of stress evaluations per region:
 //!
 //! * per tet, the deformation gradient F = D_s D_m⁻¹ (D_m⁻¹ stored once), J = det F
-//!   and tr C = |F|²; the smallest principal stretch is bounded from below by
-//!   λ_min ≥ 2J / tr C (since λ₁ = J/(λ₂λ₃) and λ₂λ₃ ≤ (λ₂² + λ₃²)/2), the largest
-//!   from above by √tr C; the region keeps the extremes (λ_min, λ_max, J_min, J_max);
+//!   and tr C = |F|²; the region keeps J_min and the largest tr C, which bound
+//!   every principal stretch of its tets between the two uniaxial stretches with
+//!   these invariants (`stretch_bounds`; exact at rest and in uniaxial squeeze);
 //! * the law's tangent ∂P_ii/∂F_ii (central differences of [`Material::stress`],
 //!   with the system's J0 extension) at the deformations those extremes describe — a
-//!   uniaxial squeeze diag(λ_min, a, a) keeping J_min, a uniaxial stretch at λ_max,
+//!   uniaxial squeeze diag(λ_min, a, a) and the uniaxial stretch diag(λ_max, b, b)
+//!   at J_min,
 //!   a pure volume change J_min^⅓ I, and rest — gives the largest modulus A;
 //! * the undamped step is [`WAVE_FACTOR`]·h_min / √(A/ρ₀) with the rest heights and
 //!   density (a reference-configuration wave speed), reduced for damping and
@@ -93,35 +94,21 @@ struct RegionGeometry {
 /// Extremes of the deformation over a region's tets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Stretches {
-    /// Lower bound of the smallest principal stretch (2J / tr C).
-    lambda_min: f64,
-    /// Upper bound of the largest principal stretch (√tr C).
-    lambda_max: f64,
+    /// Largest tr C = |F|².
+    tr_c_max: f64,
     /// Smallest J.
     j_min: f64,
-    /// Largest J.
-    j_max: f64,
 }
 
 impl Stretches {
     const REST: Stretches = Stretches {
-        lambda_min: 1.0,
-        lambda_max: 1.0,
+        tr_c_max: 3.0,
         j_min: 1.0,
-        j_max: 1.0,
     };
-    fn map_lambda_max(self, f: impl Fn(f64) -> f64) -> Stretches {
-        Stretches {
-            lambda_max: f(self.lambda_max),
-            ..self
-        }
-    }
     fn merge(self, o: Stretches) -> Stretches {
         Stretches {
-            lambda_min: self.lambda_min.min(o.lambda_min),
-            lambda_max: self.lambda_max.max(o.lambda_max),
+            tr_c_max: self.tr_c_max.max(o.tr_c_max),
             j_min: self.j_min.min(o.j_min),
-            j_max: self.j_max.max(o.j_max),
         }
     }
 }
@@ -183,16 +170,12 @@ impl DeformedEstimate {
                     let j = f0.dot(&f1.cross(&f2));
                     let tr_c = f0.norm_squared() + f1.norm_squared() + f2.norm_squared();
                     Stretches {
-                        lambda_min: acc.lambda_min.min(2.0 * j / tr_c),
-                        lambda_max: acc.lambda_max.max(tr_c),
+                        tr_c_max: acc.tr_c_max.max(tr_c),
                         j_min: acc.j_min.min(j),
-                        j_max: acc.j_max.max(j),
                     }
                 },
             )
             .reduce(|| Stretches::REST, Stretches::merge)
-            // λ_max was accumulated as tr C
-            .map_lambda_max(f64::sqrt)
     }
 
     /// The stable step of the current state (safety and damping applied, like
@@ -225,17 +208,39 @@ impl DeformedEstimate {
 /// frozen below J0, so the floor only keeps the probes finite.
 fn largest_modulus(material: &dyn Material, s: &Stretches, opts: &ForceOptions) -> f64 {
     const FLOOR: f64 = 1e-3;
-    let l = s.lambda_min.clamp(FLOOR, 1.0);
     let j = s.j_min.clamp(FLOOR, 1.0);
+    let (l, big) = stretch_bounds(s.tr_c_max.max(3.0 * j.powf(2.0 / 3.0)), j);
+    let l = l.max(FLOOR);
     let squeeze = Matrix3::from_diagonal(&nalgebra::Vector3::new(l, (j / l).sqrt(), (j / l).sqrt()));
-    let big = s.lambda_max.max(1.0);
-    let jx = s.j_max.max(1.0);
-    let stretch = Matrix3::from_diagonal(&nalgebra::Vector3::new(big, (jx / big).sqrt(), (jx / big).sqrt()));
+    let stretch = Matrix3::from_diagonal(&nalgebra::Vector3::new(big, (j / big).sqrt(), (j / big).sqrt()));
     let volume = Matrix3::identity() * j.cbrt();
     [squeeze, stretch, volume, Matrix3::identity()]
         .iter()
         .map(|f| diagonal_tangent(material, f, opts))
         .fold(0.0, f64::max)
+}
+
+/// Bounds of the principal stretches of any deformation with tr C ≤ `tr_c` and
+/// J ≥ `j` > 0: λ₁ has λ₂λ₃ = J/λ₁ and λ₂² + λ₃² = tr C − λ₁² ≥ 2λ₂λ₃, so every
+/// stretch λ satisfies g(λ) = λ² + 2J/λ ≤ tr C, and lies between the two positive
+/// roots of g = tr C — the uniaxial states diag(λ, b, b) with these invariants. Both
+/// are found by Newton's method on the convex g, from 2J/tr C (left of the small
+/// root) and from √tr C (right of the large one), which converges monotonically. At
+/// rest (3, 1) both are 1.
+fn stretch_bounds(tr_c: f64, j: f64) -> (f64, f64) {
+    let newton = |mut l: f64| {
+        for _ in 0..100 {
+            let f = l * l + 2.0 * j / l - tr_c;
+            let df = 2.0 * l - 2.0 * j / (l * l);
+            let step = f / df;
+            if !(step.is_finite() && step.abs() > 1e-14 * l) {
+                break;
+            }
+            l -= step;
+        }
+        l
+    };
+    (newton(2.0 * j / tr_c).min(1.0), newton(tr_c.sqrt()).max(1.0))
 }
 
 /// max_i ∂P_ii/∂F_ii at `f` by central differences (relative step 1e-6: truncation
@@ -312,11 +317,17 @@ impl AdaptiveStep {
             e
         };
         self.last = e;
-        let target = predicted.min(self.base);
+        // within 1e-6 of the base: the finite-difference tangents' accuracy at rest
+        let target = if predicted >= self.base * (1.0 - 1e-6) {
+            self.base
+        } else {
+            predicted
+        };
         let before = self.dt;
         if target < self.dt {
             self.dt = target;
-        } else if target >= RAISE * self.dt {
+        } else if target >= RAISE * self.dt || (target == self.base && self.dt < self.base) {
+            // (the base itself is reached even from within the band)
             self.dt = (self.dt * RAISE).min(target);
         }
         self.reason = if self.dt >= self.base {
