@@ -436,10 +436,10 @@ fn err_of_in(text: &str, dir: &Path) -> String {
 
 /// `shared/meshes` of the mesh collection that sits next to the repository checkout
 /// (`<workspace>/../shared/meshes`; in a git worktree one level further up), or
-/// `$HEML_SHARED_MESHES`. Panics with a clear message when absent: the tests that
+/// `$HEML_MESHES`. Panics with a clear message when absent: the tests that
 /// need it must not pass silently.
 fn shared_meshes() -> PathBuf {
-    if let Some(dir) = std::env::var_os("HEML_SHARED_MESHES") {
+    if let Some(dir) = std::env::var_os("HEML_MESHES") {
         return PathBuf::from(dir);
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -447,7 +447,7 @@ fn shared_meshes() -> PathBuf {
     candidates.iter().find(|d| d.is_dir()).cloned().unwrap_or_else(|| {
         panic!(
             "this test needs the shared mesh collection: ../shared/meshes next to the checkout \
-             (looked in {candidates:?}); set HEML_SHARED_MESHES to its path"
+             (looked in {candidates:?}); set HEML_MESHES to its path"
         )
     })
 }
