@@ -162,7 +162,16 @@ impl Simulation {
                     let stop = (next_frame as f64 * frame_span)
                         .min(next_row as f64 * row_span)
                         .min(self.duration);
-                    let step = if t + dt >= stop - tol { stop - t } else { dt };
+                    // land on the stop; split the last stretch in two rather than
+                    // leave a sliver of a step before it
+                    let rem = stop - t;
+                    let step = if rem <= dt + tol {
+                        rem
+                    } else if rem < 1.5 * dt {
+                        0.5 * rem
+                    } else {
+                        dt
+                    };
                     (step, dt, reason)
                 }
             };
