@@ -420,7 +420,10 @@ fn renumbered_scenes_name_nodes_by_file_id() {
          [[fix]]\nnodes = [{k}]\n"
     );
     let e = err_of_in(&both, &dir);
-    assert!(e.contains(&format!("node {k} is both fixed and prescribed")), "{e}");
+    assert!(
+        e.contains(&format!("[[prescribe]] #1: node {k} is already fixed by")) && e.contains("[[fix]] #2"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -429,4 +432,352 @@ fn err_of_in(text: &str, dir: &Path) -> String {
         Ok(_) => panic!("expected an error for:\n{text}"),
         Err(e) => e.to_string(),
     }
+}
+
+/// `shared/meshes` of the mesh collection that sits next to the repository checkout
+/// (`<workspace>/../shared/meshes`; in a git worktree one level further up), or
+/// `$HEML_MESHES`. Panics with a clear message when absent: the tests that
+/// need it must not pass silently.
+fn shared_meshes() -> PathBuf {
+    if let Some(dir) = std::env::var_os("HEML_MESHES") {
+        return PathBuf::from(dir);
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let candidates = [root.join("../shared/meshes"), root.join("../../shared/meshes")];
+    candidates.iter().find(|d| d.is_dir()).cloned().unwrap_or_else(|| {
+        panic!(
+            "this test needs the shared mesh collection: ../shared/meshes next to the checkout \
+             (looked in {candidates:?}); set HEML_MESHES to its path"
+        )
+    })
+}
+
+#[test]
+fn kidney_crush_and_release_at_default_settings() {
+    link();
+    let mut scene = Scene::from_file(scenes_dir().join("crush_kidney.toml")).unwrap();
+    scene.mesh.file = Some(
+        shared_meshes()
+            .join("msh/gen_kidney_2k.msh")
+            .to_string_lossy()
+            .into_owned(),
+    );
+    // default solver settings: nothing but the duration in [solver]
+    assert_eq!(scene.solver.dt, None);
+    assert_eq!(scene.solver.dt_policy, None);
+    assert_eq!(scene.solver.safety, None);
+    assert_eq!(scene.solver.integrator, "symplectic_euler");
+    let dir = temp_dir("crush");
+    scene.output.dir = Some(dir.to_string_lossy().into_owned());
+    scene.output.vtu = false;
+    let mut sim = scene.build().unwrap();
+    assert_eq!(
+        sim.dt_policy,
+        TimeStepPolicy::Adapt,
+        "prescribed motion defaults to adapt"
+    );
+    let (lo, hi) = sim.system.mesh().bounding_box();
+    let height = hi.x - lo.x;
+    // the plate goes down to 10 % of the thickness: plate nodes start within 2 mm of
+    // the top and move by 0.9 of the height
+    let p = &sim.system.constraints().prescribed[0];
+    assert!(
+        (p.displacement.x + 0.9 * height).abs() < 1e-4 * height,
+        "{:?}",
+        p.displacement
+    );
+    let summary = sim.run(|_| {}).expect("the crush must finish with no NaN");
+    eprintln!("kidney crush: {summary}");
+    let min_j = summary.min_j.expect("the adaptive run reports min J");
+    // really crushed (tets squeezed past inversion: the J0 extension pushes them
+    // back), and the step went down
+    assert!(min_j < 0.4, "min J {min_j}");
+    assert!(summary.dt_range.0 < 0.5 * summary.dt_range.1, "{:?}", summary.dt_range);
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    assert!(
+        csv.lines().any(|l| l.ends_with(",stiffness")),
+        "no row limited by stiffness"
+    );
+    assert!(!csv.contains("NaN") && !csv.contains("inf"));
+    // recovered: after the release and 2 s of damping the RMS displacement is below
+    // 1 % of the height (the issue's criterion)
+    let u = sim.system.displacements();
+    let rms = (u.iter().map(|d| d.norm_squared()).sum::<f64>() / u.len() as f64).sqrt();
+    eprintln!(
+        "kidney crush: min J {min_j:.3}, RMS displacement after release {:.3e} of the height",
+        rms / height
+    );
+    assert!(rms < 1e-2 * height, "RMS displacement {rms:e} m, height {height:e} m");
+    // the same crush with the step fixed at the rest estimate (the old default) blows up
+    scene.solver.dt_policy = Some(TimeStepPolicy::Warn);
+    let e = scene.build().unwrap().run(|_| {}).unwrap_err().to_string();
+    assert!(e.contains("non-finite") || e.contains("diverging"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The demo block (8 x 6 x 5 cm, clamped, gravity, a tool) as a scene text with the
+/// given `[solver]` and `[output]` lines.
+fn demo_block(solver: &str, output: &str) -> String {
+    let demo = std::fs::read_to_string(scenes_dir().join("demo.toml")).unwrap();
+    let head = demo.split("[solver]").next().unwrap();
+    format!("{head}[solver]\n{solver}\n[output]\n{output}\n")
+}
+
+#[test]
+fn a_blow_up_keeps_a_last_good_state_with_finite_forces() {
+    link();
+    let dir = temp_dir("blowup");
+    // dt = 2e-2 s, ~40x the stable estimate, with the check off: blows up in a few steps
+    let text = demo_block(
+        "duration = 1.0\ndt = 2e-2\ndt_policy = \"ignore\"",
+        &format!("dir = {:?}\nevery = 1", dir.to_string_lossy()),
+    );
+    let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+    let e = sim.run(|_| {}).unwrap_err().to_string();
+    assert!(e.contains("diverging") && e.contains("last good state"), "{e}");
+    // the state kept — and saved as the last frame — has finite positions,
+    // velocities and forces (the frame is written with the forces of that state)
+    sim.system
+        .compute_forces()
+        .expect("the last good state has finite forces");
+    let sys = &sim.system;
+    assert!(sys.step_count() >= 1, "{e}");
+    let finite = |a: &[Vec3]| a.iter().all(|v| v.iter().all(|c| c.is_finite()));
+    assert!(finite(sys.positions()) && finite(sys.velocities()) && finite(sys.forces()));
+    assert!(sys.energies().unwrap().total.is_finite());
+    // and displacements of the order of the body, not the 1e12 m of a state taken
+    // one step too late (a step may move a node by at most the body's diagonal,
+    // 0.11 m here)
+    let umax = sys.displacements().iter().map(|d| d.norm()).fold(0.0, f64::max);
+    let (lo, hi) = sys.mesh().bounding_box();
+    assert!(umax < (hi - lo).norm(), "max displacement {umax:e} m");
+    let frames = read_pvd(&dir.join("frames.pvd")).unwrap();
+    assert_eq!(frames.len() as u64, sys.step_count() + 1, "a frame per accepted step");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn energy_csv_is_appended_whole_rows_at_frame_boundaries() {
+    link();
+    let dir = temp_dir("csv");
+    let text = format!(
+        "{BASE}dt = 1e-4\n[output]\ndir = {:?}\nevery = 25\ncsv_every = 1\nvtu = false\n",
+        dir.to_string_lossy()
+    );
+    let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+    assert_eq!(sim.steps, 100);
+    let s = sim.run(|_| {}).unwrap();
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    // a row per step and one at t = 0, each complete, steps in order
+    assert_eq!(rows.len(), 101);
+    for (k, r) in rows.iter().enumerate() {
+        let cols: Vec<&str> = r.split(',').collect();
+        assert_eq!(cols.len(), 13, "{r}");
+        assert_eq!(cols[1].parse::<u64>().unwrap(), k as u64);
+        assert_eq!(cols[12], "fixed");
+    }
+    // appended, never rewritten: the bytes written are the file's length, in one
+    // write for the header and one per frame boundary (t = 0 and every 25 steps),
+    // not one per row — whereas rewriting the file at every frame would write
+    // ~2.5x its length here and grow quadratically with the run
+    assert_eq!(s.csv_bytes, csv.len() as u64);
+    assert_eq!(s.csv_writes, 1 + 1 + 100 / 25);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
+    link();
+    // 1e11 steps: refused before anything is built, naming the key
+    let e = err_of(&BASE.replace("duration = 0.01", "duration = 1e5\ndt = 1e-6"));
+    assert!(
+        e.contains("<scene>:9: [solver]") && e.contains("max_steps = 100000000"),
+        "{e}"
+    );
+    // raised limit, but a frame per step over 1e6 steps of a 27-node box: ~5 GB
+    let text =
+        BASE.replace("duration = 0.01", "duration = 100.1\ndt = 1e-4\nmax_steps = 2000000") + "[output]\nevery = 1\n";
+    let e = err_of(&format!("{text}max_output_bytes = 1000000000\n"));
+    assert!(e.contains("[output]") && e.contains("max_output_bytes = 1.0 GB"), "{e}");
+    // under the hard limits, over the warning thresholds: built, with both warnings
+    let sim = Scene::from_toml_str(&format!("{text}max_output_bytes = 100000000000\n"), ".")
+        .unwrap()
+        .build()
+        .unwrap();
+    let p = &sim.plan;
+    assert_eq!((p.steps, p.frames, p.csv_rows), (1_001_000, 1_001_001, 1_001_001));
+    assert!(
+        p.warnings.iter().any(|w| w.contains("warn_steps = 1000000")),
+        "{:?}",
+        p.warnings
+    );
+    assert!(
+        p.warnings.iter().any(|w| w.contains("warn_output_bytes")),
+        "{:?}",
+        p.warnings
+    );
+    // and the estimate matches what a run writes (within 10 %: the XML header and
+    // the CSV's number widths vary)
+    let dir = temp_dir("plan");
+    let text = format!(
+        "{BASE}dt = 1e-4\n[output]\ndir = {:?}\nevery = 10\n",
+        dir.to_string_lossy()
+    );
+    let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+    let plan = sim.plan.clone();
+    assert!(plan.warnings.is_empty() && !plan.adaptive);
+    let s = sim.run(|_| {}).unwrap();
+    assert_eq!(plan.frames, s.frames as u64);
+    let written: u64 = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|f| f.unwrap().metadata().unwrap().len())
+        .sum();
+    let ratio = plan.est_bytes as f64 / written as f64;
+    assert!(
+        (0.9..1.1).contains(&ratio),
+        "estimated {} B, written {written} B",
+        plan.est_bytes
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn scene_messages_name_the_key_and_line() {
+    // scale = 1e300: the overflow is blamed on `scale`, not on a default tolerance
+    let e = err_of(&BASE.replace("cells = [2, 2, 2] }", "cells = [2, 2, 2] }\nscale = 1e300"));
+    assert!(
+        e.contains("<scene>:2: [mesh]") && e.contains("check `scale` or `units`"),
+        "{e}"
+    );
+    assert!(!e.contains("tolerance"), "{e}");
+    // a spring constant of zero: no stable estimate, and the message says why
+    let spring = BASE.replace(
+        "law = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }",
+        "law = \"mass_spring\"\nparams = { k = 0.0 }",
+    );
+    let e = err_of(&spring);
+    assert!(
+        e.contains("<scene>:9: [solver]") && e.contains("no stiffness at rest"),
+        "{e}"
+    );
+    // a wrong value type names its key (and its line)
+    let e = err_of(&BASE.replace("E = 3e3", "E = \"1.0\""));
+    assert!(
+        e.contains("<scene>:7:") && e.contains("`E`: invalid type: string \"1.0\""),
+        "{e}"
+    );
+    // a node both fixed and prescribed: both entries named, with their lines
+    let e = err_of(&format!(
+        "{BASE}[[fix]]\nnodes = [0, 1]\n[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.001]\nramp = {{ kind = \"step\" }}\n"
+    ));
+    assert!(
+        e.contains("<scene>:13: [[prescribe]] #1: node 1 is already fixed by <scene>:11: [[fix]] #1"),
+        "{e}"
+    );
+    // a material tag the mesh does not have: the entry and its line
+    let e = err_of(&BASE.replace("law = \"neo_hookean\"", "law = \"neo_hookean\"\ntag = 9"));
+    assert!(
+        e.contains("<scene>:5: [[material]] #1: tag = 9 has no tets (the mesh's tags are [0])"),
+        "{e}"
+    );
+    // keyframes: one direction, increasing times
+    let kf = |k: &str| format!("{BASE}[[prescribe]]\nnodes = [1]\nkeyframes = {k}\n");
+    let e = err_of(&kf("[[1.0, 0, 0, 0.01], [2.0, 0.01, 0, 0]]"));
+    assert!(
+        e.contains("[[prescribe]] #1: keyframes: keyframe #1") && e.contains("one direction"),
+        "{e}"
+    );
+    let e = err_of(&kf("[[1.0, 0, 0, 0.01], [1.0, 0, 0, 0]]"));
+    assert!(e.contains("times must increase strictly"), "{e}");
+    let e = err_of(&format!(
+        "{BASE}[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.01]\n"
+    ));
+    assert!(e.contains("`displacement` needs a `ramp`"), "{e}");
+}
+
+#[test]
+fn unreferenced_nodes_name_the_scene_key() {
+    link();
+    let dir = temp_dir("loose");
+    // a one-tet mesh with a fifth node that no tet uses
+    let mesh = dir.join("loose.node");
+    std::fs::write(&mesh, "5 3 0 0\n0 0 0 0\n1 0.01 0 0\n2 0 0.01 0\n3 0 0 0.01\n4 1 1 1\n").unwrap();
+    std::fs::write(dir.join("loose.ele"), "1 4 0\n0 0 1 2 3\n").unwrap();
+    let text = "[mesh]\nfile = \"loose.node\"\n[[material]]\nlaw = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }\n[solver]\nduration = 0.01\n";
+    let e = Scene::from_toml_str(text, &dir)
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("<scene>:1: [mesh]: 1 node(s) belong to no tet") && e.contains("ids 4"),
+        "{e}"
+    );
+    assert!(
+        e.contains("`pin_unreferenced = true` in [mesh]") && !e.contains(".pin_unreferenced()"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_killed_writer_leaves_no_temporary_for_the_next_run() {
+    link();
+    let dir = temp_dir("stale");
+    // what a kill -9 between creating and renaming a frame leaves: an empty
+    // temporary of a process that is gone (pid above Linux's pid_max)
+    let stale = dir.join(".frame_00002.vtu.tmp-4194305-0");
+    std::fs::write(&stale, b"").unwrap();
+    let text = format!("{BASE}dt = 1e-3\n[output]\ndir = {:?}\n", dir.to_string_lossy());
+    Scene::from_toml_str(&text, ".")
+        .unwrap()
+        .build()
+        .unwrap()
+        .run(|_| {})
+        .unwrap();
+    if Path::new("/proc/self").exists() {
+        assert!(!stale.exists(), "stale temporary kept");
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(
+        leftovers.is_empty() || !Path::new("/proc/self").exists(),
+        "{leftovers:?}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn keyframed_prescribed_motion_goes_down_and_back_up_adaptively() {
+    link();
+    let dir = temp_dir("keyframes");
+    // press the top of the cube 4 mm down over 0.05 s, release by 0.1 s
+    let text = format!(
+        "{BASE}[[fix]]\nplane = {{ point = [0, 0, 0], normal = [0, 0, 1] }}\n[[prescribe]]\n\
+         plane = {{ point = [0, 0, 0.02], normal = [0, 0, 1] }}\n\
+         keyframes = [[0.05, 0, 0, -0.004], [0.1, 0, 0, 0]]\n[damping]\nmass = 50.0\n[output]\ndir = {:?}\nvtu = false\n",
+        dir.to_string_lossy()
+    )
+    .replace("duration = 0.01", "duration = 0.15");
+    let scene = Scene::from_toml_str(&text, ".").unwrap();
+    let mut sim = scene.build().unwrap();
+    assert_eq!(sim.dt_policy, TimeStepPolicy::Adapt);
+    let p = sim.system.constraints().prescribed[0].clone();
+    assert_eq!(p.displacement, Vec3::new(0.0, 0.0, -0.004));
+    let s = sim.run(|_| {}).unwrap();
+    // back at rest: the plate returned, and the time is exact
+    let i = p.node;
+    assert!((sim.system.positions()[i] - sim.system.rest_positions()[i]).norm() < 1e-15);
+    assert!((s.time - 0.15).abs() < 1e-12, "{}", s.time);
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    let reasons: Vec<&str> = csv.lines().skip(1).map(|l| l.rsplit(',').next().unwrap()).collect();
+    assert!(
+        reasons.iter().all(|r| ["base", "stiffness", "recovering"].contains(r)),
+        "{reasons:?}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -39,8 +39,6 @@ pub fn run(args: RunArgs) -> heml::Result<()> {
 /// Applies the overrides, builds the scene, runs it with a progress bar and prints
 /// the summary.
 pub fn execute(mut scene: Scene, opts: &RunOptions) -> heml::Result<()> {
-    // the registries hold the built-in laws and integrators only once linked
-    let _ = (heml::materials_list(), heml::integrators_list());
     if let Some(out) = &opts.out {
         scene.output.dir = Some(out.to_string_lossy().into_owned());
     }
@@ -55,7 +53,7 @@ pub fn execute(mut scene: Scene, opts: &RunOptions) -> heml::Result<()> {
     if !opts.quiet {
         outln!(
             "{}: {} nodes, {} tets, {} constrained; {} with dt = {:.3e} s (stable estimate {:.3e} s), {} steps, \
-             a frame every {} steps -> {}",
+             a frame every {} steps -> {}; plan: {}",
             scene.origin.display(),
             sys.mesh().n_nodes(),
             sys.mesh().n_tets(),
@@ -65,7 +63,8 @@ pub fn execute(mut scene: Scene, opts: &RunOptions) -> heml::Result<()> {
             sys.stable_dt(),
             sim.steps,
             sim.frame_every,
-            sim.out_dir.display()
+            sim.out_dir.display(),
+            sim.plan
         );
     }
     let bar = if opts.quiet || !std::io::stderr().is_terminal() {

@@ -4,7 +4,10 @@
 
 use std::path::PathBuf;
 
-use super::schema::{GenerateKind, MaterialSpec};
+use super::plan::{
+    plan, Limits, RunPlan, DEFAULT_MAX_OUTPUT_BYTES, DEFAULT_MAX_STEPS, DEFAULT_WARN_OUTPUT_BYTES, DEFAULT_WARN_STEPS,
+};
+use super::schema::{GenerateKind, MaterialSpec, PrescribeSpec};
 use super::Scene;
 use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
@@ -13,7 +16,9 @@ use crate::mesh::generate::{box_mesh_limited, DEFAULT_MAX_GENERATED_TETS};
 use crate::mesh::reorder::{morton_node_order, Permutation};
 use crate::mesh::TetMesh;
 use crate::registry::{closest, find_material, materials};
-use crate::system::{find_integrator, integrators, Integrator, System, SystemBuilder, TimeStepPolicy};
+use crate::system::{
+    find_integrator, integrators, Integrator, Ramp, System, SystemBuilder, TimeStepPolicy, DEFAULT_ADAPT_EVERY,
+};
 use crate::Vec3;
 
 /// A built scene: the system, its integrator and the run plan. Step it with
@@ -41,8 +46,19 @@ pub struct Simulation {
     pub csv: bool,
     /// Encoding of the VTU frames (`[output] compression`).
     pub vtu_encoding: crate::io::VtuEncoding,
-    /// What a dt above the stable estimate does.
+    /// Floating-point type of the frames' fields (`[output] precision`).
+    pub vtu_precision: crate::io::FieldPrecision,
+    /// What a dt above the stable estimate does (`Adapt`: the step follows the
+    /// stiffness, `dt` being its upper bound).
     pub dt_policy: TimeStepPolicy,
+    /// Steps between two re-estimates of the adaptive step.
+    pub adapt_every: u64,
+    /// Hard limit on the number of steps (`[solver] max_steps`): an adaptive run
+    /// stops with an error there.
+    pub max_steps: u64,
+    /// The cost of the run, decided before it starts: show it (and its warnings)
+    /// before calling [`Simulation::run`].
+    pub plan: RunPlan,
     /// Warnings found while building (e.g. dt above the stable estimate).
     pub warnings: Vec<String>,
     /// The node renumbering of `[mesh] renumber`: internal node `i` (of `system`,
@@ -172,6 +188,20 @@ impl Scene {
             .map_err(|e| HemlError::Invalid(format!("{solver_what}: {e}{}", registry_hint(integrators().is_empty()))))?
             .instantiate();
 
+        if !self.mesh.pin_unreferenced {
+            let loose = mesh.unreferenced_nodes();
+            if !loose.is_empty() {
+                let listed: Vec<String> = loose.iter().take(20).map(|i| i.to_string()).collect();
+                return invalid(format!(
+                    "{}: {} node(s) belong to no tet and would have no mass: ids {}{} (remove them from \
+                     the file, or set `pin_unreferenced = true` in [mesh] to hold them in place)",
+                    self.table_name("mesh"),
+                    loose.len(),
+                    listed.join(", "),
+                    if loose.len() > 20 { ", …" } else { "" }
+                ));
+            }
+        }
         let mut b = SystemBuilder::new(internal_mesh);
         if let Some(p) = &node_order {
             b = b.input_node_ids(p.new_to_old.clone());
@@ -185,7 +215,12 @@ impl Scene {
         }
         opts.validate()
             .map_err(|e| HemlError::Invalid(format!("{solver_what}: {e}")))?;
-        b = b.force_options(opts).time_step_policy(s.dt_policy).energy_every(0);
+        let dt_policy = s.dt_policy.unwrap_or(if self.prescribe.is_empty() {
+            TimeStepPolicy::Warn
+        } else {
+            TimeStepPolicy::Adapt
+        });
+        b = b.force_options(opts).time_step_policy(dt_policy).energy_every(0);
         if let Some(safety) = s.safety {
             b = b.safety(safety);
         }
@@ -195,6 +230,16 @@ impl Scene {
         let mut untagged = None;
         for (i, m) in self.materials.iter().enumerate() {
             let what = self.entry_name("material", i);
+            if let Some(tag) = m.tag {
+                if !mesh.tags().contains(&tag) {
+                    let mut tags = mesh.tags().to_vec();
+                    tags.sort_unstable();
+                    tags.dedup();
+                    return invalid(format!(
+                        "{what}: tag = {tag} has no tets (the mesh's tags are {tags:?})"
+                    ));
+                }
+            }
             if m.tag.is_none() {
                 if let Some(first) = untagged {
                     return invalid(format!(
@@ -207,20 +252,38 @@ impl Scene {
             }
             b = add_material(b, m).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         }
+        // which entry holds each node (file ids), to name both entries of a conflict
+        let mut holder: Vec<Option<(&str, usize)>> = vec![None; mesh.n_nodes()];
+        let mut hold = |table: &'static str, i: usize, ids: &[usize]| -> Result<()> {
+            for &id in ids {
+                match holder[id] {
+                    Some((t, j)) if t == "prescribe" || table == "prescribe" => {
+                        return invalid(format!(
+                            "{}: node {id} is already {} by {}; a node is fixed or prescribed once",
+                            self.entry_name(table, i),
+                            if t == "fix" { "fixed" } else { "prescribed" },
+                            self.entry_name(t, j)
+                        ));
+                    }
+                    Some(_) => {}
+                    None => holder[id] = Some((table, i)),
+                }
+            }
+            Ok(())
+        };
         for (i, f) in self.fix.iter().enumerate() {
             let what = self.entry_name("fix", i);
-            b = b.fix_nodes(to_internal(f.selection(&what)?.resolve(&what, &mesh)?));
+            let ids = f.selection(&what)?.resolve(&what, &mesh)?;
+            hold("fix", i, &ids)?;
+            b = b.fix_nodes(to_internal(ids));
         }
         for (i, p) in self.prescribe.iter().enumerate() {
             let what = self.entry_name("prescribe", i);
-            let ids = to_internal(p.selection(&what)?.resolve(&what, &mesh)?);
-            if !finite3(&p.displacement) {
-                return invalid(format!("{what}: displacement {:?} is not finite", p.displacement));
-            }
-            p.ramp
-                .validate()
-                .map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
-            b = b.prescribe(&ids, Vec3::from(p.displacement), p.ramp);
+            let ids = p.selection(&what)?.resolve(&what, &mesh)?;
+            hold("prescribe", i, &ids)?;
+            let ids = to_internal(ids);
+            let (displacement, ramp) = prescribed_motion(p, &what)?;
+            b = b.prescribe(&ids, displacement, ramp);
         }
         let loads_what = self.table_name("loads");
         if let Some(g) = self.loads.gravity {
@@ -259,32 +322,50 @@ impl Scene {
         let requested = match s.dt {
             Some(dt) => dt,
             None if stable.is_finite() => stable,
+            None if (0..system.mesh().n_nodes()).any(|i| system.is_free(i)) => {
+                return invalid(format!(
+                    "{solver_what}: no dt given, and the stable estimate is {stable}: the materials give no \
+                     stiffness at rest (a zero modulus or spring constant in [[material]] params?): fix the \
+                     parameters, or set dt"
+                ))
+            }
             None => {
                 return invalid(format!(
-                    "{solver_what}: no dt given and no stable estimate (no free node?): set dt"
+                    "{solver_what}: no dt given, and no stable estimate: every node is fixed or prescribed; set dt"
                 ))
             }
         };
         let steps = ((s.duration / requested) * (1.0 - 1e-12)).ceil().max(1.0);
-        if steps > 1e12 {
-            return invalid(format!("{solver_what}: duration / dt = {steps:e} steps is too many"));
+        let o = &self.output;
+        let out_what = self.table_name("output");
+        let limits = Limits {
+            warn_steps: s.warn_steps.unwrap_or(DEFAULT_WARN_STEPS),
+            max_steps: s.max_steps.unwrap_or(DEFAULT_MAX_STEPS),
+            warn_bytes: o.warn_output_bytes.unwrap_or(DEFAULT_WARN_OUTPUT_BYTES),
+            max_bytes: o.max_output_bytes.unwrap_or(DEFAULT_MAX_OUTPUT_BYTES),
+        };
+        if steps > limits.max_steps as f64 {
+            // refused before the cast: duration / dt may not even fit a u64
+            return invalid(format!(
+                "{solver_what}: duration / dt = {:e} / {requested:e} = {steps:e} steps, above max_steps = {}: \
+                 shorten `duration`, raise `dt`, or raise `max_steps` if you mean it",
+                s.duration, limits.max_steps
+            ));
         }
         let steps = steps as u64;
         let dt = s.duration / steps as f64;
         let mut warnings = Vec::new();
-        if dt > stable {
+        if dt > stable && dt_policy != TimeStepPolicy::Adapt {
             let msg = format!(
                 "{solver_what}: dt = {dt:e} s exceeds the stable estimate {stable:e} s; \
                  the explicit integration may blow up (set a smaller dt, or dt_policy)"
             );
-            match s.dt_policy {
+            match dt_policy {
                 TimeStepPolicy::Refuse => return invalid(format!("{msg} [dt_policy = \"refuse\"]")),
                 TimeStepPolicy::Warn => warnings.push(msg),
-                TimeStepPolicy::Ignore => {}
+                TimeStepPolicy::Ignore | TimeStepPolicy::Adapt => {}
             }
         }
-        let o = &self.output;
-        let out_what = self.table_name("output");
         let frame_every = match (o.every, o.frame_interval) {
             (Some(_), Some(_)) => return invalid(format!("{out_what}: give `every` or `frame_interval`, not both")),
             (Some(0), None) => return invalid(format!("{out_what}: every must be >= 1")),
@@ -300,6 +381,26 @@ impl Scene {
             Some(n) => n,
             None => (frame_every / 10).max(1),
         };
+        let adapt_every = match s.adapt_every {
+            Some(0) => return invalid(format!("{solver_what}: adapt_every must be >= 1")),
+            Some(n) => n,
+            None => DEFAULT_ADAPT_EVERY,
+        };
+        let adaptive = dt_policy == TimeStepPolicy::Adapt;
+        let plan = plan(
+            steps,
+            (frame_every, csv_every),
+            (o.vtu, o.csv),
+            (system.mesh().n_nodes(), system.mesh().n_tets()),
+            adaptive,
+            limits,
+            (&solver_what, &out_what),
+        )
+        .map_err(HemlError::Invalid)?;
+        for w in &plan.warnings {
+            log::warn!("{w}");
+        }
+        log::info!("run plan: {plan}");
         Ok(Simulation {
             system,
             integrator,
@@ -312,19 +413,105 @@ impl Scene {
             vtu: o.vtu,
             csv: o.csv,
             vtu_encoding: o.compression.vtu_encoding(),
-            dt_policy: s.dt_policy,
+            vtu_precision: o.precision,
+            dt_policy,
+            adapt_every,
+            max_steps: limits.max_steps,
+            plan,
             warnings,
             node_order,
         })
     }
 }
 
+/// Largest coordinate (m) a converted mesh may have: the laws work with squared
+/// edge lengths and their products, which overflow f64 (1.8e308) above ~1e77 m; a
+/// body of 1e50 m is already far outside any physical use.
+const MAX_COORDINATE: f64 = 1e50;
+
 fn finish_mesh(mut data: MeshData, scale: f64, translate: [f64; 3], what: &str) -> Result<TetMesh> {
     let t = Vec3::from(translate);
     for p in &mut data.nodes {
         *p = *p * scale + t;
     }
+    // NaN compares as None: it fails too
+    if let Some((i, p)) = data
+        .nodes
+        .iter()
+        .enumerate()
+        .find(|(_, p)| p.amax().partial_cmp(&MAX_COORDINATE) != Some(std::cmp::Ordering::Less))
+    {
+        return invalid(format!(
+            "{what}: node {i} is at {:?} m after `scale`/`units` ({scale:e}) and `translate`: coordinates \
+             beyond {MAX_COORDINATE:e} m overflow the squared lengths the laws compute; check `scale` or `units`",
+            p.as_slice()
+        ));
+    }
     data.into_mesh().map_err(|e| HemlError::Invalid(format!("{what}: {e}")))
+}
+
+/// The displacement and ramp of a `[[prescribe]]` entry: `displacement` with `ramp`,
+/// or `keyframes` turned into one direction scaled by a keyframed ramp.
+fn prescribed_motion(p: &PrescribeSpec, what: &str) -> Result<(Vec3, Ramp)> {
+    let (u, ramp) = match (&p.displacement, &p.ramp, &p.keyframes) {
+        (Some(u), Some(ramp), None) => {
+            if !finite3(u) {
+                return invalid(format!("{what}: displacement {u:?} is not finite"));
+            }
+            (Vec3::from(*u), ramp.clone())
+        }
+        (None, None, Some(k)) => keyframed(k).map_err(|e| HemlError::Invalid(format!("{what}: keyframes: {e}")))?,
+        (None, Some(_), None) => return invalid(format!("{what}: `ramp` without `displacement`")),
+        (Some(_), None, None) => {
+            return invalid(format!(
+                "{what}: `displacement` needs a `ramp` (e.g. ramp = {{ kind = \"smooth\", duration = 1.0 }})"
+            ))
+        }
+        (None, None, None) => {
+            return invalid(format!(
+                "{what}: give `displacement` with `ramp`, or `keyframes = [[t, ux, uy, uz], ...]`"
+            ))
+        }
+        _ => {
+            return invalid(format!(
+                "{what}: give `displacement` with `ramp`, or `keyframes`, not both"
+            ))
+        }
+    };
+    ramp.validate()
+        .map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
+    Ok((u, ramp))
+}
+
+/// `[[t, ux, uy, uz], …]` as the keyframe with the largest displacement u* and the
+/// ramp r_k = u_k·u*/|u*|²; an error when a keyframe leaves the direction of u*
+/// (by more than 1e-9 |u*|: round-off of the user's decimals, not a second direction).
+fn keyframed(k: &[[f64; 4]]) -> std::result::Result<(Vec3, Ramp), String> {
+    if k.iter().flatten().any(|c| !c.is_finite()) {
+        return Err("every time and displacement must be finite".into());
+    }
+    let u = |r: &[f64; 4]| Vec3::new(r[1], r[2], r[3]);
+    let top = k
+        .iter()
+        .map(u)
+        .max_by(|a, b| a.norm().total_cmp(&b.norm()))
+        .unwrap_or_else(Vec3::zeros);
+    let n2 = top.norm_squared();
+    let mut points = Vec::with_capacity(k.len());
+    for (i, row) in k.iter().enumerate() {
+        let r = if n2 > 0.0 { u(row).dot(&top) / n2 } else { 0.0 };
+        if (u(row) - top * r).norm() > 1e-9 * n2.sqrt() {
+            return Err(format!(
+                "keyframe #{} {:?} is not along {:?}: one entry moves along one direction (split the nodes \
+                 over several [[prescribe]] entries)",
+                i + 1,
+                [row[1], row[2], row[3]],
+                top.as_slice()
+            ));
+        }
+        points.push([row[0], r]);
+    }
+    Ok((top, Ramp::Keyframes { points }))
 }
 
 fn registry_hint(empty: bool) -> &'static str {

@@ -43,12 +43,17 @@
 mod build;
 mod output;
 mod parse;
+mod plan;
 mod runner;
 mod schema;
 mod select;
 
 pub use build::Simulation;
 pub use output::CSV_HEADER;
+pub use plan::{
+    frame_bytes, human_bytes, RunPlan, CSV_ROW_BYTES, DEFAULT_MAX_OUTPUT_BYTES, DEFAULT_MAX_STEPS,
+    DEFAULT_WARN_OUTPUT_BYTES, DEFAULT_WARN_STEPS,
+};
 pub use runner::{Progress, RunSummary};
 pub use schema::{
     BoxSpec, Compression, DampingSpec, FixSpec, GenerateKind, GenerateSpec, LoadsSpec, MaterialSpec, MeshSpec,

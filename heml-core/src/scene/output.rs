@@ -1,34 +1,51 @@
-//! Output of a run: VTU frames with a `.pvd` series, and `energy.csv`. Every file is
-//! written atomically (the CSV is rewritten whole at each frame), so a run stopped at
-//! any moment leaves complete files only.
+//! Output of a run: VTU frames with a `.pvd` series, and `energy.csv`. Frames and the
+//! series are written atomically (a temporary renamed over the target); the CSV is
+//! opened once and appended: rows wait in a small buffer and go out as whole lines in
+//! one write at each frame boundary, so a run stopped at any moment leaves complete
+//! frames and a CSV whose content is a prefix of complete rows — and the cost of the
+//! CSV stays linear in its length (it used to be rewritten whole at every frame).
 
 use std::borrow::Cow;
 use std::fmt::Write as _;
+use std::fs::File;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::error::{HemlError, Result};
-use crate::io::atomic::write_atomic;
-use crate::io::{write_vtu, PvdWriter, VtuEncoding, VtuFrame};
+use crate::io::{write_vtu, FieldPrecision, PvdWriter, VtuEncoding, VtuFrame};
 use crate::mesh::reorder::Permutation;
-use crate::system::{Energies, System};
+use crate::system::{DtReason, Energies, System};
 use crate::Vec3;
 
 /// Columns of `energy.csv`: time and step, the energies (J) of
 /// [`crate::system::Energies`] (gravity and nodal-load potentials relative to the
 /// rest configuration), and the total support reaction (N) with its norm.
+/// `dt` is the step that led to the row's state and `dt_reason` why it was chosen
+/// (see [`crate::system::DtReason`]; `fixed` unless `dt_policy = "adapt"`).
 pub const CSV_HEADER: &str =
-    "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm";
+    "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm,dt,dt_reason";
+
+/// The open `energy.csv`: rows not yet written, and what was written so far.
+struct Csv {
+    file: File,
+    path: PathBuf,
+    pending: String,
+    /// Write calls issued (the header and one per non-empty flush).
+    writes: u64,
+    /// Bytes written (header included): equals the file's length.
+    bytes: u64,
+}
 
 /// The frames and the CSV of one run.
 pub(crate) struct Output {
     dir: PathBuf,
     pvd: Option<PvdWriter>,
-    encoding: VtuEncoding,
+    /// How frames store their arrays, and the fields' precision.
+    format: (VtuEncoding, FieldPrecision),
     frames: usize,
     /// Step count and path of the last frame written.
     last: Option<(u64, PathBuf)>,
-    csv: Option<String>,
+    csv: Option<Csv>,
     /// When the system's nodes are renumbered: the permutation and the tets in the
     /// file's node numbering, so that frames read like the input mesh.
     file_order: Option<(Permutation, Vec<[u32; 4]>)>,
@@ -40,14 +57,30 @@ impl Output {
     pub(crate) fn create(
         dir: &Path,
         vtu: bool,
-        encoding: VtuEncoding,
+        format: (VtuEncoding, FieldPrecision),
         csv: bool,
         sys: &System,
         node_order: Option<&Permutation>,
     ) -> Result<Output> {
         std::fs::create_dir_all(dir).map_err(|e| HemlError::io(dir, e))?;
+        crate::io::atomic::remove_stale_temporaries(dir);
         let pvd = if vtu {
             Some(PvdWriter::create(dir.join("frames.pvd"))?)
+        } else {
+            None
+        };
+        let csv = if csv {
+            let path = dir.join("energy.csv");
+            let mut file = File::create(&path).map_err(|e| HemlError::io(&path, e))?;
+            let header = format!("{CSV_HEADER}\n");
+            file.write_all(header.as_bytes()).map_err(|e| HemlError::io(&path, e))?;
+            Some(Csv {
+                file,
+                path,
+                pending: String::new(),
+                writes: 1,
+                bytes: header.len() as u64,
+            })
         } else {
             None
         };
@@ -63,10 +96,10 @@ impl Output {
         Ok(Output {
             dir: dir.to_path_buf(),
             pvd,
-            encoding,
+            format,
             frames: 0,
             last: None,
-            csv: csv.then(|| format!("{CSV_HEADER}\n")),
+            csv,
             file_order,
         })
     }
@@ -125,7 +158,8 @@ impl Output {
             .point_vectors("reaction", &reaction)
             .cell_scalars("J", &j)
             .cell_scalars("energy_density", &w)
-            .encoding(self.encoding);
+            .encoding(self.format.0)
+            .precision(self.format.1);
         write_vtu(&path, &frame)?;
         pvd.add(sys.time(), &path)?;
         self.frames += 1;
@@ -133,13 +167,14 @@ impl Output {
         Ok(Some(path))
     }
 
-    /// Appends a CSV row (kept in memory; see [`Output::flush_csv`]).
-    pub(crate) fn row(&mut self, sys: &System, e: &Energies) {
+    /// Queues a CSV row (written by the next [`Output::flush_csv`]); `dt` is the step
+    /// that led to this state and `reason` why it was chosen.
+    pub(crate) fn row(&mut self, sys: &System, e: &Energies, dt: f64, reason: DtReason) {
         if let Some(csv) = &mut self.csv {
             let r = sys.total_reaction();
             let _ = writeln!(
-                csv,
-                "{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+                csv.pending,
+                "{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
                 sys.time(),
                 sys.step_count(),
                 e.kinetic,
@@ -150,17 +185,33 @@ impl Output {
                 r.x,
                 r.y,
                 r.z,
-                r.norm()
+                r.norm(),
+                dt,
+                reason.as_str()
             );
         }
     }
 
-    /// Rewrites `energy.csv` atomically with every row so far.
-    pub(crate) fn flush_csv(&self) -> Result<()> {
-        match &self.csv {
-            Some(csv) => write_atomic(&self.dir.join("energy.csv"), |w| w.write_all(csv.as_bytes())),
-            None => Ok(()),
+    /// Appends the queued rows to `energy.csv` in one write (whole lines only).
+    pub(crate) fn flush_csv(&mut self) -> Result<()> {
+        let Some(csv) = &mut self.csv else {
+            return Ok(());
+        };
+        if csv.pending.is_empty() {
+            return Ok(());
         }
+        csv.file
+            .write_all(csv.pending.as_bytes())
+            .map_err(|e| HemlError::io(&csv.path, e))?;
+        csv.writes += 1;
+        csv.bytes += csv.pending.len() as u64;
+        csv.pending.clear();
+        Ok(())
+    }
+
+    /// Write calls and bytes that went to `energy.csv` so far (header included).
+    pub(crate) fn csv_io(&self) -> (u64, u64) {
+        self.csv.as_ref().map_or((0, 0), |c| (c.writes, c.bytes))
     }
 
     pub(crate) fn wants_csv(&self) -> bool {

@@ -12,6 +12,12 @@ use crate::registry::closest;
 pub(crate) fn toml_error(origin: &Path, text: &str, e: &toml::de::Error) -> HemlError {
     let line = e.span().map_or(0, |s| line_of(text, s.start));
     let mut msg = e.message().trim().replace('\n', " ");
+    // a wrong value ("invalid type: string \"1.0\", expected f64") names its key
+    if let Some(key) = e.span().and_then(|s| key_before(text, s.start)) {
+        if !msg.contains(&format!("`{key}`")) {
+            msg = format!("`{key}`: {msg}");
+        }
+    }
     if let Some(s) = suggestion(&msg) {
         msg.push_str(&format!("; did you mean `{s}`?"));
     }
@@ -32,6 +38,18 @@ pub(crate) fn suggestion(msg: &str) -> Option<String> {
     let (_, expected) = rest.split_once("expected")?;
     let names: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
     closest(word, &names).map(str::to_string)
+}
+
+/// The key of the value starting at byte `pos` (`key = value`, also inside an inline
+/// table), when the text before it reads like one.
+pub(crate) fn key_before(text: &str, pos: usize) -> Option<&str> {
+    let before = text.get(..pos)?.trim_end();
+    let before = before.strip_suffix('=')?.trim_end();
+    let start = before
+        .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.'))
+        .map_or(0, |i| i + 1);
+    let key = &before[start..];
+    (!key.is_empty()).then_some(key)
 }
 
 /// 1-based line of byte offset `pos`.
@@ -72,5 +90,9 @@ mod tests {
         assert_eq!(suggestion("invalid type: string"), None);
         assert_eq!(line_of("a\nb\nc", 2), 2);
         assert_eq!(entry_line("x\n[[fix]]\n\n [[fix]]\n", "fix", 1), Some(4));
+        let t = "params = { E = \"1.0\", nu = 0.45 }";
+        assert_eq!(key_before(t, t.find('"').unwrap()), Some("E"));
+        assert_eq!(key_before("dt = x", 5), Some("dt"));
+        assert_eq!(key_before("[1, 2]", 1), None);
     }
 }

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use super::build::Simulation;
 use super::output::Output;
 use crate::error::{HemlError, Result};
-use crate::system::{Energies, TimeStepPolicy};
+use crate::system::{AdaptiveStep, DtReason, Energies, TimeStepPolicy};
 
 /// Where a run is, passed to the progress callback after every step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,14 +30,24 @@ pub struct RunSummary {
     pub steps: u64,
     /// Final simulated time.
     pub time: f64,
-    /// Step size used.
+    /// Step size asked for (the base step of an adaptive run).
     pub dt: f64,
+    /// Smallest and largest step taken (both `dt` with a fixed step).
+    pub dt_range: (f64, f64),
+    /// Smallest J over the invariant regions seen by the adaptive step's checks
+    /// (`None` with a fixed step).
+    pub min_j: Option<f64>,
     /// The system's stable time-step estimate.
     pub stable_dt: f64,
     /// Wall-clock time of the run (output included).
     pub wall: Duration,
     /// VTU frames written.
     pub frames: usize,
+    /// Write calls that went to `energy.csv` (header included): one per frame
+    /// boundary with rows, however many rows.
+    pub csv_writes: u64,
+    /// Bytes written to `energy.csv`: its length, as it is appended, never rewritten.
+    pub csv_bytes: u64,
     /// Largest nodal displacement at the end (m).
     pub max_displacement: f64,
     /// Energies at the end.
@@ -51,10 +61,16 @@ impl std::fmt::Display for RunSummary {
         let e = &self.energies;
         write!(
             f,
-            "{} steps (dt = {:.3e} s), {:.4} s simulated in {:.2} s wall; {} frames in {}; \
+            "{} steps ({}), {:.4} s simulated in {:.2} s wall; {} frames in {}; \
              max displacement {:.4e} m; energies (J): kinetic {:.4e}, elastic {:.4e}, gravity {:.4e}, total {:.4e}",
             self.steps,
-            self.dt,
+            match self.min_j {
+                None => format!("dt = {:.3e} s", self.dt),
+                Some(j) => format!(
+                    "adaptive dt {:.3e}..{:.3e} s, min J {j:.3}",
+                    self.dt_range.0, self.dt_range.1
+                ),
+            },
             self.time,
             self.wall.as_secs_f64(),
             self.frames,
@@ -74,10 +90,17 @@ impl Simulation {
     /// [`Simulation::csv_every`] steps (and both at the last step), calling
     /// `progress` after every step. The output directory is created.
     ///
-    /// [`Simulation::warnings`] are the caller's to show (the dt warning is not
-    /// repeated by the system). On a failed step (NaN/∞: the error names the step
-    /// and the node) the system is back at its last good state, which is written as
-    /// a last frame (and the CSV flushed) before the error is returned.
+    /// With `dt_policy = "adapt"` the step follows the stiffness ([`AdaptiveStep`],
+    /// never above [`Simulation::dt`]); frames and rows are then written at the
+    /// same simulated times as with the fixed step (`frame_every`·`dt` apart), the
+    /// steps being shortened to land on them, and the run stops with an error
+    /// after [`Simulation::max_steps`] steps.
+    ///
+    /// [`Simulation::warnings`] and [`Simulation::plan`] are the caller's to show
+    /// (the dt warning is not repeated by the system). On a failed step (NaN/∞: the
+    /// error names the step and the node) the system is back at its last good state
+    /// — one whose positions, velocities and forces are all finite — which is
+    /// written as a last frame (and the CSV flushed) before the error is returned.
     pub fn run(&mut self, mut progress: impl FnMut(&Progress)) -> Result<RunSummary> {
         let start = Instant::now();
         if self.dt > self.system.stable_dt() && self.dt_policy == TimeStepPolicy::Warn {
@@ -87,7 +110,7 @@ impl Simulation {
         let mut out = Output::create(
             &self.out_dir,
             self.vtu,
-            self.vtu_encoding,
+            (self.vtu_encoding, self.vtu_precision),
             self.csv,
             &self.system,
             self.node_order.as_ref(),
@@ -96,40 +119,125 @@ impl Simulation {
         if let Err(e) = sys.compute_forces() {
             return Err(fail(&mut out, sys, e));
         }
+        let mut adapt =
+            (self.dt_policy == TimeStepPolicy::Adapt).then(|| AdaptiveStep::new(sys, self.dt, self.adapt_every));
+        let first_reason = if adapt.is_some() {
+            DtReason::Base
+        } else {
+            DtReason::Fixed
+        };
         if out.wants_csv() {
             let e = sys.energies()?;
-            out.row(sys, &e);
+            out.row(sys, &e, self.dt, first_reason);
         }
         out.frame(sys)?;
         out.flush_csv()?;
-        for k in 1..=self.steps {
-            if let Err(e) = self.integrator.step(sys, self.dt) {
+        // output times of the adaptive run: multiples of these spans
+        let frame_span = self.frame_every as f64 * self.dt;
+        let row_span = self.csv_every as f64 * self.dt;
+        let tol = 1e-9 * self.dt;
+        let (mut next_frame, mut next_row) = (1u64, 1u64);
+        let (mut dt_min, mut dt_max) = (f64::INFINITY, 0.0_f64);
+        let mut k = 0u64;
+        loop {
+            k += 1;
+            // the step taken, and the controller's step and reason (the CSV's: a step
+            // shortened to land on an output time is not a decision of the controller)
+            let (dt, chosen, reason) = match &mut adapt {
+                None => (self.dt, self.dt, DtReason::Fixed),
+                Some(a) => {
+                    if k > self.max_steps {
+                        let e = HemlError::Numerical(format!(
+                            "the adaptive step needed more than max_steps = {} steps (t = {:e} s of {:e} s, \
+                             dt = {:e} s): the tissue is too stiff for the step (raise `[solver] max_steps`, \
+                             or soften the motion)",
+                            self.max_steps,
+                            sys.time(),
+                            self.duration,
+                            a.dt()
+                        ));
+                        return Err(fail(&mut out, sys, e));
+                    }
+                    let (dt, reason) = a.next(sys);
+                    let t = sys.time();
+                    let stop = (next_frame as f64 * frame_span)
+                        .min(next_row as f64 * row_span)
+                        .min(self.duration);
+                    // land on the stop; split the last stretch in two rather than
+                    // leave a sliver of a step before it
+                    let rem = stop - t;
+                    let step = if rem <= dt + tol {
+                        rem
+                    } else if rem < 1.5 * dt {
+                        0.5 * rem
+                    } else {
+                        dt
+                    };
+                    (step, dt, reason)
+                }
+            };
+            if let Err(e) = self.integrator.step(sys, dt) {
                 return Err(fail(&mut out, sys, e));
             }
-            let last = k == self.steps;
-            if out.wants_csv() && (k % self.csv_every == 0 || last) {
+            dt_min = dt_min.min(dt);
+            dt_max = dt_max.max(dt);
+            let (last, row_due, frame_due) = match adapt {
+                None => {
+                    let last = k == self.steps;
+                    (
+                        last,
+                        k.is_multiple_of(self.csv_every) || last,
+                        k.is_multiple_of(self.frame_every) || last,
+                    )
+                }
+                Some(_) => {
+                    let t = sys.time();
+                    let due = |n: &mut u64, span: f64| {
+                        let hit = t >= *n as f64 * span - tol;
+                        while t >= *n as f64 * span - tol {
+                            *n += 1;
+                        }
+                        hit
+                    };
+                    let last = t >= self.duration - tol;
+                    (
+                        last,
+                        due(&mut next_row, row_span) || last,
+                        due(&mut next_frame, frame_span) || last,
+                    )
+                }
+            };
+            if out.wants_csv() && row_due {
                 let e = sys.energies()?;
-                out.row(sys, &e);
+                out.row(sys, &e, chosen, reason);
             }
-            if k % self.frame_every == 0 || last {
+            if frame_due {
                 out.frame(sys)?;
                 out.flush_csv()?;
             }
             progress(&Progress {
                 step: k,
-                steps: self.steps,
+                steps: self.steps.max(k),
                 time: sys.time(),
                 duration: self.duration,
                 frames: out.frames(),
             });
+            if last {
+                break;
+            }
         }
+        let (csv_writes, csv_bytes) = out.csv_io();
         Ok(RunSummary {
-            steps: self.steps,
+            steps: k,
             time: sys.time(),
             dt: self.dt,
+            dt_range: (dt_min, dt_max),
+            min_j: adapt.as_ref().map(AdaptiveStep::min_j),
             stable_dt: sys.stable_dt(),
             wall: start.elapsed(),
             frames: out.frames(),
+            csv_writes,
+            csv_bytes,
             max_displacement: sys.displacements().iter().map(|d| d.norm()).fold(0.0, f64::max),
             energies: sys.energies()?,
             out_dir: self.out_dir.clone(),

@@ -164,8 +164,8 @@ pub struct FixSpec {
     pub tag: Option<i32>,
 }
 
-/// `[[prescribe]]`: nodes moved by `displacement` following `ramp`. Exactly one
-/// selector.
+/// `[[prescribe]]`: nodes moved by `displacement` following `ramp`, or along
+/// `keyframes`. Exactly one selector.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PrescribeSpec {
@@ -178,10 +178,17 @@ pub struct PrescribeSpec {
     pub plane: Option<PlaneSpec>,
     /// Nodes of the tets with this mesh tag.
     pub tag: Option<i32>,
-    /// Final displacement (metres).
-    pub displacement: [f64; 3],
-    /// Time profile: `{ kind = "linear"|"smooth", duration = s }` or `{ kind = "step" }`.
-    pub ramp: Ramp,
+    /// Full displacement (metres), reached when the ramp reaches 1. With `ramp`;
+    /// exclusive with `keyframes`.
+    pub displacement: Option<[f64; 3]>,
+    /// Time profile: `{ kind = "linear"|"smooth", duration = s }`, `{ kind = "step" }`
+    /// or `{ kind = "keyframes", points = [[t, r], …] }`.
+    pub ramp: Option<Ramp>,
+    /// Piecewise-linear displacement `[[t, ux, uy, uz], …]` (seconds, metres; times
+    /// strictly increasing, held after the last; an implicit `[0, 0, 0, 0]` precedes
+    /// a first time > 0): motions that go back down (press, hold, release). The
+    /// displacements must lie along one direction (they scale one vector).
+    pub keyframes: Option<Vec<[f64; 4]>>,
 }
 
 /// `[[loads.nodal]]`: a total force shared equally by the selected nodes.
@@ -236,9 +243,19 @@ pub struct SolverSpec {
     pub dt: Option<f64>,
     /// Simulated time (s).
     pub duration: f64,
-    /// What a dt above the stable estimate does: `warn` (default), `refuse`, `ignore`.
-    #[serde(default)]
-    pub dt_policy: TimeStepPolicy,
+    /// What a dt above the stable estimate does: `warn`, `refuse`, `ignore`, or
+    /// `adapt` (follow the stiffness of the deformed tissue: the step is re-estimated
+    /// every `adapt_every` steps, never above `dt` or the rest estimate). Default:
+    /// `adapt` when the scene has `[[prescribe]]` motion (tools press tissue hard),
+    /// `warn` otherwise.
+    pub dt_policy: Option<TimeStepPolicy>,
+    /// Steps between two re-estimates of the adaptive step (default 20).
+    pub adapt_every: Option<u64>,
+    /// Steps above which the run starts with a warning (default 1e6).
+    pub warn_steps: Option<u64>,
+    /// Steps above which the run is refused (default 1e8; an adaptive run stops
+    /// with an error when it gets there).
+    pub max_steps: Option<u64>,
     /// Safety factor of the stable estimate, in (0, 1] (default 0.9).
     pub safety: Option<f64>,
     /// Inversion threshold J0 of the laws, in (0, 1) (default 0.4).
@@ -269,9 +286,18 @@ pub struct OutputSpec {
     pub csv: bool,
     /// A CSV row every this many steps (default: 10 rows per frame).
     pub csv_every: Option<u64>,
+    /// Estimated output size (bytes) above which the run starts with a warning
+    /// (default 1e9).
+    pub warn_output_bytes: Option<u64>,
+    /// Estimated output size (bytes) above which the run is refused (default 2e10).
+    pub max_output_bytes: Option<u64>,
     /// How the VTU frames store their arrays: `zlib` (default) or `none`.
     #[serde(default)]
     pub compression: Compression,
+    /// Floating-point type of the frames' point and cell fields: `double` (default)
+    /// or `single` (positions stay double either way).
+    #[serde(default)]
+    pub precision: crate::io::FieldPrecision,
 }
 
 /// `[output] compression`: zlib makes frames several times smaller (a demo run
@@ -310,6 +336,9 @@ impl Default for OutputSpec {
             csv: true,
             csv_every: None,
             compression: Compression::default(),
+            precision: crate::io::FieldPrecision::default(),
+            warn_output_bytes: None,
+            max_output_bytes: None,
         }
     }
 }

@@ -204,7 +204,7 @@ impl SystemBuilder {
             self.prescribed.push(Prescribed {
                 node,
                 displacement,
-                ramp,
+                ramp: ramp.clone(),
             });
         }
         self
@@ -499,6 +499,8 @@ impl SystemBuilder {
             t: 0.0,
             step: 0,
             forces_current: false,
+            accepted_forces: false,
+            force_options: self.opts,
             elastic_energy: None,
             stable_dt: f64::INFINITY,
             safety: self.safety,

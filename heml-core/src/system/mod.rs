@@ -63,6 +63,7 @@
 //! # Ok::<(), heml_core::HemlError>(())
 //! ```
 
+mod adaptive;
 mod builder;
 mod constraints;
 mod energy;
@@ -74,6 +75,7 @@ pub mod statics;
 #[cfg(test)]
 mod tests;
 
+pub use adaptive::{AdaptiveStep, DeformedEstimate, DtReason, DEFAULT_ADAPT_EVERY};
 pub use builder::SystemBuilder;
 pub use constraints::{Constraints, Prescribed, Ramp};
 pub use energy::{Energies, StepStats};
@@ -86,7 +88,7 @@ pub use stability::{
 pub use statics::{Slider, StaticOptions, StaticReport};
 
 use crate::error::{HemlError, Result};
-use crate::force::ElasticForces;
+use crate::force::{ElasticForces, ForceOptions};
 use crate::material::Material;
 use crate::mesh::TetMesh;
 use crate::Vec3;
@@ -177,6 +179,10 @@ pub struct System {
     step: u64,
     /// Forces in `force` belong to the current positions, velocities and time.
     forces_current: bool,
+    /// Forces in `force` were computed by [`System::finish_step`] for the state it
+    /// accepted and nothing has touched the state since (not even a kick), so the
+    /// next step's first [`System::compute_forces`] can reuse them bit for bit.
+    accepted_forces: bool,
     /// Elastic energy at the current positions, when known.
     elastic_energy: Option<f64>,
     stable_dt: f64,
@@ -193,6 +199,9 @@ pub struct System {
     elastic: Vec<Vec3>,
     /// Ids that messages show for the nodes (see [`SystemBuilder::input_node_ids`]).
     input_ids: Option<Vec<usize>>,
+    /// The options the force fields were built with (the adaptive step evaluates the
+    /// laws' tangents with the same J0 extension).
+    force_options: ForceOptions,
 }
 
 impl System {
@@ -283,6 +292,10 @@ impl System {
     pub fn stable_dt(&self) -> f64 {
         self.stable_dt
     }
+    /// The force options the regions were built with.
+    pub fn force_options(&self) -> ForceOptions {
+        self.force_options
+    }
     /// Safety factor applied to the critical time step.
     pub fn safety(&self) -> f64 {
         self.safety
@@ -334,6 +347,7 @@ impl System {
 
     fn invalidate(&mut self) {
         self.forces_current = false;
+        self.accepted_forces = false;
         self.elastic_energy = None;
     }
 
@@ -363,7 +377,7 @@ impl System {
                 self.stable_dt
             );
             match self.policy {
-                TimeStepPolicy::Ignore => {}
+                TimeStepPolicy::Ignore | TimeStepPolicy::Adapt => {}
                 TimeStepPolicy::Refuse => return Err(HemlError::Invalid(msg)),
                 TimeStepPolicy::Warn => {
                     if !self.warned {
@@ -426,6 +440,11 @@ impl System {
     /// A non-finite force is an error naming the step and the first bad node; inside
     /// a step the system then rolls back to its state before the step.
     pub fn compute_forces(&mut self) -> Result<()> {
+        // the state accepted by the last finish_step, at the start of this step: its
+        // forces were computed (and checked finite) before it was accepted
+        if self.accepted_forces && self.in_step.is_some_and(|(t0, _)| t0 == self.t) {
+            return Ok(());
+        }
         match self.compute_forces_inner() {
             Ok(()) => Ok(()),
             Err(e) => {
@@ -522,6 +541,7 @@ impl System {
     /// v += h·f/m on free nodes (constrained nodes have zero force and no inverse
     /// mass). Uses the forces of the last [`System::compute_forces`].
     pub fn kick(&mut self, h: f64) {
+        self.accepted_forces = false;
         for ((v, f), im) in self.v.iter_mut().zip(&self.force).zip(&self.inv_mass) {
             *v += f * (h * im);
         }
@@ -553,15 +573,30 @@ impl System {
         Ok(())
     }
 
-    /// Ends the step: time t + dt, constraints imposed, step counted, NaN/∞ check
-    /// (on failure: an error naming the step and the first bad node, and the state of
-    /// the previous step restored), statistics.
+    /// Ends the step: time t + dt, constraints imposed, checks of the new state —
+    /// finite positions and velocities, no node moved by more than the body's size
+    /// (bounding-box diagonal) in the step, finite forces at the new state, computed
+    /// here when the integrator did not (the next step reuses them) — then the step
+    /// counted and its statistics. A state is accepted only when it passes all of
+    /// them, so the last good state of a blow-up has finite forces and displacements
+    /// of the order of the body; on failure: an error naming the step and the node,
+    /// and the state of the previous step restored.
     pub fn finish_step(&mut self) -> Result<StepStats> {
         self.advance_time()?;
         let (_, dt) = self.in_step.unwrap_or_default();
         let bad = first_non_finite(&self.x)
             .map(|i| ("position", i, self.x[i]))
             .or_else(|| first_non_finite(&self.v).map(|i| ("velocity", i, self.v[i])));
+        // the fastest node: a step that moves a node by more than the body's size is a
+        // blow-up in progress even while every number is still finite (a physical
+        // run would need speeds of ~1000 m/s at the usual steps)
+        let (fastest, max_speed) = self
+            .v
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (i, v.norm()))
+            .fold((0, 0.0_f64), |a, b| if b.1 > a.1 { b } else { a });
+        let diverging = bad.is_none() && max_speed * dt > self.length_scale;
         if let Some((what, i, value)) = bad {
             let msg = format!(
                 "step {}: non-finite {what} {:?} at node {} (t = {}); {}",
@@ -574,6 +609,25 @@ impl System {
             self.rollback();
             return Err(HemlError::Numerical(msg));
         }
+        if diverging {
+            let msg = format!(
+                "step {}: diverging at node {}: it moved {:e} m in one step (speed {max_speed:e} m/s), more than the \
+                 size of the body ({:e} m) (t = {}); {}",
+                self.step + 1,
+                self.input_id(fastest),
+                max_speed * dt,
+                self.length_scale,
+                self.t,
+                self.kept_state()
+            );
+            self.rollback();
+            return Err(HemlError::Numerical(msg));
+        }
+        if !self.forces_current {
+            // rolls back on failure
+            self.compute_forces()?;
+            self.accepted_forces = true;
+        }
         self.in_step = None;
         self.step += 1;
         let energies = if self.step.checked_rem(self.energy_every) == Some(0) {
@@ -585,7 +639,7 @@ impl System {
             step: self.step,
             time: self.t,
             dt,
-            max_speed: self.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
+            max_speed,
             reaction: self.reaction_total,
             energies,
         })

@@ -27,12 +27,14 @@
 //! Euler is unstable for undamped oscillations at any dt; the estimate concerns the
 //! symplectic schemes.
 //!
-//! **The estimate is made at rest.** Large compression stiffens most laws: for
+//! **This estimate is made at rest.** Large compression stiffens most laws: for
 //! neo-Hookean with ν = 0.45 the volumetric stiffness λ(1 − ln J)/J² is ~12× its rest
-//! value at J = 0.4 (where the J0 extension freezes it), so dt_crit shrinks by ~3.5.
-//! Scenes that crush tissue (tools pressing hard, a soft body sagging under its own
-//! weight) need a smaller safety factor (e.g. 0.2–0.25); the NaN guard stops a run
-//! that goes unstable and names the step and node.
+//! value at J = 0.4 (where the J0 extension freezes it), and a tet squeezed to a
+//! tenth of its height is ~10× stiffer across it, so dt_crit shrinks by 3–10×.
+//! [`TimeStepPolicy::Adapt`] follows the deformation instead (see
+//! [`super::AdaptiveStep`], which re-estimates from the current stretches); with a
+//! fixed step, scenes that crush tissue need a smaller safety factor. The NaN guard
+//! stops a run that goes unstable and names the step and node.
 
 use super::{Region, System};
 use crate::error::Result;
@@ -61,6 +63,12 @@ pub enum TimeStepPolicy {
     Refuse,
     /// Say nothing.
     Ignore,
+    /// Follow the stiffness: the step is re-estimated from the current deformation
+    /// every few steps, lowered before the estimate is exceeded and raised back with
+    /// hysteresis ([`super::AdaptiveStep`]; the scene runner does this). A step given
+    /// straight to [`super::System::begin_step`] is not checked against the rest
+    /// estimate under this policy: the controller owns the step size.
+    Adapt,
 }
 
 /// Small-strain shear modulus μ and Lamé λ of an invariant law at rest, by central
@@ -80,7 +88,7 @@ pub fn lame_at_rest(material: &dyn Material, opts: &ForceOptions) -> Option<(f64
 }
 
 /// Smallest height of a tet: 3·Vol / (largest face area).
-fn min_height(sys: &System, tets: &[usize]) -> f64 {
+pub(crate) fn min_height(sys: &System, tets: &[usize]) -> f64 {
     crate::mesh::quality::mesh_quality(sys.mesh(), Some(tets)).map_or(f64::INFINITY, |q| q.min_height.0)
 }
 
@@ -201,6 +209,12 @@ pub fn stable_time_step(sys: &System) -> f64 {
             _ => {}
         }
     }
+    damped_safe(sys, dt)
+}
+
+/// An undamped critical step reduced for the system's Rayleigh damping and
+/// multiplied by its safety factor (see the module docs); ∞ stays ∞.
+pub(crate) fn damped_safe(sys: &System, dt: f64) -> f64 {
     if !dt.is_finite() {
         return dt;
     }

@@ -446,7 +446,7 @@ fn constraints_hold_and_ramps_are_followed_exactly() {
     let mut sys = System::builder(mesh)
         .material_law(neo(1e4, 1e4))
         .fix_where(|p| p.z < 1e-9)
-        .prescribe(&top, u, ramp)
+        .prescribe(&top, u, ramp.clone())
         .gravity(Vec3::new(1.0, 0.0, -9.81))
         .build()
         .unwrap();
@@ -581,4 +581,56 @@ fn stiffness_damping_dissipates_and_matches_a_linear_estimate() {
         // forward difference with ε·max|v| = 1e-7·L: relative O(1e-7) + round-off
         assert!((damped[i] - expected).norm() < 1e-5 * scale, "node {i}");
     }
+}
+
+#[test]
+fn deformed_estimate_is_the_rest_estimate_at_rest_and_follows_a_squeeze() {
+    let mut sys = System::builder(cube())
+        .material_law(neo(1e4, 1e5))
+        .fix_where(|p| p.x < 1e-9)
+        .build()
+        .unwrap();
+    let est = DeformedEstimate::new(&sys);
+    let (dt, j) = est.time_step(&sys);
+    // the same wave-speed formula with tangents from central differences of the
+    // stress (~1e-10 relative each) at rest: equal to 1e-6
+    assert!((dt / sys.stable_dt() - 1.0).abs() < 1e-6, "{dt} vs {}", sys.stable_dt());
+    assert!((j - 1.0).abs() < 1e-12);
+    // squeezed to a tenth along x (J = 0.1, below J0 = 0.4, where the extension
+    // freezes the volumetric stiffness at its J0 value): ∂P11/∂F11 grows ~25x over
+    // its rest value here, so the step falls ~5x
+    let base = sys.stable_dt();
+    let mut ctrl = AdaptiveStep::new(&sys, base, 5);
+    assert_eq!(ctrl.next(&sys), (base, DtReason::Base));
+    for p in sys.positions_mut() {
+        p.x *= 0.1;
+    }
+    let (squeezed, j) = est.time_step(&sys);
+    assert!((j - 0.1).abs() < 1e-12, "{j}");
+    assert!(squeezed < 0.25 * dt, "{squeezed} vs {dt}");
+    // the controller lowers at its next check (call 5), not before, and below the
+    // estimate (it extrapolates the fall once more)
+    for _ in 1..5 {
+        assert_eq!(ctrl.next(&sys).0, base);
+    }
+    let (low, why) = ctrl.next(&sys);
+    assert_eq!(why, DtReason::Stiffness);
+    assert!(low < squeezed, "{low} vs {squeezed}");
+    assert!((ctrl.min_j() - 0.1).abs() < 1e-12);
+    // released: raised back by at most 25 % per check until the base step
+    for p in sys.positions_mut() {
+        p.x *= 10.0;
+    }
+    let mut prev = low;
+    let mut checks = 0;
+    while ctrl.dt() < base {
+        for _ in 0..5 {
+            ctrl.next(&sys);
+        }
+        assert!(ctrl.dt() <= 1.25 * prev * (1.0 + 1e-12) && ctrl.dt() > prev);
+        prev = ctrl.dt();
+        checks += 1;
+        assert!(checks < 100, "never recovers");
+    }
+    assert_eq!(ctrl.next(&sys), (base, DtReason::Base));
 }
