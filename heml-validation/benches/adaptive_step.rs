@@ -7,9 +7,9 @@
 //! Run with `cargo bench -p heml-validation --bench adaptive_step`. Prints the per-step time of both
 //! and the overhead's median and range over the rounds; nothing is asserted.
 
-use heml::system::{find_integrator, AdaptiveStep, DeformedEstimate, DEFAULT_ADAPT_EVERY};
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;
+use heml::system::{find_integrator, AdaptiveStep, DeformedEstimate, DEFAULT_ADAPT_EVERY};
 use std::time::Instant;
 
 const ROUNDS: usize = 12;

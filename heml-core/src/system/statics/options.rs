@@ -77,14 +77,44 @@ impl StaticReport {
     }
 
     /// The criterion in words, with the values reached, e.g.
-    /// `max|f_free| / max|load| = 3.1e-7 <= 1e-6 (1234 it.)`.
+    /// `max|f_free| / max|load| = 3.1e-7 (tolerance 1e-6: met; 1234 it.)`. The
+    /// outcome is said in words, so that a line never reads as a false inequality.
     pub fn criterion(&self) -> String {
+        let ratio = self.relative_residual();
         format!(
-            "max|f_free| / max|load| = {:.1e} {} {:.0e} ({} it.)",
-            self.relative_residual(),
-            if self.converged { "<=" } else { ">" },
+            "max|f_free| / max|load| = {ratio:.1e} (tolerance {:.0e}: {}; {} it.)",
             self.tol,
+            if ratio <= self.tol { "met" } else { "not met" },
             self.iterations
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::StaticReport;
+
+    fn report(residual: f64, converged: bool) -> StaticReport {
+        StaticReport {
+            converged,
+            iterations: 7,
+            residual,
+            load_scale: 1.0,
+            tol: 1e-6,
+            slider_reactions: Vec::new(),
+        }
+    }
+
+    /// The criterion line says the outcome in words from the numbers it prints (it
+    /// once read "1.7e-1 <= 1e-6", a false inequality).
+    #[test]
+    fn the_criterion_line_never_reads_as_a_false_inequality() {
+        assert_eq!(
+            report(3.1e-7, true).criterion(),
+            "max|f_free| / max|load| = 3.1e-7 (tolerance 1e-6: met; 7 it.)"
+        );
+        let failed = report(0.17, true).criterion();
+        assert!(failed.contains("= 1.7e-1 (tolerance 1e-6: not met"), "{failed}");
+        assert!(!failed.contains("<="), "{failed}");
     }
 }
