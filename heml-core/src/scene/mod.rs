@@ -31,9 +31,9 @@
 //!
 //! **Registries.** `heml-core` knows no laws or integrators: [`Scene::build`] looks
 //! them up in the registry, which holds the built-in ones only when `heml-materials`
-//! and `heml-integrators` are linked into the program: call any `heml` facade
-//! look-up first (e.g. `heml::materials_list()`, as the `heml` command does) or
-//! reference those crates yourself.
+//! and `heml-integrators` are linked into the program. Programs use the `heml`
+//! facade's `heml::scene::Scene`, whose `build` links them; code that uses this
+//! crate alone must reference those crates itself.
 //!
 //! **Units.** Everything is SI (metres, kilograms, seconds, pascals, newtons)
 //! except the coordinates of the mesh (and a generated mesh's `size`), which are
