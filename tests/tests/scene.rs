@@ -617,29 +617,34 @@ fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
         "{:?}",
         p.warnings
     );
-    // and the estimate matches what a run writes (within 10 %: the XML header and
-    // the CSV's number widths vary)
-    let dir = temp_dir("plan");
-    let text = format!(
-        "{BASE}dt = 1e-4\n[output]\ndir = {:?}\nevery = 10\n",
-        dir.to_string_lossy()
-    );
-    let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
-    let plan = sim.plan.clone();
-    assert!(plan.warnings.is_empty() && !plan.adaptive);
-    let s = sim.run(|_| {}).unwrap();
-    assert_eq!(plan.frames, s.frames as u64);
-    let written: u64 = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|f| f.unwrap().metadata().unwrap().len())
-        .sum();
-    let ratio = plan.est_bytes as f64 / written as f64;
-    assert!(
-        (0.9..1.1).contains(&ratio),
-        "estimated {} B, written {written} B",
-        plan.est_bytes
-    );
-    std::fs::remove_dir_all(&dir).unwrap();
+    // and the estimate matches what a run writes: within 10 % for uncompressed
+    // frames (the XML header and the CSV's number widths vary), and an upper bound
+    // within 3× for compressed ones: how well zlib does depends on the data, and
+    // this 48-tet box barely deformed compresses far better than real frames (the
+    // demo's: within 15 % of the bound)
+    for (compression, range) in [("none", 0.9..1.1), ("zlib", 1.0..3.0)] {
+        let dir = temp_dir(&format!("plan-{compression}"));
+        let text = format!(
+            "{BASE}dt = 1e-4\n[output]\ndir = {:?}\nevery = 10\ncompression = {compression:?}\n",
+            dir.to_string_lossy()
+        );
+        let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+        let plan = sim.plan.clone();
+        assert!(plan.warnings.is_empty() && !plan.adaptive);
+        let s = sim.run(|_| {}).unwrap();
+        assert_eq!(plan.frames, s.frames as u64);
+        let written: u64 = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|f| f.unwrap().metadata().unwrap().len())
+            .sum();
+        let ratio = plan.est_bytes as f64 / written as f64;
+        assert!(
+            range.contains(&ratio),
+            "{compression}: estimated {} B, written {written} B",
+            plan.est_bytes
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
 
 #[test]

@@ -5,7 +5,8 @@
 use std::path::PathBuf;
 
 use super::plan::{
-    plan, Limits, RunPlan, DEFAULT_MAX_OUTPUT_BYTES, DEFAULT_MAX_STEPS, DEFAULT_WARN_OUTPUT_BYTES, DEFAULT_WARN_STEPS,
+    frame_bytes, plan, Limits, RunPlan, DEFAULT_MAX_OUTPUT_BYTES, DEFAULT_MAX_STEPS, DEFAULT_WARN_OUTPUT_BYTES,
+    DEFAULT_WARN_STEPS,
 };
 use super::schema::{GenerateKind, MaterialSpec, PrescribeSpec};
 use super::Scene;
@@ -115,6 +116,15 @@ impl Scene {
             }
             (None, Some(g)) => {
                 let size = g.size.map(|s| s * scale);
+                if let Some(&s) = size
+                    .iter()
+                    .find(|s| s.abs().partial_cmp(&MAX_COORDINATE) != Some(std::cmp::Ordering::Less))
+                {
+                    return invalid(format!(
+                        "{what}: generate.size is {s:e} m after `scale`/`units` ({scale:e}): coordinates beyond \
+                         {MAX_COORDINATE:e} m overflow the squared lengths the laws compute; check `scale` or `units`"
+                    ));
+                }
                 let cells: [usize; 3] = match (g.kind, g.cells.as_slice()) {
                     (_, &[nx, ny, nz]) => [nx, ny, nz],
                     (GenerateKind::Beam, &[n]) => {
@@ -391,7 +401,12 @@ impl Scene {
             steps,
             (frame_every, csv_every),
             (o.vtu, o.csv),
-            (system.mesh().n_nodes(), system.mesh().n_tets()),
+            frame_bytes(
+                system.mesh().n_nodes(),
+                system.mesh().n_tets(),
+                o.compression.vtu_encoding(),
+                o.precision,
+            ),
             adaptive,
             limits,
             (&solver_what, &out_what),
