@@ -7,11 +7,13 @@ mod heml;
 pub(crate) mod lanes;
 mod link;
 mod options;
+pub mod tangent;
 
 pub use assembly::SimdLevel;
 pub use heml::HemlField;
 pub use link::LinkField;
 pub use options::ForceOptions;
+pub use tangent::{TangentField, TangentOperator, TetStiffness};
 
 use crate::error::{HemlError, Result};
 use crate::Vec3;
