@@ -42,7 +42,7 @@ fn csv_rows(dir: &Path, last_may_blow_up: bool) -> Vec<Vec<f64>> {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm")
+        Some("time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm,cg_iterations")
     );
     let rows: Vec<Vec<f64>> = lines
         .map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect())

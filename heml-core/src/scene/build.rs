@@ -164,9 +164,10 @@ impl Scene {
                 return invalid(format!("{solver_what}: dt = {dt} must be a finite number > 0"));
             }
         }
-        let integrator = find_integrator(&s.integrator)
+        let mut integrator = find_integrator(&s.integrator)
             .map_err(|e| HemlError::Invalid(format!("{solver_what}: {e}{}", registry_hint(integrators().is_empty()))))?
             .instantiate();
+        let implicit = s.configure_implicit(integrator.as_mut(), &solver_what)?;
 
         let mut b = SystemBuilder::new(internal_mesh);
         if let Some(p) = &node_order {
@@ -268,7 +269,7 @@ impl Scene {
         let steps = steps as u64;
         let dt = s.duration / steps as f64;
         let mut warnings = Vec::new();
-        if dt > stable {
+        if dt > stable && !implicit {
             let msg = format!(
                 "{solver_what}: dt = {dt:e} s exceeds the stable estimate {stable:e} s; \
                  the explicit integration may blow up (set a smaller dt, or dt_policy)"

@@ -16,9 +16,10 @@ use crate::Vec3;
 
 /// Columns of `energy.csv`: time and step, the energies (J) of
 /// [`crate::system::Energies`] (gravity and nodal-load potentials relative to the
-/// rest configuration), and the total support reaction (N) with its norm.
+/// rest configuration), the total support reaction (N) with its norm, and the
+/// conjugate-gradient iterations of the step (0 for explicit integrators).
 pub const CSV_HEADER: &str =
-    "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm";
+    "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm,cg_iterations";
 
 /// The frames and the CSV of one run.
 pub(crate) struct Output {
@@ -130,12 +131,12 @@ impl Output {
     }
 
     /// Appends a CSV row (kept in memory; see [`Output::flush_csv`]).
-    pub(crate) fn row(&mut self, sys: &System, e: &Energies) {
+    pub(crate) fn row(&mut self, sys: &System, e: &Energies, cg_iterations: usize) {
         if let Some(csv) = &mut self.csv {
             let r = sys.total_reaction();
             let _ = writeln!(
                 csv,
-                "{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+                "{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
                 sys.time(),
                 sys.step_count(),
                 e.kinetic,
@@ -146,7 +147,8 @@ impl Output {
                 r.x,
                 r.y,
                 r.z,
-                r.norm()
+                r.norm(),
+                cg_iterations
             );
         }
     }

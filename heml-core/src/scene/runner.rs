@@ -21,6 +21,8 @@ pub struct Progress {
     pub duration: f64,
     /// Frames written so far.
     pub frames: usize,
+    /// Conjugate-gradient iterations of the last step (0 for explicit integrators).
+    pub cg_iterations: usize,
 }
 
 /// What a completed run did.
@@ -97,18 +99,19 @@ impl Simulation {
         }
         if out.wants_csv() {
             let e = sys.energies()?;
-            out.row(sys, &e);
+            out.row(sys, &e, 0);
         }
         out.frame(sys)?;
         out.flush_csv()?;
         for k in 1..=self.steps {
-            if let Err(e) = self.integrator.step(sys, self.dt) {
-                return Err(fail(&mut out, sys, e));
-            }
+            let stats = match self.integrator.step(sys, self.dt) {
+                Ok(stats) => stats,
+                Err(e) => return Err(fail(&mut out, sys, e)),
+            };
             let last = k == self.steps;
             if out.wants_csv() && (k % self.csv_every == 0 || last) {
                 let e = sys.energies()?;
-                out.row(sys, &e);
+                out.row(sys, &e, stats.cg_iterations);
             }
             if k % self.frame_every == 0 || last {
                 out.frame(sys)?;
@@ -120,6 +123,7 @@ impl Simulation {
                 time: sys.time(),
                 duration: self.duration,
                 frames: out.frames(),
+                cg_iterations: stats.cg_iterations,
             });
         }
         Ok(RunSummary {

@@ -512,6 +512,7 @@ impl SystemBuilder {
             scratch: vec![Vec3::zeros(); n],
             elastic: vec![Vec3::zeros(); n],
             input_ids: self.input_ids,
+            force_opts: self.opts,
             mesh,
         };
         sys.apply_constraints(0.0);

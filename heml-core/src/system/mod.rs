@@ -66,6 +66,7 @@
 mod builder;
 mod constraints;
 mod energy;
+pub mod implicit;
 mod integrator;
 mod prony;
 mod stability;
@@ -77,6 +78,7 @@ mod tests;
 pub use builder::SystemBuilder;
 pub use constraints::{Constraints, Prescribed, Ramp};
 pub use energy::{Energies, StepStats};
+pub use implicit::{CgFailure, ImplicitScheme, ImplicitSettings, ImplicitSolver};
 pub use integrator::{find_integrator, integrators, Integrator, IntegratorEntry};
 pub use prony::{relaxation, validate_prony, PronyTerm};
 pub use stability::{
@@ -86,7 +88,7 @@ pub use stability::{
 pub use statics::{Slider, StaticOptions, StaticReport};
 
 use crate::error::{HemlError, Result};
-use crate::force::ElasticForces;
+use crate::force::{ElasticForces, ForceOptions};
 use crate::material::Material;
 use crate::mesh::TetMesh;
 use crate::Vec3;
@@ -193,6 +195,9 @@ pub struct System {
     elastic: Vec<Vec3>,
     /// Ids that messages show for the nodes (see [`SystemBuilder::input_node_ids`]).
     input_ids: Option<Vec<usize>>,
+    /// The force options the regions' fields were built with (the tangents of the
+    /// implicit integrators must use the same J0 extension).
+    force_opts: ForceOptions,
 }
 
 impl System {
@@ -307,6 +312,10 @@ impl System {
     pub fn input_id(&self, i: usize) -> usize {
         self.input_ids.as_ref().map_or(i, |ids| ids[i])
     }
+    /// The force options (J0 extension) the elastic regions were built with.
+    pub fn force_options(&self) -> ForceOptions {
+        self.force_opts
+    }
     /// Whether [`System::forces`] belong to the current state (lets velocity Verlet
     /// reuse the forces of the end of its previous step).
     pub fn forces_current(&self) -> bool {
@@ -351,12 +360,18 @@ impl System {
     /// [`TimeStepPolicy`] against [`System::stable_dt`], and saves the state that a
     /// failed step rolls back to.
     pub fn begin_step(&mut self, dt: f64) -> Result<()> {
+        self.begin_step_with(dt, true)
+    }
+
+    /// [`System::begin_step`]; `explicit` applies the time-step policy (implicit
+    /// schemes are not bound by the explicit stable step).
+    fn begin_step_with(&mut self, dt: f64, explicit: bool) -> Result<()> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(HemlError::Invalid(format!(
                 "time step dt = {dt} must be a finite number > 0"
             )));
         }
-        if dt > self.stable_dt {
+        if explicit && dt > self.stable_dt {
             let msg = format!(
                 "time step dt = {dt:e} exceeds the stable estimate {:e} (see stable_time_step); \
                  the explicit integration may blow up",
@@ -588,6 +603,8 @@ impl System {
             max_speed: self.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
             reaction: self.reaction_total,
             energies,
+            newton_iterations: 0,
+            cg_iterations: 0,
         })
     }
 

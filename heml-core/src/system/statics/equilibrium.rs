@@ -45,8 +45,14 @@ impl NewtonProblem for Equilibrium<'_> {
         report.converged.then_some(report)
     }
 
-    fn add_tangent(&self, sys: &System, dofs: &DofMap, k: &mut BandLdl) {
-        self.stiffness.add_to(sys, dofs, k);
+    fn solve_linear(&mut self, sys: &System, dofs: &DofMap, rhs: &mut [f64]) -> Result<bool> {
+        let mut k = BandLdl::new(dofs.len(), dofs.band());
+        self.stiffness.add_to(sys, dofs, &mut k);
+        if !k.factor() {
+            return Ok(false);
+        }
+        k.solve(rhs);
+        Ok(true)
     }
 
     fn merit(&self, sys: &System) -> Result<f64> {

@@ -82,10 +82,10 @@
 
 mod banded;
 mod criterion;
-mod dofs;
+pub(super) mod dofs;
 mod equilibrium;
 mod fire;
-mod newton;
+pub(super) mod newton;
 mod options;
 mod rcm;
 mod sliders;
