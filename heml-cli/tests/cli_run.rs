@@ -49,7 +49,7 @@ fn csv_rows(dir: &Path, last_may_blow_up: bool) -> Vec<Vec<f64>> {
         .collect();
     assert!(rows.len() >= 2);
     for (i, r) in rows.iter().enumerate() {
-        assert_eq!(r.len(), 11);
+        assert_eq!(r.len(), 12);
         let exempt = last_may_blow_up && i + 1 == rows.len();
         assert!(exempt || r.iter().all(|v| v.is_finite()), "{r:?}");
     }

@@ -2,7 +2,9 @@
 //! [`heml_core::system::ImplicitSolver`], which holds the Newton/CG machinery shared
 //! with the static solver.
 
-use heml_core::system::{ImplicitScheme, ImplicitSettings, ImplicitSolver, Integrator, IntegratorEntry, StepStats, System};
+use heml_core::system::{
+    ImplicitScheme, ImplicitSettings, ImplicitSolver, Integrator, IntegratorEntry, StepStats, System,
+};
 use heml_core::Result;
 
 const BE_DOC: &str = "Backward (implicit) Euler: M(v⁺ − v)/h = f(x + h v⁺, v⁺), Newton/CG.

@@ -54,8 +54,8 @@ mod symplectic_euler;
 mod velocity_verlet;
 
 pub use explicit_euler::ExplicitEuler;
-pub use implicit::{BackwardEuler, Newmark};
 pub use heml_core::system::{find_integrator, integrators, Integrator, IntegratorEntry};
+pub use implicit::{BackwardEuler, Newmark};
 pub use symplectic_euler::SymplecticEuler;
 pub use velocity_verlet::VelocityVerlet;
 

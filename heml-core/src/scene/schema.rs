@@ -3,9 +3,9 @@
 
 use serde::Deserialize;
 
+use crate::error::{HemlError, Result};
 use crate::mesh::generate::HexSplit;
 use crate::params::Params;
-use crate::error::{HemlError, Result};
 use crate::system::{CgFailure, Integrator, PronyTerm, Ramp, TimeStepPolicy};
 
 /// Where the body comes from and how its coordinates map to metres.

@@ -83,10 +83,7 @@ impl ImplicitStep<'_> {
 
     /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.
     fn coefficients(&self, sys: &System) -> (f64, f64) {
-        (
-            self.ca + sys.damping.alpha * self.cv,
-            1.0 + sys.damping.beta * self.cv,
-        )
+        (self.ca + sys.damping.alpha * self.cv, 1.0 + sys.damping.beta * self.cv)
     }
 }
 
@@ -119,7 +116,8 @@ impl NewtonProblem for ImplicitStep<'_> {
     fn converged(&self, _: &System, it: usize, _: f64) -> Option<NewtonOutcome> {
         let r = norm(&self.r);
         let r0 = self.r0.unwrap_or(r);
-        let done = r <= self.settings.newton_tolerance * r0.max(self.load_norm) || it >= self.settings.newton_iterations;
+        let done =
+            r <= self.settings.newton_tolerance * r0.max(self.load_norm) || it >= self.settings.newton_iterations;
         done.then_some(NewtonOutcome { iterations: it })
     }
 
@@ -212,7 +210,9 @@ impl NewtonProblem for ImplicitStep<'_> {
                 CgFailure::Warn => self.warnings.push(msg),
             }
         }
-        let sol: Vec<Vec3> = (0..n).map(|i| Vec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2])).collect();
+        let sol: Vec<Vec3> = (0..n)
+            .map(|i| Vec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]))
+            .collect();
         let g = dofs.gather(&sol);
         rhs.copy_from_slice(&g);
         Ok(report.iterations > 0 || report.converged)

@@ -75,7 +75,10 @@ impl ImplicitSettings {
         if self.cg_max_iterations == 0 {
             return Err(HemlError::Invalid("cg_max_iterations must be at least 1".into()));
         }
-        for (name, v) in [("newton_tolerance", self.newton_tolerance), ("cg_tolerance", self.cg_tolerance)] {
+        for (name, v) in [
+            ("newton_tolerance", self.newton_tolerance),
+            ("cg_tolerance", self.cg_tolerance),
+        ] {
             if !(v > 0.0 && v < 1.0) {
                 return Err(HemlError::Invalid(format!("{name} = {v} must lie in (0, 1)")));
             }

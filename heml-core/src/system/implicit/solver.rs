@@ -78,7 +78,11 @@ impl ImplicitSolver {
     fn prepare(&mut self, sys: &System) -> Result<()> {
         let shape = Shape {
             n_nodes: sys.x.len(),
-            tets: sys.regions.iter().flat_map(|r| r.field.tet_ids().iter().copied()).collect(),
+            tets: sys
+                .regions
+                .iter()
+                .flat_map(|r| r.field.tet_ids().iter().copied())
+                .collect(),
             constrained: sys.constrained_ids.clone(),
             project: self.settings.project_psd,
         };

@@ -61,7 +61,11 @@ pub(in crate::system) trait NewtonProblem {
 /// `Ok(Some(report))` when converged; `Ok(None)` when the tangent cannot be solved, the line search stalls (positions restored to the last iterate) or the
 /// iterations run out (positions left at the last iterate). Errors come from the
 /// first evaluation and from the merit.
-pub(in crate::system) fn newton<P: NewtonProblem>(sys: &mut System, dofs: &DofMap, problem: &mut P) -> Result<Option<P::Report>> {
+pub(in crate::system) fn newton<P: NewtonProblem>(
+    sys: &mut System,
+    dofs: &DofMap,
+    problem: &mut P,
+) -> Result<Option<P::Report>> {
     let norm2 = |f: &[Vec3]| f.iter().map(|v| v.norm_squared()).sum::<f64>();
     problem.evaluate(sys)?;
     let mut step_taken = 0.0;
