@@ -31,6 +31,10 @@
 //! node, the rows of its incident tets, in parallel over nodes: race-free and
 //! bit-for-bit deterministic for any thread count.
 
+// The 12×12 assembly indexes node blocks and coordinates in lock-step; iterator
+// chains over several arrays would obscure the formulas.
+#![allow(clippy::needless_range_loop)]
+
 use super::{check_sizes, selection, ForceOptions};
 use crate::error::{HemlError, Result};
 use crate::law::{InvariantLaw, LinkLaw};
@@ -264,8 +268,17 @@ impl<M: LinkLaw> TetHessian for LinkHessian<M> {
 
 /// Projects a symmetric matrix onto the positive semi-definite cone (negative
 /// eigenvalues clamped to 0).
+///
+/// Most tets of a simulation are semi-definite already: a Cholesky factorisation of
+/// K + εI (ε = 1e-12 × the largest diagonal entry, far above the round-off of the
+/// rigid-body zero eigenvalues) detects them at ~1/50 of the cost of the eigen-
+/// decomposition, and they are returned unchanged (eigenvalues ≥ −ε are kept).
 pub fn project_psd(k: &TetStiffness) -> TetStiffness {
     let sym = (k + k.transpose()) * 0.5;
+    let shift = 1e-12 * sym.diagonal().amax();
+    if (sym + TetStiffness::identity() * shift).cholesky().is_some() {
+        return sym;
+    }
     let eig = SymmetricEigen::new(sym);
     if eig.eigenvalues.iter().all(|&e| e >= 0.0) {
         return sym;

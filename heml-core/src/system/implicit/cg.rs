@@ -58,7 +58,8 @@ pub fn pcg(
         apply(&p, &mut ap);
         products += 1;
         let pap = dot(&p, &ap);
-        if !(pap > 0.0) {
+        // not `pap <= 0.0`: a NaN curvature is a breakdown too
+        if pap.is_nan() || pap <= 0.0 {
             report.breakdown = true;
             break;
         }

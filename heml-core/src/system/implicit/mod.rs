@@ -16,6 +16,7 @@
 //! exactly as for the explicit integrators.
 
 pub mod cg;
+pub(super) mod linear;
 mod problem;
 mod settings;
 mod solver;

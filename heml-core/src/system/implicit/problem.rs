@@ -11,7 +11,7 @@
 //! W(x⁺) + gravity and load potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
 //! without damping (with damping, a decreasing residual norm is accepted too).
 
-use super::cg::pcg;
+use super::linear::TangentSolve;
 use super::settings::{CgFailure, ImplicitSettings};
 use crate::error::{HemlError, Result};
 use crate::force::TangentOperator;
@@ -19,7 +19,6 @@ use crate::system::statics::dofs::DofMap;
 use crate::system::statics::newton::NewtonProblem;
 use crate::system::System;
 use crate::Vec3;
-use nalgebra::Matrix3;
 
 /// How the Newton iterations of a step ended.
 #[derive(Debug, Clone, Copy)]
@@ -129,66 +128,15 @@ impl NewtonProblem for ImplicitStep<'_> {
         if self.r0.is_none() {
             self.r0 = Some(norm(&self.r));
         }
-        for t in self.tangents.iter_mut() {
-            t.update(&sys.x)?;
-        }
-        let n = sys.x.len();
         let (cm, ck) = self.coefficients(sys);
-        // block-Jacobi preconditioner: the inverse 3×3 diagonal blocks of the system
-        // matrix (a 3×3 block of ck·K + cm·m_i·I is positive definite when K is
-        // projected; else fall back to the mass term alone)
-        let mut blocks = vec![Matrix3::zeros(); n];
-        for t in self.tangents.iter() {
-            t.add_diagonal_blocks(&mut blocks)?;
-        }
-        for (i, b) in blocks.iter_mut().enumerate() {
-            let m = cm * sys.mass[i];
-            *b = if sys.inv_mass[i] == 0.0 {
-                Matrix3::zeros()
-            } else {
-                (*b * ck + Matrix3::identity() * m)
-                    .try_inverse()
-                    .unwrap_or_else(|| Matrix3::identity() / m)
-            };
-        }
-        let mut b = vec![Vec3::zeros(); n];
-        dofs.scatter(rhs, &mut b);
-        let flat = |v: &[Vec3]| -> Vec<f64> { v.iter().flat_map(|p| [p.x, p.y, p.z]).collect() };
-        let mut px = vec![Vec3::zeros(); n];
-        let mut kp = vec![Vec3::zeros(); n];
-        let tangents = &*self.tangents;
-        let mut failure = None;
-        let apply = |p: &[f64], out: &mut [f64]| {
-            for (i, q) in px.iter_mut().enumerate() {
-                *q = Vec3::new(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
-            }
-            kp.fill(Vec3::zeros());
-            for t in tangents {
-                if let Err(e) = t.add_product(&px, &mut kp) {
-                    failure = Some(e);
-                }
-            }
-            for i in 0..n {
-                let y = if sys.inv_mass[i] == 0.0 {
-                    Vec3::zeros()
-                } else {
-                    kp[i] * ck + px[i] * (cm * sys.mass[i])
-                };
-                out[3 * i..3 * i + 3].copy_from_slice(y.as_slice());
-            }
-        };
-        let precond = |r: &[f64], out: &mut [f64]| {
-            for (i, blk) in blocks.iter().enumerate() {
-                let z = blk * Vec3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]);
-                out[3 * i..3 * i + 3].copy_from_slice(z.as_slice());
-            }
-        };
-        let mut x = vec![0.0; 3 * n];
         let s = self.settings;
-        let report = pcg(apply, precond, &flat(&b), &mut x, s.cg_tolerance, s.cg_max_iterations);
-        if let Some(e) = failure {
-            return Err(e);
-        }
+        let solve = TangentSolve {
+            ck,
+            cm,
+            tol: s.cg_tolerance,
+            max_iterations: s.cg_max_iterations,
+        };
+        let report = solve.solve(sys, self.tangents, dofs, rhs)?;
         self.cg_iterations += report.iterations;
         if !report.converged {
             let msg = format!(
@@ -210,11 +158,6 @@ impl NewtonProblem for ImplicitStep<'_> {
                 CgFailure::Warn => self.warnings.push(msg),
             }
         }
-        let sol: Vec<Vec3> = (0..n)
-            .map(|i| Vec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]))
-            .collect();
-        let g = dofs.gather(&sol);
-        rhs.copy_from_slice(&g);
         Ok(report.iterations > 0 || report.converged)
     }
 
