@@ -260,3 +260,22 @@ dt_policy = \"refuse\"
     assert!(!dir.join("o").exists(), "a refused run writes nothing");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The whole demo's output (frames compressed by default) stays under 25 MB: it was
+/// 79 MB for 62 uncompressed base64 frames.
+#[test]
+fn the_demo_writes_less_than_25_mb() {
+    let dir = temp_dir("demo-size");
+    let out = dir.join("out");
+    let (ok, _, err) = heml(&["demo", "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(ok, "{err}");
+    let files: Vec<_> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().path()).collect();
+    let total: u64 = files.iter().map(|p| std::fs::metadata(p).unwrap().len()).sum();
+    let frames = files
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "vtu"))
+        .count();
+    assert!(frames >= 50, "{frames} frames");
+    assert!(total < 25 << 20, "{frames} frames, {total} bytes");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -50,6 +50,12 @@ pub trait MaterialInfo: Sized + Copy + Send + Sync + std::fmt::Debug + 'static {
     const ENERGY: &'static str;
     /// The struct's doc comment (formula and reference).
     const DOC: &'static str;
+    /// How Young's modulus and Poisson's ratio set some of the parameters
+    /// (`#[small_strain(...)]`); `None` when the law does not take E/ν.
+    const SMALL_STRAIN: Option<SmallStrain> = None;
+    /// Whether the law is meant to be stressed or to store energy at rest
+    /// (`allow_prestress`), which silences the registry's rest-state warning.
+    const ALLOW_PRESTRESS: bool = false;
     /// Parameter values in [`Self::PARAMS`] order.
     fn to_params(&self) -> Vec<f64>;
     /// Builds the law from values in [`Self::PARAMS`] order.
@@ -57,6 +63,74 @@ pub trait MaterialInfo: Sized + Copy + Send + Sync + std::fmt::Debug + 'static {
     /// The caller guarantees `values.len() == PARAMS.len()`; range checks are done by
     /// [`crate::params::Params`] before this is called.
     fn from_params(values: &[f64]) -> Self;
+}
+
+/// The small-strain moduli of linear elasticity, the variables of a law's
+/// `#[small_strain(...)]` mapping.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Moduli {
+    /// Shear modulus μ0 = E/(2(1+ν)) (Pa).
+    pub mu0: f64,
+    /// Bulk modulus K0 = E/(3(1−2ν)) (Pa).
+    pub k0: f64,
+    /// First Lamé parameter λ0 = K0 − 2μ0/3 = Eν/((1+ν)(1−2ν)) (Pa).
+    pub lambda0: f64,
+}
+
+impl Moduli {
+    /// The moduli of Young's modulus `e` and Poisson's ratio `nu` (unchecked: the
+    /// parameter maps check E > 0 and −1 < ν < ½ before calling this).
+    pub fn from_young(e: f64, nu: f64) -> Self {
+        let mu0 = e / (2.0 * (1.0 + nu));
+        Self {
+            mu0,
+            k0: e / (3.0 * (1.0 - 2.0 * nu)),
+            lambda0: e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+        }
+    }
+}
+
+/// A law's declared small-strain mapping: which parameters E/ν determine, and how,
+/// so that the law linearises to the requested μ0 and K0 whatever its own
+/// parameters mean (they are rarely the Lamé constants themselves).
+#[derive(Debug, Clone, Copy)]
+pub struct SmallStrain {
+    /// The parameters set from the moduli, in declaration order; the others must be
+    /// given alongside E/ν.
+    pub fields: &'static [&'static str],
+    /// The mapping as declared, e.g. `"mu = 4.0 / 3.0 * mu0, lambda = lambda0 + 5.0 / 6.0 * mu0"`.
+    pub text: &'static str,
+    /// Fills the entries of `values` (in parameter order) named in [`Self::fields`];
+    /// the other entries must already hold their given values.
+    pub apply: fn(&Moduli, &mut [f64]),
+}
+
+/// The energy and the stress of a law at rest, from which the registry warns about
+/// laws that are not stress-free there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RestState {
+    /// The energy at rest: w(3, 3, 1) (per unit volume), or w(L, L) of a link.
+    pub energy: f64,
+    /// The stress at rest: P(I) = (2w₁ + 4w₂ + w_J)·I, of which this is the factor,
+    /// or ∂w/∂l at l = L for a link law.
+    pub stress: f64,
+}
+
+/// The rest state of an invariant law with parameter values `values` (registry
+/// entries point at this; named by `#[heml::material]`'s output).
+pub fn rest_state_invariant<M: InvariantLaw>(values: &[f64]) -> RestState {
+    let d = M::from_params(values).dw(3.0, 3.0, 1.0);
+    RestState {
+        energy: d.w,
+        stress: 2.0 * d.d[0] + 4.0 * d.d[1] + d.d[2],
+    }
+}
+
+/// The rest state of a link law with parameter values `values`, for an edge of unit
+/// rest length (see [`rest_state_invariant`]).
+pub fn rest_state_link<M: LinkLaw>(values: &[f64]) -> RestState {
+    let (energy, stress) = M::from_params(values).dw(1.0, 1.0);
+    RestState { energy, stress }
 }
 
 /// Value and gradient of an invariant energy density.

@@ -2,15 +2,14 @@
 //!
 //! The machinery of HEML ("Hyper-Elastic Mass Links"): validated tetrahedral meshes,
 //! the per-tet rest-state precomputation, the link-force kernels generic over a law,
-//! the independent P1 FEM oracle, and the registry through which laws are found by
-//! name. Laws themselves are declared with `#[heml::material]` (crate `heml-derive`)
-//! and collected in `heml-materials`; most users reach all of this through the
-//! `heml` facade and `heml::prelude`.
+//! the independent P1 FEM oracle (`force::p1`), and the registry through which laws
+//! are found by name. Laws themselves are declared with `#[heml::material]` (crate
+//! `heml-derive`) and collected in `heml-materials`; most users reach all of this
+//! through the `heml` facade and `heml::prelude`.
 
 #![warn(missing_docs)]
 
 pub mod error;
-pub mod fem;
 pub mod force;
 pub mod io;
 pub mod law;

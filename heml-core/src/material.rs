@@ -3,8 +3,8 @@
 //! when a force field is built, never per tet.
 
 use crate::error::Result;
-use crate::fem::{energy_and_piola, FemField};
-use crate::force::{ElasticForces, ForceOptions, HemlField, LinkField, TangentField, TangentOperator};
+use crate::force::p1::energy_and_piola;
+use crate::force::{ElasticForces, ForceOptions, HemlField, LinkField, P1Field, TangentField, TangentOperator};
 use crate::law::{InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo};
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
@@ -106,7 +106,7 @@ impl<M: InvariantLaw> Material for Invariant<M> {
         tets: Option<&[usize]>,
         opts: &ForceOptions,
     ) -> Result<Option<Box<dyn ElasticForces>>> {
-        Ok(Some(Box::new(FemField::on_tets(self.0, mesh, tets, *opts)?)))
+        Ok(Some(Box::new(P1Field::on_tets(self.0, mesh, tets, *opts)?)))
     }
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
         Some(energy_and_piola(&self.0, f, opts))

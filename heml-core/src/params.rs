@@ -2,13 +2,15 @@
 //! the registry), checked against the law's declared parameters.
 
 use crate::error::{HemlError, Result};
-use crate::law::ParamInfo;
+use crate::law::{Moduli, ParamInfo, SmallStrain};
 use std::collections::BTreeMap;
 
 /// Named parameter values, e.g. `{"mu": 1e3, "lambda": 4e3}`.
 ///
-/// Laws whose parameters are exactly the Lamé pair `mu`, `lambda` also accept
-/// Young's modulus and Poisson's ratio as `E`/`nu` (or `young`/`poisson`).
+/// Laws that declare a small-strain mapping (`#[small_strain(...)]`) also accept
+/// Young's modulus and Poisson's ratio as `E`/`nu` (or `young`/`poisson`) in place of
+/// the parameters the mapping sets, and then match linear elasticity with those E/ν
+/// at small strain.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(transparent)]
 pub struct Params(pub BTreeMap<String, f64>);
@@ -37,72 +39,109 @@ impl Params {
 
     /// Checks the map against `spec` and returns the values in declaration order.
     ///
+    /// Young's modulus and Poisson's ratio (`E`/`nu`, or `young`/`poisson`) stand for
+    /// the parameters that the law's `small_strain` mapping sets; its other
+    /// parameters must still be given. A law without a mapping refuses E/ν.
+    ///
     /// Errors list every expected parameter so that the fix is obvious: unknown keys,
     /// missing keys, non-finite values and negative values of unsigned parameters.
-    pub fn resolve(&self, law: &str, spec: &[ParamInfo]) -> Result<Vec<f64>> {
-        let map = self.with_lame_from_young(spec).map_err(|p| bad(law, spec, p))?;
-        let unknown: Vec<&str> = map
+    pub fn resolve(&self, law: &str, spec: &[ParamInfo], small_strain: Option<&SmallStrain>) -> Result<Vec<f64>> {
+        let bad = |problem: String| bad(law, spec, small_strain, problem);
+        let young = self.young_poisson().map_err(bad)?;
+        let set_by_moduli: &[&str] = match (young, small_strain) {
+            (None, _) => &[],
+            (Some(_), Some(mapping)) => mapping.fields,
+            (Some(_), None) => {
+                return Err(bad(
+                    "this law does not take Young's modulus and Poisson's ratio (it declares no \
+                     small-strain mapping); give its own parameters"
+                        .into(),
+                ))
+            }
+        };
+        let given: Vec<(&str, f64)> = self
             .0
-            .keys()
-            .filter(|k| !spec.iter().any(|p| p.name == k.as_str()))
-            .map(String::as_str)
+            .iter()
+            .filter(|(k, _)| !YOUNG_POISSON.contains(&k.as_str()))
+            .map(|(k, v)| (k.as_str(), *v))
+            .collect();
+        let unknown: Vec<&str> = given
+            .iter()
+            .map(|(k, _)| *k)
+            .filter(|k| !spec.iter().any(|p| p.name == *k))
             .collect();
         if !unknown.is_empty() {
-            return Err(bad(law, spec, format!("unknown parameter(s) {}", quoted(&unknown))));
+            return Err(bad(format!("unknown parameter(s) {}", quoted(&unknown))));
+        }
+        let both: Vec<&str> = given
+            .iter()
+            .map(|(k, _)| *k)
+            .filter(|k| set_by_moduli.contains(k))
+            .collect();
+        if !both.is_empty() {
+            return Err(bad(format!(
+                "{} would be set from E/nu; give either E/nu or {}, not both",
+                quoted(&both),
+                quoted(&both)
+            )));
         }
         let missing: Vec<&str> = spec
             .iter()
-            .filter(|p| !map.0.contains_key(p.name))
             .map(|p| p.name)
+            .filter(|n| !set_by_moduli.contains(n) && !given.iter().any(|(k, _)| k == n))
             .collect();
         if !missing.is_empty() {
-            return Err(bad(law, spec, format!("missing parameter(s) {}", quoted(&missing))));
+            let besides = if young.is_some() { " besides E/nu" } else { "" };
+            return Err(bad(format!("missing parameter(s) {}{besides}", quoted(&missing))));
         }
-        spec.iter()
-            .map(|p| {
-                let v = map.0[p.name];
-                if !v.is_finite() {
-                    Err(bad(
-                        law,
-                        spec,
-                        format!("parameter '{}' is {v}, not a finite number", p.name),
-                    ))
-                } else if v < 0.0 && !p.signed {
-                    Err(bad(
-                        law,
-                        spec,
-                        format!("parameter '{}' = {v} must not be negative", p.name),
-                    ))
-                } else {
-                    Ok(v)
-                }
-            })
-            .collect()
-    }
-
-    /// Replaces `E`/`nu` by `mu`/`lambda` when the law takes exactly the Lamé pair.
-    fn with_lame_from_young(&self, spec: &[ParamInfo]) -> std::result::Result<Params, String> {
-        let lame_law =
-            spec.len() == 2 && spec.iter().any(|p| p.name == "mu") && spec.iter().any(|p| p.name == "lambda");
-        let e = self.get("E").or_else(|| self.get("young"));
-        let nu = self.get("nu").or_else(|| self.get("poisson"));
-        if !lame_law || (e.is_none() && nu.is_none()) {
-            return Ok(self.clone());
-        }
-        let (Some(e), Some(nu)) = (e, nu) else {
-            return Err("give both Young's modulus 'E' and Poisson's ratio 'nu', or 'mu' and 'lambda'".into());
-        };
-        if self.get("mu").is_some() || self.get("lambda").is_some() {
-            return Err("give either 'E'/'nu' or 'mu'/'lambda', not both".into());
-        }
-        let (mu, lambda) = lame_from_young(e, nu)?;
-        let mut out = Params::new().with("mu", mu).with("lambda", lambda);
-        for (k, v) in &self.0 {
-            if !["E", "young", "nu", "poisson"].contains(&k.as_str()) {
-                out.set(k, *v);
+        let mut values: Vec<f64> = spec
+            .iter()
+            .map(|p| given.iter().find(|(k, _)| *k == p.name).map_or(f64::NAN, |(_, v)| *v))
+            .collect();
+        for (p, &v) in spec.iter().zip(&values) {
+            if !set_by_moduli.contains(&p.name) {
+                check_value(p, v, "").map_err(bad)?;
             }
         }
-        Ok(out)
+        if let (Some((e, nu)), Some(mapping)) = (young, small_strain) {
+            (mapping.apply)(&Moduli::from_young(e, nu), &mut values);
+            let origin = format!(" (from E = {e}, nu = {nu} by `{}`)", mapping.text);
+            for (p, &v) in spec.iter().zip(&values) {
+                if set_by_moduli.contains(&p.name) {
+                    check_value(p, v, &origin).map_err(bad)?;
+                }
+            }
+        }
+        Ok(values)
+    }
+
+    /// Young's modulus and Poisson's ratio, checked, when either is given.
+    fn young_poisson(&self) -> std::result::Result<Option<(f64, f64)>, String> {
+        let e = self.get("E").or_else(|| self.get("young"));
+        let nu = self.get("nu").or_else(|| self.get("poisson"));
+        match (e, nu) {
+            (None, None) => Ok(None),
+            (Some(e), Some(nu)) => {
+                lame_from_young(e, nu)?;
+                Ok(Some((e, nu)))
+            }
+            _ => Err("give both Young's modulus 'E' and Poisson's ratio 'nu'".into()),
+        }
+    }
+}
+
+/// The keys that give Young's modulus and Poisson's ratio.
+const YOUNG_POISSON: [&str; 4] = ["E", "young", "nu", "poisson"];
+
+/// Checks one value against its declaration; `origin` says where a computed value
+/// came from.
+fn check_value(p: &ParamInfo, v: f64, origin: &str) -> std::result::Result<(), String> {
+    if !v.is_finite() {
+        Err(format!("parameter '{}' is {v}{origin}, not a finite number", p.name))
+    } else if v < 0.0 && !p.signed {
+        Err(format!("parameter '{}' = {v}{origin} must not be negative", p.name))
+    } else {
+        Ok(())
     }
 }
 
@@ -127,21 +166,31 @@ pub fn lame_from_young(e: f64, nu: f64) -> std::result::Result<(f64, f64), Strin
 /// Lamé parameters from Young's modulus and Poisson's ratio, unchecked (see
 /// [`lame_from_young`] for the checked form used on user input).
 pub fn lame(e: f64, nu: f64) -> (f64, f64) {
-    (e / (2.0 * (1.0 + nu)), e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)))
+    let m = Moduli::from_young(e, nu);
+    (m.mu0, m.lambda0)
 }
 
 fn quoted(names: &[&str]) -> String {
     names.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")
 }
 
-fn bad(law: &str, spec: &[ParamInfo], problem: String) -> HemlError {
+fn bad(law: &str, spec: &[ParamInfo], small_strain: Option<&SmallStrain>, problem: String) -> HemlError {
+    let names: Vec<&str> = spec.iter().map(|p| p.name).collect();
+    let mut expected = if names.is_empty() {
+        "(none)".to_string()
+    } else {
+        names.join(", ")
+    };
+    if let Some(mapping) = small_strain {
+        let others: Vec<&str> = names.iter().copied().filter(|n| !mapping.fields.contains(n)).collect();
+        expected += &match others.as_slice() {
+            [] => " (or E, nu)".to_string(),
+            others => format!(" (or E, nu and {})", others.join(", ")),
+        };
+    }
     HemlError::BadParameters {
         law: law.to_string(),
         problem,
-        expected: if spec.is_empty() {
-            "(none)".into()
-        } else {
-            spec.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")
-        },
+        expected,
     }
 }

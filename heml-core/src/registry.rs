@@ -7,9 +7,10 @@
 //! facade's functions (`heml::material`, `heml::materials`) in applications.
 
 use crate::error::{HemlError, Result};
-use crate::law::{LawKind, ParamInfo};
+use crate::law::{LawKind, ParamInfo, RestState, SmallStrain};
 use crate::material::Material;
 use crate::params::Params;
+use std::sync::OnceLock;
 
 /// A registered material law.
 #[derive(Debug)]
@@ -28,6 +29,12 @@ pub struct MaterialEntry {
     pub module: &'static str,
     /// Builds the law from values in `params` order (already validated).
     pub build: fn(&[f64]) -> Box<dyn Material>,
+    /// How E/ν set some of the parameters; `None`: the law does not take E/ν.
+    pub small_strain: Option<SmallStrain>,
+    /// Declared `allow_prestress`: no warning when the law is stressed at rest.
+    pub allow_prestress: bool,
+    /// The energy and stress at rest for values in `params` order (see [`Self::rest_check`]).
+    pub rest: fn(&[f64]) -> RestState,
 }
 
 inventory::collect!(MaterialEntry);
@@ -35,8 +42,55 @@ inventory::collect!(MaterialEntry);
 impl MaterialEntry {
     /// Checks `params` against this law and builds it.
     pub fn instantiate(&self, params: &Params) -> Result<Box<dyn Material>> {
-        let values = params.resolve(self.name, self.params)?;
+        let values = params.resolve(self.name, self.params, self.small_strain.as_ref())?;
         Ok((self.build)(&values))
+    }
+
+    /// A warning when the law is not stress-free, or stores energy, at rest (the
+    /// undeformed mesh would move by itself, or report energy it does not have);
+    /// `None` when it is at rest or declares `allow_prestress`.
+    ///
+    /// The law is probed with two sets of distinct O(1) parameter values, so that a
+    /// cancellation special to one set cannot hide a prestress (a set at which the law
+    /// is not finite is skipped, unless both are). An exact rest state
+    /// evaluates to zero up to round-off, a few ulps of O(1) terms (≲ 1e-15); the
+    /// threshold 1e-9 × the largest parameter is far above that and far below any real
+    /// prestress of an O(1) law.
+    pub fn rest_check(&self) -> Option<String> {
+        if self.allow_prestress {
+            return None;
+        }
+        let n = self.params.len();
+        let probes = [
+            (0..n).map(|i| 1.0 + 0.25 * i as f64).collect::<Vec<f64>>(),
+            (0..n).map(|i| 1.0 + 0.5 / (i + 1) as f64).collect(),
+        ];
+        let results: Vec<(&Vec<f64>, RestState)> = probes.iter().map(|v| (v, (self.rest)(v))).collect();
+        let finite = |r: &RestState| r.energy.is_finite() && r.stress.is_finite();
+        let at_rest = |values: &[f64], r: &RestState| {
+            let tol = 1e-9 * values.iter().fold(1.0, |m: f64, v| m.max(v.abs()));
+            r.energy.abs() <= tol && r.stress.abs() <= tol
+        };
+        // a probe outside the law's domain (NaN, say) proves nothing unless all are
+        let (values, RestState { energy, stress }) = match results.iter().find(|(v, r)| finite(r) && !at_rest(v, r)) {
+            Some(hit) => *hit,
+            None if results.iter().all(|(_, r)| !finite(r)) => results[0],
+            None => return None,
+        };
+        let shown: Vec<String> = self
+            .params
+            .iter()
+            .zip(values)
+            .map(|(p, v)| format!("{}={v}", p.name))
+            .collect();
+        Some(format!(
+            "material law '{}' ({}) is not at rest when undeformed: with {} its energy is {energy:e} \
+             and its stress {stress:e}; subtract the rest value and slope from the energy, or declare \
+             the law with `allow_prestress` if this is intended",
+            self.name,
+            self.module,
+            shown.join(", ")
+        ))
     }
 
     /// The first line of the doc comment (the law's title).
@@ -46,10 +100,32 @@ impl MaterialEntry {
 }
 
 /// Every registered law, sorted by name.
+///
+/// The first call checks every law's rest state ([`rest_warnings`]): registration
+/// happens at link time, where nothing can be reported, so the check runs when the
+/// registry is first consulted.
 pub fn materials() -> Vec<&'static MaterialEntry> {
     let mut all: Vec<_> = inventory::iter::<MaterialEntry>.into_iter().collect();
     all.sort_by_key(|e| e.name);
+    rest_warnings_of(&all);
     all
+}
+
+/// The warnings of [`MaterialEntry::rest_check`] over every registered law, computed
+/// (and logged with `log::warn!`) once, at the first look-up or listing.
+pub fn rest_warnings() -> &'static [String] {
+    rest_warnings_of(&materials())
+}
+
+fn rest_warnings_of(all: &[&'static MaterialEntry]) -> &'static [String] {
+    static WARNINGS: OnceLock<Vec<String>> = OnceLock::new();
+    WARNINGS.get_or_init(|| {
+        let warnings: Vec<String> = all.iter().filter_map(|e| e.rest_check()).collect();
+        for w in &warnings {
+            log::warn!("{w}");
+        }
+        warnings
+    })
 }
 
 /// The law registered as `name`.
@@ -124,6 +200,56 @@ fn edit_distance(a: &str, b: &str) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn entry(rest: fn(&[f64]) -> RestState, allow_prestress: bool) -> MaterialEntry {
+        const PARAMS: &[ParamInfo] = &[ParamInfo {
+            name: "c",
+            doc: "",
+            signed: false,
+        }];
+        MaterialEntry {
+            name: "probe",
+            params: PARAMS,
+            energy: "",
+            doc: "",
+            kind: LawKind::Invariant,
+            module: "here",
+            build: |_| unreachable!("the rest check does not build the law"),
+            small_strain: None,
+            allow_prestress,
+            rest,
+        }
+    }
+
+    #[test]
+    fn rest_check_warns_about_stress_or_energy_at_rest_unless_allowed() {
+        let at_rest = |_: &[f64]| RestState {
+            energy: 0.0,
+            stress: 1e-14,
+        };
+        let stressed = |v: &[f64]| RestState {
+            energy: 0.0,
+            stress: v[0] - 1.0,
+        };
+        let undefined_at_first_probe = |v: &[f64]| RestState {
+            energy: if v[0] == 1.0 { f64::NAN } else { 0.0 },
+            stress: 0.0,
+        };
+        let undefined = |_: &[f64]| RestState {
+            energy: f64::NAN,
+            stress: 0.0,
+        };
+        assert_eq!(entry(at_rest, false).rest_check(), None);
+        // zero at the first probe (c = 1), caught by the second (c = 1.5)
+        let w = entry(stressed, false).rest_check().expect("stressed at rest");
+        assert!(
+            w.contains("'probe' (here)") && w.contains("c=1.5") && w.contains("stress 5e-1"),
+            "{w}"
+        );
+        assert_eq!(entry(stressed, true).rest_check(), None);
+        assert_eq!(entry(undefined_at_first_probe, false).rest_check(), None);
+        assert!(entry(undefined, false).rest_check().is_some_and(|w| w.contains("NaN")));
+    }
 
     #[test]
     fn suggestions_are_close_names_only() {

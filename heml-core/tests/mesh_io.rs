@@ -355,7 +355,8 @@ fn broken_files_give_errors_with_file_and_line() {
         ("msh_unclosed.msh", Parse(4, "not closed")),
         ("msh_degenerate.msh", Mesh("degenerate")),
         ("vtk_truncated.vtk", Parse(0, "end of file")),
-        ("vtk_bad_index.vtk", Parse(7, "node 7")),
+        // the line of the bad cell (8), not of the CELLS header (7) as it used to be
+        ("vtk_bad_index.vtk", Parse(8, "node 7")),
         ("vtk_missing_cell_types.vtk", Parse(0, "missing CELL_TYPES")),
         ("vtk_non_numeric.vtk", Parse(6, "'abc'")),
         ("vtk_wrong_cells_size.vtk", Parse(9, "cell list, found 'CELL_TYPES'")),

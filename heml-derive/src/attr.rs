@@ -1,21 +1,21 @@
 //! Parsing of the declaration: the `#[material(...)]` options, the
-//! `#[energy(...)]` attribute, the fields and their `#[param(...)]` attributes.
+//! `#[energy(...)]` and `#[small_strain(...)]` attributes, the fields and their
+//! `#[param(...)]` attributes.
 //!
 //! The helper attributes are consumed here (removed from the struct that is
-//! re-emitted), since they are not real attributes to the compiler.
+//! re-emitted), since they are not real attributes to the compiler. The
+//! expressions are only parsed here; [`crate::lower`] checks their words.
 
+use crate::vocab::{self, Kind};
 use proc_macro2::{Span, TokenStream};
+use syn::parse::{Parse, ParseStream};
 use syn::punctuated::Punctuated;
 use syn::{Attribute, Expr, Fields, Ident, ItemStruct, LitStr, Meta, Token};
 
-/// Which trait the law implements.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kind {
-    /// w(I1, I2, J): `InvariantLaw`.
-    Invariant,
-    /// w(l, L): `LinkLaw`.
-    Link,
-}
+/// The helper attributes `#[material]` consumes from the struct.
+pub const STRUCT_HELPERS: [&str; 2] = ["energy", "small_strain"];
+/// The helper attribute `#[material]` consumes from each field.
+pub const FIELD_HELPER: &str = "param";
 
 /// The options of `#[material(...)]`.
 #[derive(Debug)]
@@ -28,6 +28,8 @@ pub struct Options {
     pub inversion_fix: bool,
     /// `crate = "path"`: where heml-core lives, overriding the lookup in Cargo.toml.
     pub krate: Option<syn::Path>,
+    /// `allow_prestress`: the law is meant to be stressed at rest; the registry does not warn.
+    pub allow_prestress: bool,
 }
 
 /// Parses the arguments of `#[material(...)]`.
@@ -36,6 +38,7 @@ pub fn parse_options(args: TokenStream) -> syn::Result<Options> {
     let mut link = None;
     let mut no_fix = None;
     let mut krate = None;
+    let mut prestress = None;
     let parser = syn::meta::parser(|meta| {
         let duplicate = || meta.error("this option is given twice");
         if meta.path.is_ident("name") {
@@ -55,6 +58,10 @@ pub fn parse_options(args: TokenStream) -> syn::Result<Options> {
             if no_fix.replace(meta.path.clone()).is_some() {
                 return Err(duplicate());
             }
+        } else if meta.path.is_ident("allow_prestress") {
+            if prestress.replace(meta.path.clone()).is_some() {
+                return Err(duplicate());
+            }
         } else if meta.path.is_ident("crate") {
             if krate.is_some() {
                 return Err(duplicate());
@@ -63,7 +70,7 @@ pub fn parse_options(args: TokenStream) -> syn::Result<Options> {
             krate = Some(lit.parse::<syn::Path>()?);
         } else {
             return Err(meta
-                .error("unknown option; expected `name = \"...\"`, `link`, `no_inversion_fix` or `crate = \"path\"`"));
+                .error("unknown option; expected `name = \"...\"`, `link`, `no_inversion_fix`, `allow_prestress` or `crate = \"path\"`"));
         }
         Ok(())
     });
@@ -85,6 +92,7 @@ pub fn parse_options(args: TokenStream) -> syn::Result<Options> {
         kind: if link.is_some() { Kind::Link } else { Kind::Invariant },
         inversion_fix: no_fix.is_none(),
         krate,
+        allow_prestress: prestress.is_some(),
     })
 }
 
@@ -112,6 +120,43 @@ pub struct Declaration {
     pub energy_text: String,
     /// The struct's doc comment.
     pub doc: String,
+    /// `#[small_strain(...)]`, when the law takes E/ν.
+    pub small_strain: Option<SmallStrain>,
+}
+
+impl Declaration {
+    /// The field names, in order.
+    pub fn fields(&self) -> Vec<Ident> {
+        self.params.iter().map(|p| p.ident.clone()).collect()
+    }
+}
+
+/// `#[small_strain(field = <expr>, ...)]`: how the small-strain moduli set some of
+/// the law's parameters, so that E/ν (or μ0/K0) can be given instead of them.
+#[derive(Debug)]
+pub struct SmallStrain {
+    /// Each set field and its value over `mu0`, `K0`, `lambda0` and the other fields,
+    /// in field order.
+    pub assignments: Vec<(Ident, Expr)>,
+    /// The mapping as written (source text when available).
+    pub text: String,
+}
+
+/// `field = <expr>`.
+struct Assignment {
+    field: Ident,
+    value: Expr,
+}
+
+impl Parse for Assignment {
+    fn parse(input: ParseStream) -> syn::Result<Self> {
+        let field = input.parse()?;
+        input.parse::<Token![=]>()?;
+        Ok(Self {
+            field,
+            value: input.parse()?,
+        })
+    }
 }
 
 /// Parses the struct the attribute is applied to.
@@ -125,7 +170,11 @@ pub fn parse_declaration(item: TokenStream, kind: Kind) -> syn::Result<Declarati
         ));
     }
     let (energy, energy_text) = take_energy(&mut item)?;
-    let params = take_params(&mut item, kind)?;
+    let small_strain = take_small_strain(&mut item, kind)?;
+    let params = take_params(&mut item, kind, small_strain.is_some())?;
+    let small_strain = small_strain
+        .map(|(assignments, text)| check_small_strain(assignments, text, &params))
+        .transpose()?;
     let doc = doc_text(&item.attrs);
     add_missing_derives(&mut item)?;
     Ok(Declaration {
@@ -134,33 +183,34 @@ pub fn parse_declaration(item: TokenStream, kind: Kind) -> syn::Result<Declarati
         energy,
         energy_text,
         doc,
+        small_strain,
     })
 }
 
-/// Removes the `#[energy(...)]` attribute and parses its expression.
-fn take_energy(item: &mut ItemStruct) -> syn::Result<(Expr, String)> {
-    let mut energies = Vec::new();
+/// Removes the attribute named `name`, at most one.
+fn take_attr(item: &mut ItemStruct, name: &str) -> syn::Result<Option<Attribute>> {
+    let mut found = Vec::new();
     item.attrs.retain(|a| {
-        let is_energy = a.path().is_ident("energy");
-        if is_energy {
-            energies.push(a.clone());
+        let hit = a.path().is_ident(name);
+        if hit {
+            found.push(a.clone());
         }
-        !is_energy
+        !hit
     });
-    let attr = match energies.as_slice() {
-        [one] => one,
-        [] => {
-            return Err(syn::Error::new_spanned(
-                &item.ident,
-                "missing the energy: add `#[energy(<expression>)]` below `#[material(...)]`",
-            ))
-        }
-        [_, second, ..] => return Err(syn::Error::new_spanned(second, "only one `#[energy(...)]` is allowed")),
-    };
+    match found.as_slice() {
+        [_, second, ..] => Err(syn::Error::new_spanned(
+            second,
+            format!("only one `#[{name}(...)]` is allowed"),
+        )),
+        _ => Ok(found.pop()),
+    }
+}
+
+/// The inside of `#[name(...)]` and its source text.
+fn list_of<'a>(attr: &'a Attribute, name: &str) -> syn::Result<(&'a syn::MetaList, String)> {
     let Meta::List(list) = &attr.meta else {
-        return Err(syn::Error::new_spanned(attr, "expected `#[energy(<expression>)]`"));
+        return Err(syn::Error::new_spanned(attr, format!("expected `#[{name}(...)]`")));
     };
-    let expr: Expr = list.parse_args()?;
     let text = list
         .delimiter
         .span()
@@ -169,7 +219,70 @@ fn take_energy(item: &mut ItemStruct) -> syn::Result<(Expr, String)> {
         .and_then(|t| Some(t.strip_prefix('(')?.strip_suffix(')')?.to_string()))
         .map(|t| tidy_source(&t))
         .unwrap_or_else(|| list.tokens.to_string());
-    Ok((expr, text))
+    Ok((list, text))
+}
+
+/// Removes the `#[energy(...)]` attribute and parses its expression.
+fn take_energy(item: &mut ItemStruct) -> syn::Result<(Expr, String)> {
+    let Some(attr) = take_attr(item, "energy")? else {
+        return Err(syn::Error::new_spanned(
+            &item.ident,
+            "missing the energy: add `#[energy(<expression>)]` below `#[material(...)]`",
+        ));
+    };
+    let (list, text) = list_of(&attr, "energy")?;
+    Ok((list.parse_args()?, text))
+}
+
+/// Removes the `#[small_strain(...)]` attribute, if any, and parses its assignments.
+fn take_small_strain(item: &mut ItemStruct, kind: Kind) -> syn::Result<Option<(Vec<Assignment>, String)>> {
+    let Some(attr) = take_attr(item, "small_strain")? else {
+        return Ok(None);
+    };
+    if kind == Kind::Link {
+        return Err(syn::Error::new_spanned(
+            &attr,
+            "a link law has no small-strain moduli: its stiffness depends on the mesh, \
+             so it cannot take E/nu; remove `#[small_strain(...)]`",
+        ));
+    }
+    let (list, text) = list_of(&attr, "small_strain")?;
+    let assignments = list.parse_args_with(Punctuated::<Assignment, Token![,]>::parse_terminated)?;
+    if assignments.is_empty() {
+        return Err(syn::Error::new_spanned(
+            &attr,
+            "expected `#[small_strain(<field> = <expression over mu0, K0, lambda0>, ...)]`",
+        ));
+    }
+    Ok(Some((assignments.into_iter().collect(), text)))
+}
+
+/// Checks that every assigned name is a field, assigned once, and orders the
+/// assignments by field.
+fn check_small_strain(assignments: Vec<Assignment>, text: String, params: &[Param]) -> syn::Result<SmallStrain> {
+    let mut slots: Vec<Option<Expr>> = params.iter().map(|_| None).collect();
+    for a in assignments {
+        let Some(i) = params.iter().position(|p| p.ident == a.field) else {
+            let fields: Vec<String> = params.iter().map(|p| format!("`{}`", p.ident)).collect();
+            return Err(syn::Error::new_spanned(
+                &a.field,
+                format!(
+                    "`{}` is not a parameter of this law; its parameters are {}",
+                    a.field,
+                    fields.join(", ")
+                ),
+            ));
+        };
+        if slots[i].replace(a.value).is_some() {
+            return Err(syn::Error::new_spanned(&a.field, format!("`{}` is set twice", a.field)));
+        }
+    }
+    let assignments = params
+        .iter()
+        .zip(slots)
+        .filter_map(|(p, value)| Some((p.ident.clone(), value?)))
+        .collect();
+    Ok(SmallStrain { assignments, text })
 }
 
 /// One-line form of a (possibly multi-line) energy, unless it holds comments,
@@ -184,7 +297,7 @@ fn tidy_source(text: &str) -> String {
 }
 
 /// Checks the fields and removes their `#[param(...)]` attributes.
-fn take_params(item: &mut ItemStruct, kind: Kind) -> syn::Result<Vec<Param>> {
+fn take_params(item: &mut ItemStruct, kind: Kind, has_mapping: bool) -> syn::Result<Vec<Param>> {
     let fields = match &mut item.fields {
         Fields::Named(named) => &mut named.named,
         Fields::Unnamed(f) => {
@@ -203,22 +316,22 @@ fn take_params(item: &mut ItemStruct, kind: Kind) -> syn::Result<Vec<Param>> {
         let Some(ident) = field.ident.clone() else {
             return Err(syn::Error::new_spanned(&*field, "expected a named field"));
         };
-        if !is_f64(&field.ty) {
+        if !vocab::is_f64(&field.ty) {
             return Err(syn::Error::new_spanned(
                 &field.ty,
                 format!("the parameter `{ident}` must be of type `f64`"),
             ));
         }
-        if crate::lower::variables(kind).contains(&ident.to_string().as_str()) {
+        if vocab::reserved(kind, has_mapping, &ident.to_string()) {
             return Err(syn::Error::new_spanned(
                 &ident,
-                format!("the parameter `{ident}` has the name of an energy variable; rename it"),
+                format!("the parameter `{ident}` has the name of a variable of the law's expressions; rename it"),
             ));
         }
         let mut signed = false;
         let mut error = None;
         field.attrs.retain(|a| {
-            if !a.path().is_ident("param") {
+            if !a.path().is_ident(FIELD_HELPER) {
                 return true;
             }
             let parsed = a.parse_nested_meta(|meta| {
@@ -241,15 +354,6 @@ fn take_params(item: &mut ItemStruct, kind: Kind) -> syn::Result<Vec<Param>> {
         params.push(Param { ident, doc, signed });
     }
     Ok(params)
-}
-
-fn is_f64(ty: &syn::Type) -> bool {
-    match ty {
-        syn::Type::Path(p) => p.qself.is_none() && p.path.is_ident("f64"),
-        syn::Type::Group(g) => is_f64(&g.elem),
-        syn::Type::Paren(p) => is_f64(&p.elem),
-        _ => false,
-    }
 }
 
 /// The doc comment: `#[doc = "..."]` lines, each without its first space, joined
@@ -380,5 +484,46 @@ mod tests {
             Kind::Invariant,
         );
         assert!(e.is_err_and(|e| e.to_string().contains("missing the energy")));
+    }
+
+    #[test]
+    fn small_strain_assignments_are_checked_and_put_in_field_order() {
+        let parse = |mapping: TokenStream, kind| {
+            parse_declaration(
+                quote! {
+                    #[energy(a * (I1 - 3.0) + b * (J - 1.0).powi(2))]
+                    #mapping
+                    struct Law { a: f64, b: f64, c: f64 }
+                },
+                kind,
+            )
+        };
+        let d = parse(quote!(#[small_strain(b = K0, a = mu0 / 2.0,)]), Kind::Invariant).expect("valid");
+        let s = d.small_strain.expect("declared");
+        let order: Vec<String> = s.assignments.iter().map(|(f, _)| f.to_string()).collect();
+        assert_eq!(order, ["a", "b"]);
+        let out = quote::ToTokens::to_token_stream(&d.item).to_string();
+        assert!(!out.contains("small_strain"), "{out}");
+        assert!(parse(quote!(), Kind::Invariant).expect("valid").small_strain.is_none());
+        let err = |mapping, kind| parse(mapping, kind).expect_err("invalid").to_string();
+        assert!(err(quote!(#[small_strain(d = mu0)]), Kind::Invariant).contains("`d` is not a parameter"));
+        assert!(err(quote!(#[small_strain(a = mu0, a = K0)]), Kind::Invariant).contains("set twice"));
+        assert!(err(quote!(#[small_strain()]), Kind::Invariant).contains("expected `#[small_strain("));
+        assert!(err(quote!(#[small_strain(a = mu0)]), Kind::Link).contains("link law has no small-strain moduli"));
+        assert!(err(
+            quote!(#[small_strain(a = mu0)] #[small_strain(b = K0)]),
+            Kind::Invariant
+        )
+        .contains("only one"));
+        // a modulus name is a variable only for a law with a mapping
+        let with_field = |mapping: TokenStream| {
+            parse_declaration(
+                quote!(#[energy(K0 * I1)] #mapping struct L { K0: f64 }),
+                Kind::Invariant,
+            )
+        };
+        assert!(with_field(quote!()).is_ok());
+        assert!(with_field(quote!(#[small_strain(K0 = mu0)])).is_err_and(|e| e.to_string().contains("rename it")));
+        assert!(parse_options(quote!(name = "p", allow_prestress)).is_ok_and(|o| o.allow_prestress));
     }
 }

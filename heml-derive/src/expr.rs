@@ -9,7 +9,7 @@
 //! differentiation.
 //!
 //! Children are always created before their parents, hence a node's id is larger
-//! than its children's ids and id order is a topological order (used by codegen).
+//! than its children's ids and id order is a topological order (used by `straight_line`).
 
 use std::collections::HashMap;
 
@@ -31,6 +31,12 @@ pub enum Var {
     LinkL,
     /// Rest squared edge length (link laws).
     RestL,
+    /// Small-strain shear modulus (small-strain mappings).
+    Mu0,
+    /// Small-strain bulk modulus (small-strain mappings).
+    K0,
+    /// Small-strain first Lamé parameter (small-strain mappings).
+    Lambda0,
 }
 
 /// One operation. Constants are stored as bits so that nodes can be hashed.

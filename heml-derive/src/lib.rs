@@ -17,6 +17,8 @@
 //! * `link`: a link law, whose energy is over `l` and `L` (current and rest
 //!   **squared** edge length) instead of `I1`, `I2`, `J`, `I1bar`, `I2bar`;
 //! * `no_inversion_fix`: the law is finite for J ≤ 0, do not build the J0 extension;
+//! * `allow_prestress`: the law is meant to be stressed (or to store energy) at rest,
+//!   so the registry does not warn about it;
 //! * `crate = "path"`: the path to heml-core (found in Cargo.toml otherwise).
 //!
 //! Fields must be named `f64`s; `#[param(signed)]` marks a parameter that may be
@@ -28,25 +30,44 @@
 //! (`J.ln()`) or function (`ln(J)`, `f64::ln(J)`) form, and blocks
 //! `{ let a = ...; expr }`.
 //!
-//! Pipeline: `attr` parses the declaration, `lower` turns the expression into
-//! a hash-consed graph (`expr`), `diff` differentiates it, `taylor` builds
-//! the inversion extension, `kernels` gathers what each function computes,
-//! `codegen` writes straight-line Rust and `emit` wraps it in the trait impls.
+//! `#[small_strain(field = <expr>, ...)]` (invariant laws) states which values of
+//! some fields make the law match linear elasticity at small strain, in the same
+//! language over `mu0` (shear modulus E/(2(1+ν))), `K0` (bulk modulus
+//! E/(3(1−2ν))), `lambda0` (Lamé's λ = K0 − 2·mu0/3) and the fields it does not
+//! set. A law with it accepts Young's modulus and Poisson's ratio (`E`, `nu`) in
+//! place of the fields it sets; the other fields are still given:
+//!
+//! ```ignore
+//! #[heml::material(name = "gent")]
+//! #[energy(-mu * jm / 2.0 * (1.0 - (I1bar - 3.0) / jm).ln() + kappa / 2.0 * (J - 1.0).powi(2))]
+//! #[small_strain(mu = mu0, kappa = K0)] // `jm` is given with E and nu
+//! pub struct Gent { pub mu: f64, pub jm: f64, pub kappa: f64 }
+//! ```
+//!
+//! Pipeline, as in serde_derive: parse (`attr`), check (`lower` turns each
+//! expression into a hash-consed graph, `expr`, rejecting words outside `vocab`),
+//! emit: `diff` differentiates, `taylor` builds the inversion extension,
+//! `derivatives` gathers what each kernel computes, `straight_line` writes Rust
+//! from the graph, `emit_law` wraps the kernels in the law's trait impl and
+//! `emit_registry` writes `MaterialInfo` and the registry entry.
 
 mod attr;
-mod codegen;
+mod derivatives;
 mod diff;
-mod emit;
+mod emit_law;
+mod emit_registry;
 mod expr;
-mod kernels;
 mod lower;
+mod straight_line;
 mod taylor;
+mod vocab;
 
 #[cfg(test)]
 mod numeric_tests;
 
 use proc_macro2::{Span, TokenStream};
 use quote::quote;
+use vocab::{Kind, Scope};
 
 /// Declares a material law from its strain energy; see the crate documentation.
 #[proc_macro_attribute]
@@ -65,28 +86,51 @@ pub fn material(args: proc_macro::TokenStream, item: proc_macro::TokenStream) ->
 }
 
 fn expand(args: TokenStream, item: TokenStream) -> syn::Result<TokenStream> {
+    // parse
     let opts = attr::parse_options(args)?;
     let decl = attr::parse_declaration(item, opts.kind)?;
-    let core = core_path(&opts);
+    // check: lower every expression
     let params: Vec<String> = decl.params.iter().map(|p| p.ident.to_string()).collect();
     let mut graph = expr::Graph::new();
-    let w = lower::lower(&mut graph, &decl.energy, opts.kind, &params)?;
+    let w = lower::lower(&mut graph, &decl.energy, Scope::Energy(opts.kind), &params, &[])?;
+    let small_strain = decl
+        .small_strain
+        .as_ref()
+        .map(|s| lower_small_strain(s, &params))
+        .transpose()?;
+    // emit
+    let core = core_path(&opts);
     let law = match opts.kind {
-        attr::Kind::Invariant => {
-            let k = kernels::InvariantKernels::new(graph, w, opts.inversion_fix);
-            emit::invariant_law(&core, &decl, &k)
+        Kind::Invariant => {
+            let k = derivatives::InvariantKernels::new(graph, w, opts.inversion_fix);
+            emit_law::invariant_law(&core, &decl, &k)
         }
-        attr::Kind::Link => emit::link_law(&core, &decl, &kernels::LinkKernels::new(graph, w)),
+        Kind::Link => emit_law::link_law(&core, &decl, &derivatives::LinkKernels::new(graph, w)),
     };
     let item = &decl.item;
-    let info = emit::material_info(&core, &opts, &decl);
-    let registration = emit::registration(&core, &decl, opts.kind);
+    let info = emit_registry::material_info(&core, &opts, &decl, small_strain.as_ref());
+    let registration = emit_registry::registration(&core, &decl, opts.kind);
     Ok(quote! {
         #item
         #info
         #law
         #registration
     })
+}
+
+/// Lowers each value of the small-strain mapping; the fields it sets cannot be read.
+fn lower_small_strain(s: &attr::SmallStrain, params: &[String]) -> syn::Result<emit_registry::SmallStrainValues> {
+    let assigned: Vec<String> = s.assignments.iter().map(|(f, _)| f.to_string()).collect();
+    let mut graph = expr::Graph::new();
+    let mut values = Vec::new();
+    for (field, value) in &s.assignments {
+        let index = params.iter().position(|p| field == p).expect("checked by attr");
+        values.push((
+            index,
+            lower::lower(&mut graph, value, Scope::SmallStrain, params, &assigned)?,
+        ));
+    }
+    Ok(emit_registry::SmallStrainValues { graph, values })
 }
 
 /// The path to heml-core from the calling crate: the `crate` option, else
@@ -115,14 +159,16 @@ fn core_path(opts: &attr::Options) -> TokenStream {
     }
 }
 
-/// The item without `#[energy]` and `#[param]` attributes, if it is a struct.
+/// The item without the helper attributes (`#[energy]`, `#[small_strain]`,
+/// `#[param]`), if it is a struct.
 fn strip_helpers(item: TokenStream) -> TokenStream {
     let Ok(mut s) = syn::parse2::<syn::ItemStruct>(item) else {
         return TokenStream::new();
     };
-    s.attrs.retain(|a| !a.path().is_ident("energy"));
+    s.attrs
+        .retain(|a| !attr::STRUCT_HELPERS.iter().any(|h| a.path().is_ident(h)));
     for f in s.fields.iter_mut() {
-        f.attrs.retain(|a| !a.path().is_ident("param"));
+        f.attrs.retain(|a| !a.path().is_ident(attr::FIELD_HELPER));
     }
     quote!(#s)
 }

@@ -1,30 +1,23 @@
-//! Lowering of the `#[energy(...)]` expression (a `syn::Expr`) into the graph.
+//! Lowering of an expression (a `syn::Expr`: the `#[energy(...)]` of a law, or one
+//! value of its `#[small_strain(...)]` mapping) into the graph.
 //!
-//! Only a small, closed language is accepted (see the crate docs); everything else
-//! is rejected with a spanned error that says what *is* allowed, because the user
-//! of a law declaration is a modeller, not a macro author.
+//! Only a small, closed language is accepted (its words are in [`crate::vocab`]);
+//! everything else is rejected with a spanned error that says what *is* allowed,
+//! because the user of a law declaration is a modeller, not a macro author.
 
-use crate::attr::Kind;
 use crate::expr::{Graph, Id, Var};
+use crate::vocab::{self, Function, Kind, Scope, Symbol, FUNCTIONS};
 use syn::{BinOp, Expr, Lit, Pat, Stmt, UnOp};
 
-/// The functions of the language, in both method (`x.ln()`) and call (`ln(x)`) form.
-const FUNCTIONS: &str = "ln, exp, sqrt, abs, powi (integer literal exponent), powf";
-
-/// The variable names of a law of kind `kind`.
-pub fn variables(kind: Kind) -> &'static [&'static str] {
-    match kind {
-        Kind::Invariant => &["I1", "I2", "J", "I1bar", "I2bar"],
-        Kind::Link => &["l", "L"],
-    }
-}
-
-/// Lowers `expr` into `g`; `params` are the struct's field names, in order.
-pub fn lower(g: &mut Graph, expr: &Expr, kind: Kind, params: &[String]) -> syn::Result<Id> {
+/// Lowers `expr`, written over the variables of `scope`, into `g`. `params` are the
+/// struct's field names, in order; those in `assigned` (the fields a small-strain
+/// mapping sets) may not be read.
+pub fn lower(g: &mut Graph, expr: &Expr, scope: Scope, params: &[String], assigned: &[String]) -> syn::Result<Id> {
     Lowerer {
         g,
-        kind,
+        scope,
         params,
+        assigned,
         env: Vec::new(),
     }
     .expr(expr)
@@ -32,8 +25,9 @@ pub fn lower(g: &mut Graph, expr: &Expr, kind: Kind, params: &[String]) -> syn::
 
 struct Lowerer<'a> {
     g: &'a mut Graph,
-    kind: Kind,
+    scope: Scope,
     params: &'a [String],
+    assigned: &'a [String],
     /// `let` bindings in scope, innermost last (a later binding shadows an earlier one).
     env: Vec<(String, Id)>,
 }
@@ -43,6 +37,14 @@ fn err<T>(tokens: impl quote::ToTokens, message: impl std::fmt::Display) -> syn:
 }
 
 impl Lowerer<'_> {
+    /// What is being lowered, for messages.
+    fn what(&self) -> &'static str {
+        match self.scope {
+            Scope::Energy(_) => "an energy",
+            Scope::SmallStrain => "a small-strain mapping",
+        }
+    }
+
     fn expr(&mut self, e: &Expr) -> syn::Result<Id> {
         match e {
             Expr::Lit(lit) => self.literal(&lit.lit),
@@ -58,7 +60,10 @@ impl Lowerer<'_> {
                     let a = self.expr(&u.expr)?;
                     Ok(self.g.neg(a))
                 }
-                _ => err(u.op, "unsupported unary operator; only `-` is allowed in an energy"),
+                _ => err(
+                    u.op,
+                    format!("unsupported unary operator; only `-` is allowed in {}", self.what()),
+                ),
             },
             Expr::Binary(b) => {
                 let (l, r) = (self.expr(&b.left)?, self.expr(&b.right)?);
@@ -67,7 +72,7 @@ impl Lowerer<'_> {
                     BinOp::Sub(_) => Ok(self.g.sub(l, r)),
                     BinOp::Mul(_) => Ok(self.g.mul(l, r)),
                     BinOp::Div(_) => Ok(self.g.div(l, r)),
-                    op => err(op, "unsupported operator in an energy; allowed: `+`, `-`, `*`, `/` (use `.powi(n)` or `.powf(x)` for powers)"),
+                    op => err(op, format!("unsupported operator in {}; allowed: `+`, `-`, `*`, `/` (use `.powi(n)` or `.powf(x)` for powers)", self.what())),
                 }
             }
             Expr::MethodCall(m) => {
@@ -96,14 +101,17 @@ impl Lowerer<'_> {
             }
             Expr::Block(b) => {
                 if let Some(label) = &b.label {
-                    return err(label, "labels are not allowed in an energy");
+                    return err(label, format!("labels are not allowed in {}", self.what()));
                 }
                 self.block(&b.block)
             }
             other => err(
                 other,
-                "unsupported expression in an energy; allowed: numbers, variables, parameters, \
-                 `+ - * /`, unary `-`, parentheses, function calls and `{ let x = ...; expr }` blocks",
+                format!(
+                    "unsupported expression in {}; allowed: numbers, variables, parameters, \
+                     `+ - * /`, unary `-`, parentheses, function calls and `{{ let x = ...; expr }}` blocks",
+                    self.what()
+                ),
             ),
         }
     }
@@ -124,34 +132,56 @@ impl Lowerer<'_> {
             return Ok(id);
         }
         if let Some(i) = self.params.iter().position(|p| *p == name) {
-            return Ok(self.g.param(i));
+            return self.param(ident, i);
         }
-        match (self.kind, name.as_str()) {
-            (Kind::Invariant, "I1") => return Ok(self.g.var(Var::I1)),
-            (Kind::Invariant, "I2") => return Ok(self.g.var(Var::I2)),
-            (Kind::Invariant, "J") => return Ok(self.g.var(Var::J)),
-            (Kind::Invariant, "I1bar") => return Ok(self.isochoric(Var::I1, -2.0 / 3.0)),
-            (Kind::Invariant, "I2bar") => return Ok(self.isochoric(Var::I2, -4.0 / 3.0)),
-            (Kind::Link, "l") => return Ok(self.g.var(Var::LinkL)),
-            (Kind::Link, "L") => return Ok(self.g.var(Var::RestL)),
-            _ => {}
+        match vocab::symbol(self.scope, &name) {
+            Some(Symbol::Var(v)) => return Ok(self.g.var(v)),
+            Some(Symbol::Isochoric(v, exponent)) => return Ok(self.isochoric(v, exponent)),
+            None => {}
         }
-        if variables(Kind::Invariant).contains(&name.as_str()) {
-            return err(
+        let in_scope = |scope| vocab::symbol(scope, &name).is_some();
+        match self.scope {
+            Scope::Energy(Kind::Link) if in_scope(Scope::Energy(Kind::Invariant)) => err(
                 ident,
                 format!(
                     "`{name}` is not available in a link law: a link energy depends only on \
                      `l` and `L` (current and rest squared edge length) and the parameters"
                 ),
-            );
-        }
-        if variables(Kind::Link).contains(&name.as_str()) {
-            return err(
+            ),
+            Scope::Energy(Kind::Invariant) if in_scope(Scope::Energy(Kind::Link)) => err(
                 ident,
                 format!("`{name}` is a link-law variable; add `link` to `#[material(...)]` to declare a link law"),
+            ),
+            Scope::Energy(_) if in_scope(Scope::SmallStrain) => err(
+                ident,
+                format!("`{name}` is a small-strain modulus, usable in `#[small_strain(...)]` only, not in an energy"),
+            ),
+            Scope::SmallStrain if in_scope(Scope::Energy(Kind::Invariant)) || in_scope(Scope::Energy(Kind::Link)) => {
+                err(
+                    ident,
+                    format!(
+                        "`{name}` is an energy variable; a small-strain mapping is over `mu0`, `K0`, `lambda0` \
+                         and the parameters it does not set"
+                    ),
+                )
+            }
+            _ => err(ident, self.unknown_message(&name)),
+        }
+    }
+
+    /// Parameter number `i`, unless the small-strain mapping being lowered sets it.
+    fn param(&mut self, at: impl quote::ToTokens, i: usize) -> syn::Result<Id> {
+        let name = &self.params[i];
+        if self.assigned.contains(name) {
+            return err(
+                at,
+                format!(
+                    "`{name}` is set by this small-strain mapping, so its value cannot be used in it; \
+                     use `mu0`, `K0`, `lambda0` and the parameters the mapping does not set"
+                ),
             );
         }
-        err(ident, self.unknown_message(&name))
+        Ok(self.g.param(i))
     }
 
     /// `Ī = I · J^e` (e = −2/3 for Ī1, −4/3 for Ī2).
@@ -164,18 +194,25 @@ impl Lowerer<'_> {
     }
 
     fn unknown_message(&self, name: &str) -> String {
-        let vars = variables(self.kind);
+        let vars: Vec<&str> = vocab::variables(self.scope).collect();
+        let readable = || {
+            self.params
+                .iter()
+                .filter(|p| !self.assigned.contains(p))
+                .map(String::as_str)
+        };
         let quote_all =
             |names: &mut dyn Iterator<Item = &str>| names.map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ");
         let mut msg = format!(
-            "unknown identifier `{name}` in the energy; allowed: the variables {}",
+            "unknown identifier `{name}` in {}; allowed: the variables {}",
+            match self.scope {
+                Scope::Energy(_) => "the energy",
+                Scope::SmallStrain => self.what(),
+            },
             quote_all(&mut vars.iter().copied())
         );
-        if !self.params.is_empty() {
-            msg += &format!(
-                ", the parameters {}",
-                quote_all(&mut self.params.iter().map(String::as_str))
-            );
+        if readable().next().is_some() {
+            msg += &format!(", the parameters {}", quote_all(&mut readable()));
         }
         if !self.env.is_empty() {
             msg += &format!(
@@ -186,7 +223,7 @@ impl Lowerer<'_> {
         let candidates = vars
             .iter()
             .copied()
-            .chain(self.params.iter().map(String::as_str))
+            .chain(readable())
             .chain(self.env.iter().map(|(n, _)| n.as_str()));
         let nearest = candidates
             .map(|c| (edit_distance(&c.to_lowercase(), &name.to_lowercase()), c))
@@ -203,34 +240,36 @@ impl Lowerer<'_> {
         let is_self = matches!(&*f.base, Expr::Path(p) if p.path.is_ident("self"));
         match (&f.member, is_self) {
             (syn::Member::Named(name), true) => match self.params.iter().position(|p| name == p) {
-                Some(i) => Ok(self.g.param(i)),
+                Some(i) => self.param(name, i),
                 None => err(name, format!("`{name}` is not a parameter (field) of this law")),
             },
-            _ => err(f, "only `self.<parameter>` field accesses are allowed in an energy"),
+            _ => err(
+                f,
+                format!("only `self.<parameter>` field accesses are allowed in {}", self.what()),
+            ),
         }
     }
 
     fn function(&mut self, name: &syn::Ident, args: &[&Expr]) -> syn::Result<Id> {
-        let arity = match name.to_string().as_str() {
-            "ln" | "exp" | "sqrt" | "abs" => 1,
-            "powi" | "powf" => 2,
-            other => {
-                return err(name, format!("unsupported function `{other}`; supported: {FUNCTIONS}"));
-            }
+        let Some(function) = Function::named(&name.to_string()) else {
+            return err(name, format!("unsupported function `{name}`; supported: {FUNCTIONS}"));
         };
-        if args.len() != arity {
+        if args.len() != function.arity() {
             return err(
                 name,
-                format!("`{name}` takes {} argument(s) besides the receiver", arity - 1),
+                format!(
+                    "`{name}` takes {} argument(s) besides the receiver",
+                    function.arity() - 1
+                ),
             );
         }
         let a = self.expr(args[0])?;
-        Ok(match name.to_string().as_str() {
-            "ln" => self.g.ln(a),
-            "exp" => self.g.exp(a),
-            "sqrt" => self.g.sqrt(a),
-            "abs" => self.g.abs(a),
-            "powi" => {
+        Ok(match function {
+            Function::Ln => self.g.ln(a),
+            Function::Exp => self.g.exp(a),
+            Function::Sqrt => self.g.sqrt(a),
+            Function::Abs => self.g.abs(a),
+            Function::Powi => {
                 let Some(n) = int_literal(args[1]) else {
                     return err(
                         args[1],
@@ -239,7 +278,7 @@ impl Lowerer<'_> {
                 };
                 self.g.powi(a, n)
             }
-            _ => {
+            Function::Powf => {
                 let b = self.expr(args[1])?;
                 self.g.powf(a, b)
             }
@@ -269,7 +308,7 @@ impl Lowerer<'_> {
                 return err(local, "a `let` binding needs a value");
             };
             if let Some((else_token, _)) = &init.diverge {
-                return err(else_token, "`let ... else` is not allowed in an energy");
+                return err(else_token, format!("`let ... else` is not allowed in {}", self.what()));
             }
             let id = self.expr(&init.expr)?;
             self.env.push((name, id));
@@ -286,7 +325,7 @@ fn binding_name(pat: &Pat) -> syn::Result<String> {
     match pat {
         Pat::Ident(p) => {
             if let Some(m) = &p.mutability {
-                return err(m, "`let` bindings in an energy are immutable (shadow instead)");
+                return err(m, "`let` bindings are immutable (shadow instead)");
             }
             if p.by_ref.is_some() || p.subpat.is_some() {
                 return err(p, "expected a plain name");
@@ -294,9 +333,8 @@ fn binding_name(pat: &Pat) -> syn::Result<String> {
             Ok(p.ident.to_string())
         }
         Pat::Type(t) => {
-            let is_f64 = matches!(&*t.ty, syn::Type::Path(tp) if tp.qself.is_none() && tp.path.is_ident("f64"));
-            if !is_f64 {
-                return err(&t.ty, "bindings in an energy are `f64`");
+            if !vocab::is_f64(&t.ty) {
+                return err(&t.ty, "`let` bindings are `f64`");
             }
             binding_name(&t.pat)
         }
@@ -338,7 +376,7 @@ mod tests {
     fn lower_str(src: &str, kind: Kind) -> syn::Result<Id> {
         let mut g = Graph::new();
         let expr: Expr = syn::parse_str(src).expect("test source parses");
-        lower(&mut g, &expr, kind, &["mu".into(), "lambda".into()])
+        lower(&mut g, &expr, Scope::Energy(kind), &["mu".into(), "lambda".into()], &[])
     }
 
     fn message(src: &str, kind: Kind) -> String {
@@ -378,6 +416,28 @@ mod tests {
             assert!(lower_str(src, Kind::Invariant).is_ok(), "{src}");
         }
         assert!(lower_str("mu / 2.0 * (l.sqrt() - L.sqrt()).powi(2)", Kind::Link).is_ok());
+    }
+
+    #[test]
+    fn small_strain_mappings_read_moduli_and_unset_parameters_only() {
+        let lower_mapping = |src: &str| {
+            let expr: Expr = syn::parse_str(src).expect("test source parses");
+            let params = ["mu".to_string(), "lambda".to_string()];
+            lower(&mut Graph::new(), &expr, Scope::SmallStrain, &params, &params[..1])
+        };
+        assert!(lower_mapping("mu0 / 2.0 + lambda * K0.ln() - lambda0").is_ok());
+        let msg = |src| lower_mapping(src).expect_err(src).to_string();
+        assert!(msg("mu0 * mu").contains("set by this small-strain mapping"));
+        assert!(msg("mu0 * self.mu").contains("set by this small-strain mapping"));
+        assert!(msg("mu0 * I1bar").contains("energy variable"));
+        assert!(msg("mu0 * L").contains("energy variable"));
+        let unknown = msg("nu0 * 2.0");
+        assert!(
+            unknown.contains("in a small-strain mapping") && unknown.contains("did you mean `mu0`"),
+            "{unknown}"
+        );
+        assert!(!unknown.contains("`mu`,"), "{unknown}");
+        assert!(message("mu0 * J", Kind::Invariant).contains("small-strain modulus"));
     }
 
     #[test]

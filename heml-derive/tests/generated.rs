@@ -28,6 +28,9 @@ pub mod registry {
         pub kind: LawKind,
         pub module: &'static str,
         pub build: fn(&[f64]) -> Box<dyn crate::material::Material>,
+        pub small_strain: Option<crate::law::SmallStrain>,
+        pub allow_prestress: bool,
+        pub rest: fn(&[f64]) -> crate::law::RestState,
     }
     inventory::collect!(MaterialEntry);
 }
@@ -95,12 +98,13 @@ pub struct MooneyRivlin {
     pub kappa: f64,
 }
 
-/// Gent, written with a let block.
+/// Gent, written with a let block; E/ν set μ and κ, `jm` is given.
 #[heml_derive::material(name = "gent", crate = "crate")]
 #[energy({
     let x = (I1bar - 3.0) / jm;
     -mu * jm / 2.0 * (1.0 - x).ln() + kappa / 2.0 * (J - 1.0).powi(2)
 })]
+#[small_strain(kappa = K0, mu = { let half = mu0 / 2.0; half + half * jm / jm })]
 pub struct Gent {
     pub mu: f64,
     pub jm: f64,
@@ -135,8 +139,8 @@ pub struct MassSpring {
     pub k: f64,
 }
 
-/// A law with no parameter at all.
-#[heml_derive::material(name = "unit", crate = "crate")]
+/// A law with no parameter at all (stressed at rest, and declared so).
+#[heml_derive::material(name = "unit", allow_prestress, crate = "crate")]
 #[energy(I1 - 3.0)]
 pub struct Unit {}
 
@@ -329,4 +333,42 @@ fn registry_entries() {
     assert!(!e.energy.is_empty() && !e.doc.is_empty());
     let m = (e.build)(&[4.0]);
     assert_eq!((m.name(), m.params()), ("mass_spring", vec![4.0]));
+    assert!(e.small_strain.is_none() && !e.allow_prestress);
+    let r = (e.rest)(&[4.0]);
+    assert_eq!((r.energy, r.stress), (0.0, 0.0));
+}
+
+fn entry(name: &str) -> &'static registry::MaterialEntry {
+    inventory::iter::<registry::MaterialEntry>
+        .into_iter()
+        .find(|e| e.name == name)
+        .expect("registered")
+}
+
+#[test]
+fn small_strain_mapping_sets_its_fields_and_keeps_the_others() {
+    let s = entry("gent").small_strain.expect("gent declares a mapping");
+    // field order, whatever the order written
+    assert_eq!(s.fields, ["mu", "kappa"]);
+    assert!(s.text.starts_with("kappa = K0, mu ="), "{}", s.text);
+    let mut values = [f64::NAN, 30.0, f64::NAN];
+    let m = law::Moduli::from_young(60e3, 0.45);
+    (s.apply)(&m, &mut values);
+    // mu0/2 + mu0/2·jm/jm: equal to mu0 up to one rounding of each operation
+    assert!((values[0] - m.mu0).abs() <= 4.0 * f64::EPSILON * m.mu0, "{values:?}");
+    assert_eq!(values[1..], [30.0, m.k0]);
+    assert!(entry("neo_hookean").small_strain.is_none());
+}
+
+#[test]
+fn rest_state_and_prestress_opt_out() {
+    let unit = entry("unit");
+    assert!(unit.allow_prestress);
+    // w = I1 − 3: zero energy at rest but P = 2·w₁·I = 2·I
+    let r = (unit.rest)(&[]);
+    assert_eq!((r.energy, r.stress), (0.0, 2.0));
+    let nh = entry("neo_hookean");
+    assert!(!nh.allow_prestress);
+    let r = (nh.rest)(&[1.0, 2.0]);
+    assert_eq!((r.energy, r.stress), (0.0, 0.0));
 }

@@ -3,7 +3,7 @@
 //! `p1_equivalence`: on every real organ mesh of `../shared/meshes` (quick mode: two
 //! of them), under a smooth large deformation (stretches 0.9–1.1, shear, rotation and
 //! a sinusoidal bend), the HEML forces of every invariant law are compared with the
-//! standard P1 path (F = Ds·Dm⁻¹, P = ∂Ψ/∂F, f = −Vol·P·Dm⁻ᵀ, [`heml::fem`]),
+//! standard P1 path (F = Ds·Dm⁻¹, P = ∂Ψ/∂F, f = −Vol·P·Dm⁻ᵀ, [`heml::force::p1`]),
 //! and both are timed on the largest mesh (median of repeated evaluations).
 //!
 //! `op_count`: arithmetic per tetrahedron of each law's whole HEML kernel = the law's
@@ -11,7 +11,7 @@
 //! expression graph) + the fixed link/volume work of the HEML tet kernel, which
 //! depends on `USES_I2`/`USES_J`; next to the standard P1 path's count for the same
 //! law. The fixed counts are taken from the code paths of the scalar kernels
-//! (`force/heml.rs` `HemlField::tet` + node scatter, `fem.rs` `FemField::add_forces`),
+//! (`force/heml.rs` `HemlKernel::tet` + node scatter, `force/p1.rs` `P1Kernel::tet`),
 //! term by term, see [`heml_fixed_ops`] and [`p1_fixed_ops`].
 
 use super::plot::{draw, Chart, ChartKind};
@@ -192,7 +192,7 @@ fn sum(parts: &[OpCount]) -> OpCount {
     })
 }
 
-/// The HEML tet kernel's own arithmetic (without the law), from `HemlField::tet`
+/// The HEML tet kernel's own arithmetic (without the law), from `HemlKernel::tet`
 /// and the scatter into the global force array:
 ///
 /// | term | add | mul | div |
@@ -238,7 +238,7 @@ pub fn heml_fixed_ops(uses_i2: bool, uses_j: bool) -> OpCount {
 }
 
 /// The standard P1 path's own arithmetic (without the law), from
-/// `FemField::add_forces` / `energy_and_piola`, which evaluates every term whatever
+/// `P1Kernel::tet` / `energy_and_piola`, which evaluates every term whatever
 /// the law uses (as a generic P1 code does):
 ///
 /// | term | add | mul | div |

@@ -9,9 +9,43 @@ use heml::nalgebra::Matrix3;
 use heml::registry::MaterialEntry;
 use heml::{Params, Result, TetMesh, Vec3};
 
+/// Parameters of the registered law `law` whose small-strain behaviour is linear
+/// elasticity with Young's modulus `e` and Poisson's ratio `nu`: `E` and `nu`, which
+/// the law's declared small-strain mapping (`#[small_strain]`) turns into its own
+/// parameters, plus its shape parameters at moderate soft-tissue values — Mooney–
+/// Rivlin gives 30 % of the shear modulus to c01, Fung–Demiray and Veronda–Westmann
+/// stiffen with exponent 1, Yeoh softens then stiffens (c2 = −μ/20, c3 = μ/40), Gent
+/// locks at Jm = 50, Arruda–Boyce at λm = 3. `None` for laws without a mapping (link
+/// laws: a spring stiffness depends on the mesh) or that need shape parameters this
+/// table does not know.
+///
+/// ```
+/// use heml_validation::fixtures::soft_tissue_params;
+/// let p = soft_tissue_params("gent", 3e3, 0.45).unwrap();
+/// assert_eq!((p.get("E"), p.get("nu"), p.get("jm")), (Some(3e3), Some(0.45), Some(50.0)));
+/// assert!(soft_tissue_params("mass_spring", 3e3, 0.45).is_none());
+/// ```
+pub fn soft_tissue_params(law: &str, e: f64, nu: f64) -> Option<Params> {
+    let entry = heml::find_material(law).ok()?;
+    entry.small_strain.as_ref()?;
+    let mu = e / (2.0 * (1.0 + nu));
+    let shape: &[(&str, f64)] = match law {
+        "mooney_rivlin" => &[("c01", 0.15 * mu)],
+        "fung_demiray" => &[("b", 1.0)],
+        "veronda_westmann" => &[("c2", 1.0)],
+        "yeoh" => &[("c2", -mu / 20.0), ("c3", mu / 40.0)],
+        "gent" => &[("jm", 50.0)],
+        "arruda_boyce" => &[("lm", 3.0)],
+        _ => &[],
+    };
+    let params = shape
+        .iter()
+        .fold(Params::from([("E", e), ("nu", nu)]), |p, (k, v)| p.with(k, *v));
+    entry.instantiate(&params).ok().map(|_| params)
+}
+
 /// Parameters of `entry` for soft tissue of Young's modulus `e` and Poisson's ratio
-/// `nu` ([`heml::materials::soft_tissue_params`], matched to linear elasticity for
-/// every built-in invariant law). A link law with a single parameter gets a spring
+/// `nu` ([`soft_tissue_params`]). A link law with a single parameter gets a spring
 /// stiffness of `e` × 1 m / 300 per tet edge (10 N/m for 3 kPa, the value `heml
 /// bench` has always used); any other law without built-in values gets `None`.
 ///
@@ -22,7 +56,7 @@ use heml::{Params, Result, TetMesh, Vec3};
 /// # Ok::<(), heml::HemlError>(())
 /// ```
 pub fn tissue_params(entry: &MaterialEntry, e: f64, nu: f64) -> Option<Params> {
-    heml::materials::soft_tissue_params(entry.name, e, nu).or_else(|| {
+    soft_tissue_params(entry.name, e, nu).or_else(|| {
         (entry.kind == LawKind::Link && entry.params.len() == 1)
             .then(|| Params::new().with(entry.params[0].name, e / 300.0))
     })

@@ -389,10 +389,10 @@ pub fn format_table(reports: &[CaseReport]) -> String {
 // ----- helpers shared by the cases ------------------------------------------------------
 
 /// Parameters of `entry` with small-strain shear modulus `mu` and bulk modulus 3μ
-/// (ν = 0.35), from [`heml::materials::soft_tissue_params`]; link laws get k = `mu`.
+/// (ν = 0.35), from [`crate::fixtures::soft_tissue_params`]; link laws get k = `mu`.
 pub(crate) fn law_params(entry: &heml::registry::MaterialEntry, mu: f64) -> Params {
     let nu = 0.35;
-    heml::materials::soft_tissue_params(entry.name, 2.0 * mu * (1.0 + nu), nu)
+    crate::fixtures::soft_tissue_params(entry.name, 2.0 * mu * (1.0 + nu), nu)
         .unwrap_or_else(|| entry.params.iter().fold(Params::new(), |p, info| p.with(info.name, mu)))
 }
 

@@ -5,6 +5,7 @@ use heml_derive::material;
 /// C = (1/2, 1/20, 11/1050, 19/7000, 519/673750).
 ///
 /// Small-strain shear modulus μ0 = μ·(1 + 3/(5λm²) + 99/(175λm⁴) + 513/(875λm⁶) + 42039/(67375λm⁸)).
+/// With E/ν, μ is μ0 divided by that factor and κ = K; `lm` is given.
 /// Reference: E. M. Arruda, M. C. Boyce, J. Mech. Phys. Solids 41 (1993).
 #[material(name = "arruda_boyce")]
 #[energy({
@@ -17,6 +18,11 @@ use heml_derive::material;
         + 519.0 * m2.powi(4) / 673750.0 * (i.powi(5) - 243.0))
         + kappa / 2.0 * (J - 1.0).powi(2)
 })]
+#[small_strain(
+    mu = mu0 / (1.0 + 3.0 / (5.0 * lm.powi(2)) + 99.0 / (175.0 * lm.powi(4))
+        + 513.0 / (875.0 * lm.powi(6)) + 42039.0 / (67375.0 * lm.powi(8))),
+    kappa = K0,
+)]
 pub struct ArrudaBoyce {
     /// Modulus μ (Pa) (the small-strain shear modulus is slightly larger, see above).
     pub mu: f64,

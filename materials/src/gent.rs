@@ -4,9 +4,12 @@ use heml_derive::material;
 /// w = −μ·Jm/2·ln(1 − (Ī1 − 3)/Jm) + κ/2·(J − 1)².
 ///
 /// Defined only while Ī1 − 3 < Jm (the energy is infinite at the locking stretch).
+/// Small-strain shear modulus μ (−Jm/2·ln(1 − x/Jm) = x/2 + O(x²)), bulk modulus κ; with
+/// E/ν the locking parameter `jm` is given.
 /// Reference: A. N. Gent, Rubber Chem. Technol. 69 (1996).
 #[material(name = "gent")]
 #[energy(-mu * jm / 2.0 * (1.0 - (I1bar - 3.0) / jm).ln() + kappa / 2.0 * (J - 1.0).powi(2))]
+#[small_strain(mu = mu0, kappa = K0)]
 pub struct Gent {
     /// Shear modulus μ (Pa).
     pub mu: f64,

@@ -8,6 +8,10 @@ use heml_derive::material;
 /// energy zero too, as for every HEML law. The parameters are the paper's
 /// (μ, λ), which differ from the Lamé constants: use [`StableNeoHookean::from_lame`]
 /// (μ' = 4μ/3, λ' = λ + 5μ/6) to match linear elasticity at small strain.
+///
+/// Linearised at rest, P ≈ (3μ/2)·ε + (λ − 5μ/8)·tr ε·I: the small-strain shear modulus is
+/// 3μ/4 and Lamé's λ0 = λ − 5μ/8, so E/ν set μ = 4μ0/3 and λ = λ0 + 5μ0/6 (the paper's
+/// reparametrisation, declared in `small_strain`).
 /// Needs no inversion extension (`no_inversion_fix`).
 /// Reference: B. Smith, F. de Goes, T. Kim, "Stable Neo-Hookean Flesh Simulation",
 /// ACM TOG 37(2) (2018).
@@ -17,6 +21,7 @@ use heml_derive::material;
     mu / 2.0 * (I1 - 3.0) + lambda / 2.0 * ((J - alpha).powi(2) - (1.0 - alpha).powi(2))
         - mu / 2.0 * ((I1 + 1.0) / 4.0).ln()
 })]
+#[small_strain(mu = 4.0 / 3.0 * mu0, lambda = lambda0 + 5.0 / 6.0 * mu0)]
 pub struct StableNeoHookean {
     /// The paper's μ (Pa).
     pub mu: f64,

@@ -11,6 +11,20 @@ use rand::Rng;
 
 pub use laws::{sample_params, TestQuartic};
 
+/// The laws of the `materials` crate, by registry name, sorted.
+pub const BUILT_IN: [&str; 10] = [
+    "arruda_boyce",
+    "fung_demiray",
+    "gent",
+    "mass_spring",
+    "mooney_rivlin",
+    "neo_hookean",
+    "saint_venant_kirchhoff",
+    "stable_neo_hookean",
+    "veronda_westmann",
+    "yeoh",
+];
+
 /// Re-exported so that tests build their RNG the same way.
 pub use rand_chacha::ChaCha8Rng as TestRng;
 

@@ -54,7 +54,14 @@ fn the_library_pulls_in_no_application_crates() {
     }
     let lib = closure(&graph, "heml");
     assert!(lib.contains("heml-core") && lib.contains("nalgebra") && lib.contains("rayon"));
-    for forbidden in ["plotters", "clap", "indicatif", "core_affinity", "criterion", "heml-validation"] {
+    for forbidden in [
+        "plotters",
+        "clap",
+        "indicatif",
+        "core_affinity",
+        "criterion",
+        "heml-validation",
+    ] {
         assert!(!lib.contains(forbidden), "the heml library depends on {forbidden}");
     }
 }

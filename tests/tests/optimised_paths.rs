@@ -70,7 +70,7 @@ fn magnitudes(law: &dyn Material, mesh: &TetMesh, x: &[Vec3], fem: bool) -> Vec<
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for the built-in invariant laws; the
 /// test's own laws get random parameters from their valid ranges.
 fn tissue_params(entry: &MaterialEntry) -> Params {
-    heml::materials::soft_tissue_params(entry.name, 3e3, 0.45)
+    heml_validation::fixtures::soft_tissue_params(entry.name, 3e3, 0.45)
         .unwrap_or_else(|| heml_tests::sample_params(entry, &mut heml_tests::rng(1)))
 }
 

@@ -2,19 +2,7 @@
 //! the built-in `materials` crate, and bad names or parameters are clear errors.
 
 use heml::prelude::*;
-
-const BUILT_IN: [&str; 10] = [
-    "arruda_boyce",
-    "fung_demiray",
-    "gent",
-    "mass_spring",
-    "mooney_rivlin",
-    "neo_hookean",
-    "saint_venant_kirchhoff",
-    "stable_neo_hookean",
-    "veronda_westmann",
-    "yeoh",
-];
+use heml_tests::BUILT_IN;
 
 #[test]
 fn every_built_in_law_is_listed_with_parameters_and_energy() {

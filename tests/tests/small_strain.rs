@@ -114,7 +114,7 @@ fn soft_tissue_params_match_the_requested_moduli() {
     let (mu, lambda) = heml::params::lame(e, nu);
     let mut checked = 0;
     for entry in heml::materials_list() {
-        match heml::materials::soft_tissue_params(entry.name, e, nu) {
+        match heml_validation::fixtures::soft_tissue_params(entry.name, e, nu) {
             Some(p) => {
                 check(entry.name, entry.instantiate(&p).unwrap().as_ref(), mu, lambda);
                 checked += 1;

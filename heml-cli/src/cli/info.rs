@@ -109,8 +109,13 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
 
     let entry = heml::find_material(&args.law)?;
     let mut params = parse_params(&args.params)?;
-    let lame_law = entry.params.iter().map(|p| p.name).eq(["mu", "lambda"]);
-    if params.0.is_empty() && lame_law {
+    // default soft tissue when the law's declared small-strain mapping sets every
+    // parameter from E and nu
+    let from_moduli = entry
+        .small_strain
+        .as_ref()
+        .is_some_and(|s| s.fields.len() == entry.params.len());
+    if params.0.is_empty() && from_moduli {
         params = Params::from([("E", 3000.0), ("nu", 0.45)]);
     }
     let shown: Vec<String> = params.0.iter().map(|(k, v)| format!("{k}={v}")).collect();

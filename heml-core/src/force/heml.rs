@@ -1,7 +1,7 @@
 //! The HEML force field: per tet, invariants from the six squared edge lengths,
 //! forces along the links plus (for laws using J) the volume term (DESIGN §1).
 //!
-//! Three evaluation paths compute the same forces (see [`Assembly`]):
+//! Three evaluation paths compute the same forces (see [`super::Assembly`]):
 //! the plain serial kernel [`HemlField::add_forces_reference`] (one tet at a time,
 //! the law's `dw`, the definition the others are tested against), a serial batched
 //! kernel, and the default parallel blocked kernel (`ElasticForces::add_forces`).
@@ -10,8 +10,10 @@
 // vectorises); iterator chains over several arrays would obscure that.
 #![allow(clippy::needless_range_loop)]
 
-use super::assembly::{BatchKernel, LaneForces, LanePoints, LawBatches, Layout, LANES};
-use super::{check_sizes, scatter_links, selection, Assembly, ElasticForces, ForceOptions};
+use super::assembly::{LaneForces, LanePoints, LANES};
+use super::field::{Formulation, TetField};
+use super::kernel::TetKernel;
+use super::ForceOptions;
 use crate::error::Result;
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
@@ -20,12 +22,12 @@ use crate::Vec3;
 
 /// Rest data of `LANES` consecutive tets, structure of arrays.
 #[derive(Debug, Clone, Copy)]
-struct RestBatch {
+pub struct HemlBatch {
     vol: [f64; LANES],
     vtr: [[f64; LANES]; 6],
 }
 
-/// Internal forces of an invariant law `M` over (a region of) a mesh.
+/// Internal forces of an invariant law `M` over (a region of) a mesh, the HEML way.
 ///
 /// Monomorphised per law: `USES_I2`/`USES_J` are constants, so the dead parts of the
 /// kernel (the I2 terms, the cross products) vanish at compile time. `Mtr` is never
@@ -33,21 +35,23 @@ struct RestBatch {
 /// so laws using I2 take no more memory than the others. The tets are kept in Morton
 /// order (`tet_ids()` gives the global id of each), with rest data in batches of
 /// [`LANES`] tets; see [`super::assembly`] for the parallel, deterministic assembly.
+pub type HemlField<M> = TetField<HemlKernel<M>>;
+
+/// The HEML formulation of an invariant law `M` (its law and force options): the
+/// kernel of a [`HemlField`].
 #[derive(Debug, Clone)]
-pub struct HemlField<M: InvariantLaw> {
+pub struct HemlKernel<M: InvariantLaw> {
     law: M,
     opts: ForceOptions,
-    n_nodes: usize,
-    assembly: Assembly,
-    layout: Layout,
-    rest: Vec<RestBatch>,
 }
 
+impl<M: InvariantLaw> Formulation for HemlKernel<M> {}
+
 /// What one tet contributes.
-pub(crate) struct TetResult {
-    pub energy: f64,
-    pub j: f64,
-    pub f: [Vec3; 4],
+struct TetResult {
+    energy: f64,
+    j: f64,
+    f: [Vec3; 4],
 }
 
 impl<M: InvariantLaw> HemlField<M> {
@@ -59,77 +63,30 @@ impl<M: InvariantLaw> HemlField<M> {
     /// The field of `law` over the tets `tets` of `mesh` (all when `None`), stored in
     /// Morton order.
     pub fn on_tets(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
-        Self::build(law, mesh, tets, opts, true)
+        TetField::build(HemlKernel { law, opts }, mesh, tets, opts, true)
     }
 
     /// As [`Self::on_tets`], keeping the tets in the given order (no Morton
     /// reordering); for tests and benchmarks of the reordering itself.
     pub fn on_tets_unordered(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
-        Self::build(law, mesh, tets, opts, false)
-    }
-
-    fn build(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions, reorder: bool) -> Result<Self> {
-        opts.validate()?;
-        let sel = selection(mesh.n_tets(), tets)?;
-        let layout = Layout::new(mesh, &sel, reorder);
-        let nb = layout.n_batches();
-        let pad = RestBatch {
-            vol: [1.0; LANES],
-            vtr: [[0.0; LANES]; 6],
-        };
-        let mut rest = vec![pad; nb];
-        for (k, &t) in layout.ids.iter().enumerate() {
-            let r = RestTet::new(&mesh.tet_points(t));
-            let (b, l) = (k / LANES, k % LANES);
-            rest[b].vol[l] = r.vol;
-            for e in 0..6 {
-                rest[b].vtr[e][l] = r.vtr[e];
-            }
-        }
-        Ok(HemlField {
-            law,
-            opts,
-            n_nodes: mesh.n_nodes(),
-            assembly: Assembly::default(),
-            layout,
-            rest,
-        })
+        TetField::build(HemlKernel { law, opts }, mesh, tets, opts, false)
     }
 
     /// The law.
     pub fn law(&self) -> &M {
-        &self.law
+        &self.kernel().law
     }
+}
 
-    /// The evaluation path `add_forces` uses.
-    pub fn assembly(&self) -> Assembly {
-        self.assembly
-    }
-
-    /// Chooses the evaluation path `add_forces` uses (default [`Assembly::Parallel`]).
-    pub fn set_assembly(&mut self, assembly: Assembly) {
-        self.assembly = assembly;
-    }
-
-    /// Bytes of memory per tet this field holds: rest data, indices, blocks, merge
-    /// lists and the scratch buffers of the parallel path.
-    pub fn bytes_per_tet(&self) -> f64 {
-        self.layout.bytes_per_tet(&self.rest)
-    }
-
-    fn vol(&self, k: usize) -> f64 {
-        self.rest[k / LANES].vol[k % LANES]
-    }
-
-    /// Energy, J and the four nodal forces of the field's `k`-th tet: the plain kernel.
+impl<M: InvariantLaw> HemlKernel<M> {
+    /// Energy, J and the four nodal forces of the tet in lane `lane` of `r`, whose
+    /// corners are at `p`: the plain kernel.
     #[inline(always)]
-    pub(crate) fn tet(&self, k: usize, idx: &[u32; 4], x: &[Vec3]) -> TetResult {
-        let (b, lane) = (k / LANES, k % LANES);
-        let p = idx.map(|i| x[i as usize]);
-        let v = edge_vectors(&p);
+    fn eval(&self, r: &HemlBatch, lane: usize, p: &[Vec3; 4]) -> TetResult {
+        let v = edge_vectors(p);
         let l = v.map(|e| e.norm_squared());
-        let vtr: [f64; 6] = std::array::from_fn(|e| self.rest[b].vtr[e][lane]);
-        let vol = self.rest[b].vol[lane];
+        let vtr: [f64; 6] = std::array::from_fn(|e| r.vtr[e][lane]);
+        let vol = r.vol[lane];
         let i1: f64 = (0..6).map(|e| vtr[e] * l[e]).sum();
         let (i2, ml) = if M::USES_I2 {
             // tr C² = lᵀ Mtr l and Mtr l through B (`rest::i2_terms`, tested against
@@ -174,31 +131,45 @@ impl<M: InvariantLaw> HemlField<M> {
             f,
         }
     }
-
-    /// The plain serial kernel: one tet at a time in field order, the law's `dw`,
-    /// forces added node by node. The reference every optimised path is tested
-    /// against.
-    pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        self.layout.add_plain(x, f, |k, idx| {
-            let r = self.tet(k, idx, x);
-            (r.energy, r.f)
-        })
-    }
-
-    fn kernel(&self) -> LawBatches<'_, M, RestBatch> {
-        LawBatches {
-            law: &self.law,
-            opts: self.opts,
-            rest: &self.rest,
-        }
-    }
 }
 
-impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, RestBatch> {
+impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
+    type Batch = HemlBatch;
+
+    const PAD: HemlBatch = HemlBatch {
+        vol: [1.0; LANES],
+        vtr: [[0.0; LANES]; 6],
+    };
+
+    fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut HemlBatch, lane: usize) {
+        let r = RestTet::new(&mesh.tet_points(t));
+        batch.vol[lane] = r.vol;
+        for e in 0..6 {
+            batch.vtr[e][lane] = r.vtr[e];
+        }
+    }
+
+    /// The law's `dw`, forces added corner by corner.
     #[inline(always)]
-    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+    fn tet(&self, rest: &HemlBatch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
+        let r = self.eval(rest, lane, p);
+        for (a, fa) in r.f.into_iter().enumerate() {
+            add(a, fa);
+        }
+        r.energy
+    }
+
+    /// J (from the positions when the law does not use it) and w = energy / vol.
+    fn tet_state(&self, rest: &HemlBatch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
+        let r = self.eval(rest, lane, p);
+        let vol = rest.vol[lane];
+        let j = if M::USES_J { r.j } else { signed_j(p, vol) };
+        (j, r.energy / vol)
+    }
+
+    #[inline(always)]
+    fn batch(&self, r: &HemlBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
         const L: usize = LANES;
-        let r = &self.rest[b];
         let mut j = [1.0; L];
         let mut cr = [[[0.0; L]; 3]; 3];
         if M::USES_J {
@@ -303,56 +274,17 @@ impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, RestBatch> {
     }
 }
 
-impl<M: InvariantLaw> ElasticForces for HemlField<M> {
-    fn n_nodes(&self) -> usize {
-        self.n_nodes
-    }
-    fn n_tets(&self) -> usize {
-        self.layout.n_tets()
-    }
-    fn tet_ids(&self) -> &[usize] {
-        &self.layout.ids
-    }
-
-    fn energy(&self, x: &[Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, None)?;
-        match self.assembly {
-            Assembly::Reference => Ok((0..self.layout.n_tets())
-                .map(|k| self.tet(k, &self.layout.global_tet(k), x).energy)
-                .sum()),
-            _ => self.add_forces(x, &mut vec![Vec3::zeros(); self.n_nodes]),
-        }
-    }
-
-    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        match self.assembly {
-            Assembly::Reference => self.add_forces_reference(x, f),
-            a => self.layout.add_batched(&self.kernel(), a == Assembly::Parallel, x, f),
-        }
-    }
-
-    fn set_assembly(&mut self, assembly: Assembly) {
-        self.assembly = assembly;
-    }
-    fn bytes_per_tet(&self) -> Option<f64> {
-        Some(HemlField::bytes_per_tet(self))
-    }
-
-    fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>> {
-        check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.layout.n_tets())
-            .map(|k| {
-                let idx = self.layout.global_tet(k);
-                let r = self.tet(k, &idx, x);
-                let j = if M::USES_J { r.j } else { signed_j(&idx, x, self.vol(k)) };
-                (j, r.energy / self.vol(k))
-            })
-            .collect())
-    }
+/// J of a tet from its current positions, for fields whose law does not need it.
+pub(super) fn signed_j(p: &[Vec3; 4], vol: f64) -> f64 {
+    (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0]))) / (6.0 * vol)
 }
 
-/// J of a tet from its current positions, for fields whose law does not need it.
-pub(crate) fn signed_j(idx: &[u32; 4], x: &[Vec3], vol: f64) -> f64 {
-    let p = idx.map(|i| x[i as usize]);
-    (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0]))) / (6.0 * vol)
+/// Adds the six link forces of a tet: head −= 2 g_e v_e, tail += 2 g_e v_e.
+#[inline(always)]
+pub(super) fn scatter_links(f: &mut [Vec3; 4], g: &[f64; 6], v: &[Vec3; 6]) {
+    for (e, &(tail, head)) in crate::rest::EDGES.iter().enumerate() {
+        let fe = v[e] * (2.0 * g[e]);
+        f[tail] += fe;
+        f[head] -= fe;
+    }
 }

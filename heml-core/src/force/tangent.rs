@@ -35,7 +35,8 @@
 // chains over several arrays would obscure the formulas.
 #![allow(clippy::needless_range_loop)]
 
-use super::{check_sizes, selection, ForceOptions};
+use super::field::{check_sizes, selection};
+use super::ForceOptions;
 use crate::error::{HemlError, Result};
 use crate::law::{InvariantLaw, LinkLaw};
 use crate::mesh::TetMesh;

@@ -21,8 +21,8 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use super::atomic::write_atomic;
-use super::cursor::{capacity, parse_at, shorten, Cursor};
-use super::{read_bytes, MeshData, MeshFormat};
+use super::cursor::{capacity, finite_point, parse_at, shorten, Cursor};
+use super::{no_tets_message, read_bytes, MeshData, MeshFormat};
 use crate::error::{HemlError, Result};
 use crate::mesh::TetMesh;
 use crate::Vec3;
@@ -136,6 +136,9 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
     if !have_elements {
         return Err(c.err("missing $Elements section"));
     }
+    if data.tets.is_empty() {
+        return Err(c.err(no_tets_message(&data)));
+    }
     if version == Version::V41 {
         data.tags = match &volume_physical {
             Some(phys) if phys.values().any(Option::is_some) => tet_entities
@@ -214,13 +217,6 @@ fn count(c: &mut Cursor<'_>, what: &str) -> Result<usize> {
     c.parse::<usize>(what)
 }
 
-fn coords(c: &mut Cursor<'_>) -> Result<Vec3> {
-    let x = c.parse::<f64>("x coordinate")?;
-    let y = c.parse::<f64>("y coordinate")?;
-    let z = c.parse::<f64>("z coordinate")?;
-    Ok(Vec3::new(x, y, z))
-}
-
 fn add_node(
     c: &Cursor<'_>,
     ln: usize,
@@ -237,12 +233,13 @@ fn add_node(
 }
 
 fn read_nodes_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64, usize>) -> Result<()> {
+    let header = c.line_of_next_token();
     let n = count(c, "the number of nodes")?;
-    data.nodes.reserve(capacity(n, c.remaining() / 8));
-    for _ in 0..n {
-        let (tok, ln) = c.expect_token("a node line 'id x y z'")?;
-        let tag: u64 = parse_at(c.file(), ln, tok, "a node id")?;
-        let p = coords(c)?;
+    // a node line holds 4 numbers and their separators: 8 bytes at least
+    data.nodes.reserve(capacity(n, c.remaining(), 8));
+    for k in 0..n {
+        let (tag, ln) = c.record_number::<u64>(k, n, "nodes", header)?;
+        let p = finite_point(c, tag)?;
         add_node(c, ln, tag, p, data, map)?;
     }
     Ok(())
@@ -254,21 +251,23 @@ fn read_nodes_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64
     let total = count(c, "the number of nodes")?;
     c.parse::<u64>("the minimum node tag")?;
     c.parse::<u64>("the maximum node tag")?;
-    data.nodes.reserve(capacity(total, c.remaining() / 8));
+    // a node costs a tag and 3 coordinates with separators: 8 bytes at least
+    data.nodes.reserve(capacity(total, c.remaining(), 8));
     for _ in 0..blocks {
         let dim = c.parse::<i64>("the entity dimension of a node block")?;
         c.parse::<i32>("the entity tag of a node block")?;
         let parametric = c.parse::<i64>("the parametric flag (0 or 1) of a node block")?;
         let n = count(c, "the number of nodes in a block")?;
         let extra = if parametric == 1 { dim.clamp(0, 3) as usize } else { 0 };
-        let mut tags = Vec::with_capacity(capacity(n, c.remaining()));
+        // a node tag and its separator: 2 bytes at least
+        let mut tags = Vec::with_capacity(capacity(n, c.remaining(), 2));
         for _ in 0..n {
             let (tok, ln) = c.expect_token("a node tag")?;
             tags.push((parse_at::<u64>(c.file(), ln, tok, "a node tag")?, ln));
         }
         for &(tag, _) in &tags {
             let ln = c.line_of_next_token();
-            let p = coords(c)?;
+            let p = finite_point(c, tag)?;
             for _ in 0..extra {
                 c.parse::<f64>("a parametric coordinate")?;
             }

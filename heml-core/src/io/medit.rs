@@ -11,11 +11,10 @@ use std::io::Write;
 use std::path::Path;
 
 use super::atomic::write_atomic;
-use super::cursor::{capacity, shorten, Cursor};
+use super::cursor::{capacity, finite_point, shorten, Cursor};
 use super::{read_bytes, MeshData};
 use crate::error::Result;
 use crate::mesh::TetMesh;
-use crate::Vec3;
 
 /// Skippable sections: keyword (lowercase) and the number of tokens per item.
 const SKIPPED: &[(&str, usize)] = &[
@@ -52,6 +51,8 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let mut have_vertices = false;
     let mut have_end = false;
     let mut have_version = false;
+    // the last section read and the line of its count, to explain a wrong count
+    let mut last_section: Option<(&str, usize)> = None;
     while let Some((kw, ln)) = c.token()? {
         let key = kw.to_ascii_lowercase();
         match key.as_str() {
@@ -67,29 +68,37 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
             }
             "vertices" => {
                 let n: usize = c.parse("the number of vertices")?;
-                data.nodes.reserve(capacity(n, c.remaining() / 8));
-                for _ in 0..n {
-                    let x: f64 = c.parse("x coordinate")?;
-                    let y: f64 = c.parse("y coordinate")?;
-                    let z: f64 = c.parse("z coordinate")?;
+                let header = c.line();
+                // a vertex line holds 4 numbers and their separators: 8 bytes at least
+                data.nodes.reserve(capacity(n, c.remaining(), 8));
+                for k in 0..n {
+                    // peek at the record's first token for a count that is too large
+                    let before = c.clone();
+                    c.record_number::<f64>(k, n, "vertices", header)?;
+                    c = before;
+                    let p = finite_point(&mut c, k + 1)?;
                     c.parse::<i64>("a vertex reference")?;
-                    data.nodes.push(Vec3::new(x, y, z));
+                    data.nodes.push(p);
                 }
+                last_section = Some(("Vertices", header));
                 have_vertices = true;
             }
             "tetrahedra" => {
                 let n: usize = c.parse("the number of tetrahedra")?;
-                raw_tets.reserve(capacity(n, c.remaining() / 10));
-                data.tags.reserve(capacity(n, c.remaining() / 10));
-                for _ in 0..n {
-                    let line = c.line_of_next_token();
-                    let mut t = [0usize; 4];
-                    for v in &mut t {
+                let header = c.line();
+                // a tet line holds 5 numbers and their separators: 10 bytes at least
+                raw_tets.reserve(capacity(n, c.remaining(), 10));
+                data.tags.reserve(capacity(n, c.remaining(), 10));
+                for k in 0..n {
+                    let (first, line) = c.record_number::<usize>(k, n, "tetrahedra", header)?;
+                    let mut t = [first, 0, 0, 0];
+                    for v in &mut t[1..] {
                         *v = c.parse("a vertex number (1-based)")?;
                     }
                     data.tags.push(c.parse::<i32>("an integer tetrahedron reference")?);
                     raw_tets.push((t, line));
                 }
+                last_section = Some(("Tetrahedra", header));
             }
             "end" => {
                 have_end = true;
@@ -99,14 +108,25 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 if let Some(&(name, per)) = SKIPPED.iter().find(|(n, _)| *n == k) {
                     let n: usize = c.parse(&format!("the number of {name}"))?;
                     let total = n.checked_mul(per).ok_or_else(|| c.err_at(ln, "count overflows"))?;
+                    let header = c.line();
                     for _ in 0..total {
                         c.expect_token(&format!("{name} entries"))?;
                     }
                     *data.skipped.entry(name.to_string()).or_insert(0) += n;
+                    last_section = Some((name, header));
                 } else if VOLUMES.contains(&k) {
                     return Err(c.err_at(
                         ln,
                         format!("section {kw}: only linear tetrahedra are supported as volume elements"),
+                    ));
+                } else if let (Ok(_), Some((section, header))) = (kw.parse::<f64>(), last_section) {
+                    return Err(c.err_at(
+                        ln,
+                        format!(
+                            "found the number '{}' where a keyword was expected: the {section} section \
+                             (count at line {header}) has more records than its count",
+                            shorten(kw)
+                        ),
                     ));
                 } else {
                     return Err(c.err_at(ln, format!("unknown Medit keyword '{}'", shorten(kw))));
@@ -122,6 +142,11 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     }
     if !have_vertices {
         return Err(c.err("missing Vertices section"));
+    }
+    if raw_tets.is_empty() {
+        return Err(
+            c.err("no tetrahedra in the file (no Tetrahedra section, or a count of 0): a mesh needs at least one")
+        );
     }
     let n = data.nodes.len();
     for (t, line) in raw_tets {

@@ -226,7 +226,7 @@ pub fn read_mesh(path: &Path) -> Result<(TetMesh, ReadReport)> {
 }
 
 /// Writes `mesh` in the format given by the extension of `path` (`.msh` is written
-/// as Gmsh 4.1 ASCII, `.vtu` as base64 binary; `.node`/`.ele` write both TetGen
+/// as Gmsh 4.1 ASCII, `.vtu` as zlib-compressed base64; `.node`/`.ele` write both TetGen
 /// files).
 pub fn write_mesh(path: &Path, mesh: &TetMesh) -> Result<()> {
     let format = match extension(path).as_str() {
@@ -250,6 +250,24 @@ pub fn write_mesh_as(path: &Path, mesh: &TetMesh, format: MeshFormat) -> Result<
         MeshFormat::TetGen => tetgen::write(path, mesh),
         MeshFormat::Medit => medit::write(path, mesh),
     }
+}
+
+/// The error text for a file that holds no tetrahedron, with what it did hold: an
+/// empty body cannot be simulated, and accepting it made `heml info` print an
+/// inverted bounding box and `heml run` write empty frames.
+pub(crate) fn no_tets_message(data: &MeshData) -> String {
+    let mut msg = format!(
+        "no tetrahedra in the file ({} nodes, 0 tets): a mesh needs at least one linear tetrahedron",
+        data.nodes.len()
+    );
+    if !data.skipped.is_empty() {
+        let s: Vec<String> = data.skipped.iter().map(|(k, v)| format!("{v} {k}")).collect();
+        msg.push_str(&format!(
+            "; skipped {} (a surface mesh? mesh its volume first)",
+            s.join(", ")
+        ));
+    }
+    msg
 }
 
 /// Converts a region attribute read as a float (TetGen, VTK float arrays) into a

@@ -12,7 +12,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::atomic::write_atomic;
-use super::cursor::{capacity, Cursor};
+use super::cursor::{capacity, finite_point, Cursor};
 use super::{float_to_tag, read_bytes, MeshData};
 use crate::error::Result;
 use crate::mesh::TetMesh;
@@ -52,10 +52,11 @@ pub fn parse_node(path: &Path, bytes: &[u8]) -> Result<(Vec<Vec3>, usize)> {
     if nmark > 1 {
         return Err(c.err_at(header, format!("boundary-marker flag {nmark}, expected 0 or 1")));
     }
-    let mut nodes = Vec::with_capacity(capacity(n, c.remaining() / 8));
+    // a point line holds at least 4 numbers and their separators: 8 bytes
+    let mut nodes = Vec::with_capacity(capacity(n, c.remaining(), 8));
     let mut first = 0;
     for k in 0..n {
-        let (tok, ln) = c.expect_token("a point line 'index x y z'")?;
+        let (tok, ln) = c.record_start(k, n, "points", header)?;
         let id: usize = super::cursor::parse_at(path, ln, tok, "a point number")?;
         if k == 0 {
             if id > 1 {
@@ -74,17 +75,16 @@ pub fn parse_node(path: &Path, bytes: &[u8]) -> Result<(Vec<Vec3>, usize)> {
                 ),
             ));
         }
-        let x: f64 = c.parse("x coordinate")?;
-        let y: f64 = c.parse("y coordinate")?;
-        let z: f64 = c.parse("z coordinate")?;
+        let p = finite_point(&mut c, id)?;
         for _ in 0..nattr {
             c.parse::<f64>("a point attribute")?;
         }
         for _ in 0..nmark {
             c.parse::<i64>("a boundary marker")?;
         }
-        nodes.push(Vec3::new(x, y, z));
+        nodes.push(p);
     }
+    c.expect_no_more_records(n, "points", header)?;
     Ok((nodes, first))
 }
 
@@ -101,10 +101,14 @@ pub fn parse_ele(path: &Path, bytes: &[u8], first: usize, n_nodes: usize) -> Res
             format!("{per} nodes per tetrahedron; only linear 4-node tets are supported (re-run TetGen without -o2)"),
         ));
     }
-    let mut tets = Vec::with_capacity(capacity(n, c.remaining() / 8));
-    let mut tags = Vec::with_capacity(capacity(n, c.remaining() / 8));
-    for _ in 0..n {
-        let (tok, ln) = c.expect_token("a tetrahedron line 'index n1 n2 n3 n4'")?;
+    if n == 0 {
+        return Err(c.err_at(header, "the header announces 0 tetrahedra: a mesh needs at least one"));
+    }
+    // a tet line holds at least 5 numbers and their separators: 10 bytes
+    let mut tets = Vec::with_capacity(capacity(n, c.remaining(), 10));
+    let mut tags = Vec::with_capacity(capacity(n, c.remaining(), 10));
+    for k in 0..n {
+        let (tok, ln) = c.record_start(k, n, "tetrahedra", header)?;
         super::cursor::parse_at::<usize>(path, ln, tok, "a tetrahedron number")?;
         let mut t = [0usize; 4];
         for v in &mut t {
@@ -127,6 +131,7 @@ pub fn parse_ele(path: &Path, bytes: &[u8], first: usize, n_nodes: usize) -> Res
         tets.push(t);
         tags.push(tag);
     }
+    c.expect_no_more_records(n, "tetrahedra", header)?;
     Ok((tets, tags))
 }
 

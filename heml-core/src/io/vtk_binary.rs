@@ -62,11 +62,23 @@ impl Layout {
 
     /// Decodes header + data from raw bytes; returns the data bytes and how many
     /// input bytes were used.
-    pub fn decode_raw(&self, b: &[u8]) -> Result<(Vec<u8>, usize), String> {
+    ///
+    /// `expected` is the size the data must have (from the Piece's counts): the
+    /// sizes declared in the header are checked against it *before* anything is
+    /// allocated or inflated, so a lying header (a "zlib bomb" whose 2 MB of
+    /// compressed zeros declare 2 GiB for 181 points) fails at once. Each block
+    /// is then inflated through `take`, bounded by its declared size.
+    pub fn decode_raw(&self, b: &[u8], expected: usize) -> Result<(Vec<u8>, usize), String> {
         let h = self.header.size();
         let short = || "binary data is shorter than its header announces".to_string();
+        let mismatch = |declared: &dyn std::fmt::Display| {
+            format!("the block header declares {declared} bytes of data, expected {expected}")
+        };
         if !self.compressed {
             let n = self.word(b).ok_or_else(short)?;
+            if n != expected {
+                return Err(mismatch(&n));
+            }
             let end = h.checked_add(n).ok_or_else(short)?;
             let data = b.get(h..end).ok_or_else(short)?;
             return Ok((data.to_vec(), end));
@@ -81,6 +93,19 @@ impl Layout {
         if header_len > b.len() {
             return Err(short());
         }
+        if last > bs {
+            return Err(format!(
+                "corrupt zlib header: last block of {last} bytes is larger than the block size {bs}"
+            ));
+        }
+        // total = (nblocks − 1)·bs + last, where last = 0 means a full last block
+        let declared: u128 = match nblocks {
+            0 => 0,
+            n => (n as u128 - 1) * bs as u128 + if last == 0 { bs } else { last } as u128,
+        };
+        if declared != expected as u128 {
+            return Err(mismatch(&declared));
+        }
         let mut out = Vec::new();
         let mut pos = header_len;
         for k in 0..nblocks {
@@ -90,7 +115,7 @@ impl Layout {
             let want = if k + 1 == nblocks && last != 0 { last } else { bs };
             let before = out.len();
             // `take` bounds the output: a corrupt or hostile block cannot inflate
-            // beyond the size its header declares.
+            // beyond the size its header declares (checked above against `expected`).
             flate2::read::ZlibDecoder::new(block)
                 .take(want as u64 + 1)
                 .read_to_end(&mut out)
@@ -106,16 +131,25 @@ impl Layout {
         Ok((out, pos))
     }
 
-    /// Decodes base64 text (whitespace allowed) holding header + data.
-    pub fn decode_base64(&self, text: &[u8]) -> Result<Vec<u8>, String> {
+    /// Decodes base64 text (whitespace allowed) holding header + data of
+    /// `expected` bytes (see [`Layout::decode_raw`]).
+    pub fn decode_base64(&self, text: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         let clean: Vec<u8> = text.iter().copied().filter(|b| !b.is_ascii_whitespace()).collect();
-        // Jointly encoded (or separately encoded without padding in between).
-        if let Ok(all) = STANDARD.decode(&clean) {
-            if let Ok((data, _)) = self.decode_raw(&all) {
-                return Ok(data);
-            }
-        }
-        // Header encoded on its own: find its length from its first words.
+        // Jointly encoded (or separately encoded without padding in between): when
+        // the whole text decodes, its header is the real one and its error stands.
+        let joint_error = match STANDARD.decode(&clean) {
+            Ok(all) => match self.decode_raw(&all, expected) {
+                Ok((data, _)) => return Ok(data),
+                Err(e) => Some(e),
+            },
+            Err(_) => None,
+        };
+        self.decode_separate(&clean, expected)
+            .map_err(|e| joint_error.unwrap_or(e))
+    }
+
+    /// Base64 with the header encoded on its own (VTK's compressed inline form).
+    fn decode_separate(&self, clean: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         let h = self.header.size();
         let header_len = if self.compressed {
             // the first 3 words are 3h bytes = 4h base64 characters, a whole number of groups
@@ -139,7 +173,7 @@ impl Layout {
                 .decode(&clean[split..])
                 .map_err(|e| format!("invalid base64: {e}"))?,
         );
-        self.decode_raw(&raw).map(|(d, _)| d)
+        self.decode_raw(&raw, expected).map(|(d, _)| d)
     }
 }
 
@@ -190,7 +224,10 @@ mod tests {
                 little_endian: true,
                 compressed: compress,
             };
-            assert_eq!(layout.decode_base64(s.as_bytes()).unwrap(), data);
+            assert_eq!(layout.decode_base64(s.as_bytes(), data.len()).unwrap(), data);
+            // any other expected size is refused from the header alone
+            let e = layout.decode_base64(s.as_bytes(), data.len() - 1).unwrap_err();
+            assert!(e.contains(&format!("declares {} bytes", data.len())), "{e}");
         }
     }
 
@@ -201,8 +238,8 @@ mod tests {
             little_endian: true,
             compressed: true,
         };
-        assert!(layout.decode_base64(b"AQAAAACAAAD4EAAA+Q8AAA==eJw9").is_err());
-        assert!(layout.decode_base64(b"!!!!").is_err());
-        assert!(layout.decode_raw(&[255, 255, 255, 255, 0, 0]).is_err());
+        assert!(layout.decode_base64(b"AQAAAACAAAD4EAAA+Q8AAA==eJw9", 4344).is_err());
+        assert!(layout.decode_base64(b"!!!!", 8).is_err());
+        assert!(layout.decode_raw(&[255, 255, 255, 255, 0, 0], 8).is_err());
     }
 }

@@ -38,6 +38,23 @@ pub(crate) struct CellArray {
     pub values: Vec<f64>,
     /// Whether the file declared an integer type.
     pub integer: bool,
+    /// Line where the array is declared (for errors about its values).
+    pub line: usize,
+}
+
+/// What an [`assemble`] error is about, so that each reader can name the line
+/// that holds it (an ASCII file knows the line of every cell; a binary one only
+/// the line of the array).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum At {
+    /// The cell's node list (its connectivity entries).
+    Cell(usize),
+    /// The cell's type code.
+    Type(usize),
+    /// The cell arrays as a whole (their sizes).
+    Arrays,
+    /// A known line.
+    Line(usize),
 }
 
 /// The cell array holding region tags: the first whose name is a known tag name
@@ -53,18 +70,22 @@ pub(crate) fn choose_tags(arrays: &[CellArray], n_cells: usize) -> Option<&CellA
 
 /// Cells given as `offsets` (n_cells + 1 entries starting at 0) into
 /// `connectivity`, with `types`; the tets are kept, lower-dimensional cells
-/// counted, other volume cells rejected. `err` builds an error at the right place.
+/// counted, other volume cells rejected. `err` builds an error at the place named
+/// by [`At`].
 pub(crate) fn assemble(
     nodes: Vec<Vec3>,
     offsets: &[usize],
     connectivity: &[f64],
     types: &[f64],
     tags: Option<&CellArray>,
-    err: &dyn Fn(String) -> HemlError,
+    err: &dyn Fn(At, String) -> HemlError,
 ) -> Result<MeshData> {
     let n_cells = offsets.len().saturating_sub(1);
     if types.len() != n_cells {
-        return Err(err(format!("{} cell types for {n_cells} cells", types.len())));
+        return Err(err(
+            At::Arrays,
+            format!("{} cell types for {n_cells} cells", types.len()),
+        ));
     }
     let mut data = MeshData {
         nodes,
@@ -75,27 +96,33 @@ pub(crate) fn assemble(
     for c in 0..n_cells {
         let (a, b) = (offsets[c], offsets[c + 1]);
         if a > b || b > connectivity.len() {
-            return Err(err(format!(
-                "cell {c}: offsets {a}..{b} do not fit the {} connectivity entries",
-                connectivity.len()
-            )));
+            return Err(err(
+                At::Cell(c),
+                format!(
+                    "cell {c}: offsets {a}..{b} do not fit the {} connectivity entries",
+                    connectivity.len()
+                ),
+            ));
         }
         let ty = types[c];
         if ty.fract() != 0.0 {
-            return Err(err(format!("cell {c}: cell type {ty} is not an integer")));
+            return Err(err(At::Type(c), format!("cell {c}: cell type {ty} is not an integer")));
         }
         match cell_kind(ty as i64) {
             CellKind::Tet => {
                 if b - a != 4 {
-                    return Err(err(format!("cell {c} is a tetrahedron (type 10) with {} nodes", b - a)));
+                    return Err(err(
+                        At::Cell(c),
+                        format!("cell {c} is a tetrahedron (type 10) with {} nodes", b - a),
+                    ));
                 }
                 let mut t = [0usize; 4];
                 for (k, &v) in connectivity[a..b].iter().enumerate() {
                     t[k] = node_index(v, data.nodes.len()).ok_or_else(|| {
-                        err(format!(
-                            "cell {c} refers to node {v}, but there are {} points",
-                            data.nodes.len()
-                        ))
+                        err(
+                            At::Cell(c),
+                            format!("cell {c} refers to node {v}, but there are {} points", data.nodes.len()),
+                        )
                     })?;
                 }
                 data.tets.push(t);
@@ -103,10 +130,10 @@ pub(crate) fn assemble(
                     Some(arr) => {
                         let v = arr.values[c];
                         float_to_tag(v).ok_or_else(|| {
-                            err(format!(
-                                "cell {c}: tag array '{}' holds {v}, not an i32 integer",
-                                arr.name
-                            ))
+                            err(
+                                At::Line(arr.line),
+                                format!("cell {c}: tag array '{}' holds {v}, not an i32 integer", arr.name),
+                            )
                         })?
                     }
                     None => 0,
@@ -115,10 +142,13 @@ pub(crate) fn assemble(
             }
             CellKind::Skip(name) => data.skip(name),
             CellKind::Volume(name) => {
-                return Err(err(format!(
-                    "cell {c} has VTK type {ty} ({name}), a volume cell HEML cannot simulate; only linear \
-                     tetrahedra (type 10) are supported"
-                )))
+                return Err(err(
+                    At::Type(c),
+                    format!(
+                        "cell {c} has VTK type {ty} ({name}), a volume cell HEML cannot simulate; only linear \
+                         tetrahedra (type 10) are supported"
+                    ),
+                ))
             }
         }
     }

@@ -12,8 +12,8 @@ use std::path::Path;
 use super::atomic::write_atomic;
 use super::cursor::{capacity, shorten, Cursor};
 use super::read_bytes;
-use super::vtk_cells::{assemble, choose_tags, CellArray, VTK_TETRA};
-use super::MeshData;
+use super::vtk_cells::{assemble, choose_tags, At, CellArray, VTK_TETRA};
+use super::{no_tets_message, MeshData};
 use crate::error::Result;
 use crate::mesh::TetMesh;
 use crate::Vec3;
@@ -51,11 +51,15 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let mut r = Reader { c, binary };
 
     let mut points: Option<Vec<Vec3>> = None;
-    let mut cells: Option<(Vec<usize>, Vec<f64>, usize)> = None; // offsets, connectivity, line
-    let mut types: Option<Vec<f64>> = None;
+    let mut cells: Option<Cells> = None;
+    let mut types: Option<(Vec<f64>, ValueLines, usize)> = None; // values, their lines, header line
     let mut cell_arrays: Vec<CellArray> = Vec::new();
     let mut section = Section::None;
     let mut section_len = 0usize;
+    // every CELL_DATA / POINT_DATA header: its section, count and line
+    let mut sections: Vec<(Section, usize, usize)> = Vec::new();
+    // the last keyword that read values, and its line, to explain a wrong count
+    let mut last_values: Option<(String, usize)> = None;
     let mut dataset = false;
 
     while let Some((kw, ln)) = r.c.token()? {
@@ -80,7 +84,18 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 let n3 = n
                     .checked_mul(3)
                     .ok_or_else(|| r.c.err_at(ln, "point count overflows"))?;
-                let v = r.values(n3, &args[1], ln, "point coordinates")?;
+                let (v, lines) = r.values(n3, &args[1], ln, "point coordinates")?;
+                if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+                    return Err(r.c.err_at(
+                        lines.line(k, ln),
+                        format!(
+                            "node {}: {} coordinate {} is not a finite number",
+                            k / 3,
+                            ["x", "y", "z"][k % 3],
+                            v[k]
+                        ),
+                    ));
+                }
                 points = Some(v.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect());
             }
             "CELLS" => {
@@ -91,10 +106,10 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                     // VTK 5 layout: `a` offsets, `b` connectivity entries
                     r.expect_kw("OFFSETS")?;
                     let (ty, tl) = r.c.expect_line("the OFFSETS type")?;
-                    let offs = r.values(a, ty, tl, "cell offsets")?;
+                    let (offs, _) = r.values(a, ty, tl, "cell offsets")?;
                     r.expect_kw("CONNECTIVITY")?;
                     let (ty, tl) = r.c.expect_line("the CONNECTIVITY type")?;
-                    let conn = r.values(b, ty, tl, "cell connectivity")?;
+                    let (conn, conn_lines) = r.values(b, ty, tl, "cell connectivity")?;
                     let mut offsets = Vec::with_capacity(offs.len());
                     for &o in &offs {
                         if !(o.fract() == 0.0 && o >= 0.0 && o <= conn.len() as f64) {
@@ -108,10 +123,17 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                     if offsets.first().is_some_and(|&o| o != 0) {
                         return Err(r.c.err_at(tl, "the first cell offset must be 0"));
                     }
-                    cells = Some((offsets, conn, ln));
+                    cells = Some(Cells {
+                        offsets,
+                        conn,
+                        line: ln,
+                        lines: conn_lines,
+                        classic: false,
+                    });
                 } else {
-                    let list = r.values(b, "int", ln, "cell list")?;
-                    let mut offsets = Vec::with_capacity(capacity(a + 1, list.len() + 1));
+                    let (list, list_lines) = r.values(b, "int", ln, "cell list")?;
+                    // a cell takes at least its count: at most one per number of the list
+                    let mut offsets = Vec::with_capacity(capacity(a, list.len(), 1) + 1);
                     let mut conn = Vec::with_capacity(list.len());
                     let mut pos = 0usize;
                     offsets.push(0);
@@ -123,7 +145,10 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                             )
                         })?;
                         if !(k.fract() == 0.0 && k >= 0.0 && k < (list.len() - pos) as f64) {
-                            return Err(r.c.err_at(ln, format!("cell {cell} has an invalid node count {k}")));
+                            return Err(r.c.err_at(
+                                list_lines.line(pos, ln),
+                                format!("cell {cell} has an invalid node count {k}"),
+                            ));
                         }
                         let k = k as usize;
                         conn.extend_from_slice(&list[pos + 1..pos + 1 + k]);
@@ -136,13 +161,21 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                             format!("CELLS size {b} does not match the {a} cells listed ({pos} numbers)"),
                         ));
                     }
-                    cells = Some((offsets, conn, ln));
+                    cells = Some(Cells {
+                        offsets,
+                        conn,
+                        line: ln,
+                        lines: list_lines,
+                        classic: true,
+                    });
                 }
+                last_values = Some(("CELLS".into(), ln));
             }
             "CELL_TYPES" => {
                 let args = r.args(1, "CELL_TYPES n")?;
                 let n = r.count(&args[0], ln)?;
-                types = Some(r.values(n, "int", ln, "cell types")?);
+                let (v, lines) = r.values(n, "int", ln, "cell types")?;
+                types = Some((v, lines, ln));
             }
             "CELL_DATA" | "POINT_DATA" => {
                 let args = r.args(1, "CELL_DATA n")?;
@@ -152,6 +185,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 } else {
                     Section::Point
                 };
+                sections.push((section, section_len, ln));
             }
             "SCALARS" => {
                 let args = r.args(2, "SCALARS name type [components]")?;
@@ -166,12 +200,13 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 let n = section_len
                     .checked_mul(ncomp)
                     .ok_or_else(|| r.c.err_at(ln, "array size overflows"))?;
-                let values = r.values(n, &args[1], ln, "scalar values")?;
+                let (values, _) = r.values(n, &args[1], ln, "scalar values")?;
                 if section == Section::Cell && ncomp == 1 {
                     cell_arrays.push(CellArray {
                         name: args[0].clone(),
                         values,
                         integer: is_integer(&args[1]),
+                        line: ln,
                     });
                 }
             }
@@ -187,13 +222,14 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                     let n = ncomp
                         .checked_mul(ntup)
                         .ok_or_else(|| r.c.err_at(aln, "array size overflows"))?;
-                    let values = r.values(n, &a[2], aln, "field values")?;
+                    let (values, _) = r.values(n, &a[2], aln, "field values")?;
                     r.skip_metadata()?;
                     if section == Section::Cell && ncomp == 1 {
                         cell_arrays.push(CellArray {
                             name,
                             values,
                             integer: is_integer(&a[2]),
+                            line: aln,
                         });
                     }
                 }
@@ -233,6 +269,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                         let size = r.count(&a[1], ln)?;
                         let n = size.checked_mul(4).ok_or_else(|| r.c.err_at(ln, "size overflows"))?;
                         r.values(n, if r.binary { "unsigned_char" } else { "float" }, ln, "lookup table")?;
+                        last_values = Some(("LOOKUP_TABLE".into(), ln));
                         continue;
                     }
                 };
@@ -242,7 +279,35 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 r.values(n, &ty, ln, "attribute values")?;
             }
             "METADATA" => r.skip_metadata_body()?,
-            _ => return Err(r.c.err_at(ln, format!("unexpected keyword '{}'", shorten(kw)))),
+            _ => {
+                if let (Ok(_), Some((prev, pl))) = (kw.parse::<f64>(), &last_values) {
+                    return Err(r.c.err_at(
+                        ln,
+                        format!(
+                            "found the number '{}' where a keyword was expected: the {prev} section (line {pl}) \
+                             holds more values than its header announces",
+                            shorten(kw)
+                        ),
+                    ));
+                }
+                return Err(r.c.err_at(ln, format!("unexpected keyword '{}'", shorten(kw))));
+            }
+        }
+        if matches!(
+            kw_upper.as_str(),
+            "POINTS"
+                | "CELL_TYPES"
+                | "SCALARS"
+                | "FIELD"
+                | "VECTORS"
+                | "NORMALS"
+                | "TENSORS"
+                | "TENSORS6"
+                | "TEXTURE_COORDINATES"
+                | "COLOR_SCALARS"
+                | "LOOKUP_TABLE"
+        ) {
+            last_values = Some((kw_upper, ln));
         }
     }
     let c = &r.c;
@@ -250,11 +315,69 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
         return Err(c.err("missing 'DATASET UNSTRUCTURED_GRID'"));
     }
     let points = points.ok_or_else(|| c.err("missing POINTS section"))?;
-    let (offsets, conn, cells_line) = cells.ok_or_else(|| c.err("missing CELLS section"))?;
-    let types = types.ok_or_else(|| c.err("missing CELL_TYPES section"))?;
-    let n_cells = offsets.len().saturating_sub(1);
+    let cells = cells.ok_or_else(|| c.err("missing CELLS section"))?;
+    let (types, type_lines, types_line) = types.ok_or_else(|| c.err("missing CELL_TYPES section"))?;
+    let n_cells = cells.offsets.len().saturating_sub(1);
+    for &(kind, n, line) in &sections {
+        let (name, want, what) = match kind {
+            Section::Cell => ("CELL_DATA", n_cells, "cells"),
+            _ => ("POINT_DATA", points.len(), "points"),
+        };
+        if n != want {
+            return Err(c.err_at(
+                line,
+                format!("{name} announces {n} values but the grid has {want} {what}"),
+            ));
+        }
+    }
     let tags = choose_tags(&cell_arrays, n_cells);
-    assemble(points, &offsets, &conn, &types, tags, &|msg| c.err_at(cells_line, msg))
+    use At::{Arrays, Cell, Line, Type};
+    let line_of = |at: At| match at {
+        // a cell's first entry: its count in the classic list (before it: the
+        // counts and nodes of the previous cells), its first node in VTK 5's
+        Cell(k) if cells.classic => cells.lines.line(cells.offsets[k] + k, cells.line),
+        Cell(k) => cells.lines.line(cells.offsets[k], cells.line),
+        Type(k) => type_lines.line(k, types_line),
+        Arrays => cells.line,
+        Line(l) => l,
+    };
+    let data = assemble(points, &cells.offsets, &cells.conn, &types, tags, &|at, msg| {
+        c.err_at(line_of(at), msg)
+    })?;
+    if data.tets.is_empty() {
+        return Err(c.err_at(cells.line, no_tets_message(&data)));
+    }
+    Ok(data)
+}
+
+/// The cells as read: offsets into the connectivity, and where their values sit.
+struct Cells {
+    offsets: Vec<usize>,
+    conn: Vec<f64>,
+    /// The `CELLS` header line.
+    line: usize,
+    /// Lines of the values: of the classic list (counts included) or of the
+    /// VTK 5 connectivity.
+    lines: ValueLines,
+    /// Classic `count i0 i1 …` layout.
+    classic: bool,
+}
+
+/// Where the values of an ASCII array sit: `(index of the first value on a line,
+/// that line)`, one entry per line, so that an error about value `k` (a cell, a
+/// coordinate) names its own line, not the header's, for the cost of one entry
+/// per line. Empty for binary arrays, which have no lines.
+#[derive(Default)]
+struct ValueLines(Vec<(usize, usize)>);
+
+impl ValueLines {
+    /// The line of value `index`, or `default` when unknown (binary data).
+    fn line(&self, index: usize, default: usize) -> usize {
+        match self.0.partition_point(|&(i, _)| i <= index) {
+            0 => default,
+            k => self.0[k - 1].1,
+        }
+    }
 }
 
 fn is_integer(ty: &str) -> bool {
@@ -292,8 +415,9 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// `n` values of VTK type `ty`, as text tokens or big-endian binary.
-    fn values(&mut self, n: usize, ty: &str, ln: usize, what: &str) -> Result<Vec<f64>> {
+    /// `n` values of VTK type `ty`, as text tokens or big-endian binary, and the
+    /// lines they sit on (ASCII only).
+    fn values(&mut self, n: usize, ty: &str, ln: usize, what: &str) -> Result<(Vec<f64>, ValueLines)> {
         let ty = ty.to_ascii_lowercase();
         let size = match ty.as_str() {
             "char" | "unsigned_char" => 1,
@@ -302,7 +426,10 @@ impl Reader<'_> {
             "long" | "unsigned_long" | "double" | "vtktypeint64" | "vtktypeuint64" | "vtkidtype" => 8,
             _ => return Err(self.c.err_at(ln, format!("unsupported data type '{}'", shorten(&ty)))),
         };
-        let mut out = Vec::with_capacity(capacity(n, self.c.remaining()));
+        // a binary value takes `size` bytes, a text one at least 2 (digit, separator)
+        let per = if self.binary { size } else { 2 };
+        let mut out = Vec::with_capacity(capacity(n, self.c.remaining(), per));
+        let mut lines = ValueLines::default();
         if self.binary {
             let len = n
                 .checked_mul(size)
@@ -312,13 +439,15 @@ impl Reader<'_> {
                 out.push(be_value(&ty, b));
             }
         } else {
-            for _ in 0..n {
-                let (tok, tl) = self.c.expect_token(what)?;
-                let v: f64 = super::cursor::parse_at(self.c.file(), tl, tok, &format!("a number in the {what}"))?;
+            for k in 0..n {
+                let (v, tl) = self.c.record_number::<f64>(k, n, what, ln)?;
+                if lines.0.last().is_none_or(|&(_, l)| l != tl) {
+                    lines.0.push((k, tl));
+                }
                 out.push(v);
             }
         }
-        Ok(out)
+        Ok((out, lines))
     }
 
     /// Skips an optional METADATA block after an array.

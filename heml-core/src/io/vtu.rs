@@ -13,11 +13,11 @@ use std::path::Path;
 use quick_xml::events::{BytesStart, Event};
 use quick_xml::Reader;
 
-use super::cursor::{line_of, shorten};
+use super::cursor::{line_of, shorten, LineCounter};
 use super::read_bytes;
 use super::vtk_binary::{HeaderType, Layout};
-use super::vtk_cells::{assemble, choose_tags, CellArray};
-use super::MeshData;
+use super::vtk_cells::{assemble, choose_tags, At, CellArray};
+use super::{no_tets_message, MeshData};
 use crate::error::{HemlError, Result};
 use crate::Vec3;
 
@@ -90,6 +90,22 @@ fn attr(e: &BytesStart<'_>, key: &str) -> Option<String> {
 
 /// Parses the bytes of a `.vtu` file (`path` is used in error messages).
 pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
+    parse_counting(path, bytes).0
+}
+
+/// Longest piece of a parser message quoted in an error: quick-xml's messages can
+/// quote a whole tag, which for a hostile file is 100 kB of stderr.
+const MAX_XML_MESSAGE: usize = 80;
+
+/// [`parse`], also returning how many bytes were scanned to number the lines of
+/// the tags (the work that used to be quadratic; tested to be one pass).
+fn parse_counting(path: &Path, bytes: &[u8]) -> (Result<MeshData>, usize) {
+    let mut lines = LineCounter::new(bytes);
+    let r = parse_with(path, bytes, &mut lines);
+    (r, lines.scanned())
+}
+
+fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<MeshData> {
     let perr = |line: usize, msg: String| HemlError::Parse {
         file: path.to_path_buf(),
         line,
@@ -134,9 +150,15 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let mut current: Option<ArraySpec> = None;
 
     loop {
+        // where the next event starts: a tag's `<` (text between tags is an event
+        // of its own), so that a tag written over several lines is named by its first
+        let tag_start = reader.buffer_position() as usize;
         let ev = reader.read_event().map_err(|e| {
             let pos = reader.error_position() as usize;
-            perr(line_of(bytes, pos), format!("malformed XML: {e}"))
+            let msg = e.to_string();
+            let cut: String = msg.chars().take(MAX_XML_MESSAGE).collect();
+            let more = if cut.len() < msg.len() { "…" } else { "" };
+            perr(line_of(bytes, pos), format!("malformed XML: {cut}{more}"))
         })?;
         let pos = reader.buffer_position() as usize;
         let (start, empty) = match ev {
@@ -161,7 +183,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
             _ => (None, false),
         };
         if let Some(e) = start {
-            let line = line_of(bytes, pos);
+            let line = lines.line_at(tag_start);
             match e.local_name().as_ref() {
                 b"VTKFile" => {
                     seen_root = true;
@@ -285,6 +307,9 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
             *out.skipped.entry(k).or_insert(0) += v;
         }
     }
+    if out.tets.is_empty() {
+        return Err(perr(pieces[0].line, no_tets_message(&out)));
+    }
     Ok(out)
 }
 
@@ -328,14 +353,36 @@ fn read_piece(ctx: &Ctx<'_>, p: &Piece) -> Result<MeshData> {
         .n_points
         .checked_mul(3)
         .ok_or_else(|| ctx.err(p.line, "NumberOfPoints overflows"))?;
-    let pts = values(ctx, pts_spec, Some(n3))?;
+    let pts = values(ctx, pts_spec, n3, "NumberOfPoints × 3")?;
+    if let Some(k) = pts.iter().position(|x| !x.is_finite()) {
+        return Err(ctx.err(
+            pts_spec.line,
+            format!(
+                "node {}: {} coordinate {} is not a finite number",
+                k / 3,
+                ["x", "y", "z"][k % 3],
+                pts[k]
+            ),
+        ));
+    }
     let nodes: Vec<Vec3> = pts.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
     let conn_spec = p.connectivity.as_ref().ok_or_else(|| missing("connectivity"))?;
     let off_spec = p.offsets.as_ref().ok_or_else(|| missing("offsets"))?;
     let types_spec = p.types.as_ref().ok_or_else(|| missing("types"))?;
-    let conn = values(ctx, conn_spec, None)?;
-    let offs = values(ctx, off_spec, Some(p.n_cells))?;
-    let types = values(ctx, types_spec, Some(p.n_cells))?;
+    let offs = values(ctx, off_spec, p.n_cells, "NumberOfCells")?;
+    // the connectivity holds as many entries as the last offset says
+    let n_conn = match offs.last() {
+        None => 0,
+        Some(&o) if o.fract() == 0.0 && o >= 0.0 && o <= usize::MAX as f64 => o as usize,
+        Some(&o) => {
+            return Err(ctx.err(
+                off_spec.line,
+                format!("the last offset {o} is not a valid connectivity size"),
+            ))
+        }
+    };
+    let conn = values(ctx, conn_spec, n_conn, "the last offset")?;
+    let types = values(ctx, types_spec, p.n_cells, "NumberOfCells")?;
     // VTK XML offsets are the *end* of each cell; prepend the start of the first.
     let mut offsets = Vec::with_capacity(offs.len() + 1);
     offsets.push(0usize);
@@ -355,26 +402,45 @@ fn read_piece(ctx: &Ctx<'_>, p: &Piece) -> Result<MeshData> {
     for s in p.cell_arrays.iter().filter(|s| s.components == 1) {
         arrays.push(CellArray {
             name: s.name.clone(),
-            values: values(ctx, s, Some(p.n_cells))?,
+            values: values(ctx, s, p.n_cells, "NumberOfCells")?,
             integer: s.ty.contains("Int"),
+            line: s.line,
         });
     }
     let tags = choose_tags(&arrays, p.n_cells);
-    assemble(nodes, &offsets, &conn, &types, tags, &|msg| {
-        ctx.err(conn_spec.line, msg)
+    assemble(nodes, &offsets, &conn, &types, tags, &|at, msg| {
+        let line = match at {
+            At::Type(_) => types_spec.line,
+            At::Line(l) => l,
+            At::Cell(_) | At::Arrays => conn_spec.line,
+        };
+        ctx.err(line, msg)
     })
 }
 
-/// Decodes one DataArray to f64 values, checking the count when it is known.
-fn values(ctx: &Ctx<'_>, s: &ArraySpec, expected: Option<usize>) -> Result<Vec<f64>> {
-    let e = |msg: String| ctx.err(s.line, format!("DataArray '{}': {msg}", s.name));
+/// Decodes one DataArray to exactly `expected` f64 values (`why` names the count
+/// it comes from, for the error). Binary sizes are checked from the block header
+/// before any decoding ([`Layout::decode_raw`]); ASCII reading stops at the first
+/// value too many.
+fn values(ctx: &Ctx<'_>, s: &ArraySpec, expected: usize, why: &str) -> Result<Vec<f64>> {
+    let e = |msg: String| ctx.err(s.line, format!("DataArray '{}': {msg}", shorten(&s.name)));
     let size = type_size(&s.ty).ok_or_else(|| e(format!("unsupported type '{}'", shorten(&s.ty))))?;
+    let bytes = expected
+        .checked_mul(size)
+        .ok_or_else(|| e(format!("{expected} values ({why}) overflow the addressable size")))?;
+    // decoding errors say what the header should have declared
+    let sized = |msg: String| e(format!("{msg} ({why}: {expected} values of {}, {bytes} bytes)", s.ty));
     let text = &ctx.bytes[s.text_start..s.text_end];
     let out: Vec<f64> = match s.format.as_str() {
         "ascii" => {
             let text = std::str::from_utf8(text).map_err(|_| e("invalid UTF-8 in ascii data".into()))?;
-            let mut v = Vec::new();
-            for (k, tok) in text.split_ascii_whitespace().enumerate() {
+            // at most one value too many is read: enough to report the mismatch
+            let mut v = Vec::with_capacity(expected.min(text.len() / 2 + 1));
+            for (k, tok) in text
+                .split_ascii_whitespace()
+                .take(expected.saturating_add(1))
+                .enumerate()
+            {
                 let x: f64 = tok
                     .parse()
                     .map_err(|_| e(format!("value {k} '{}' is not a number", shorten(tok))))?;
@@ -383,7 +449,7 @@ fn values(ctx: &Ctx<'_>, s: &ArraySpec, expected: Option<usize>) -> Result<Vec<f
             v
         }
         "binary" => {
-            let raw = ctx.layout.decode_base64(text).map_err(e)?;
+            let raw = ctx.layout.decode_base64(text, bytes).map_err(sized)?;
             numbers(&raw, &s.ty, size, ctx.layout.little_endian).map_err(e)?
         }
         "appended" => {
@@ -399,18 +465,21 @@ fn values(ctx: &Ctx<'_>, s: &ArraySpec, expected: Option<usize>) -> Result<Vec<f
             let raw = if base64 {
                 let next = ctx.appended_offsets.iter().copied().find(|&o| o > off);
                 let len = next.map_or(start.len(), |n| (n - off).min(start.len()));
-                ctx.layout.decode_base64(&start[..len]).map_err(e)?
+                ctx.layout.decode_base64(&start[..len], bytes).map_err(sized)?
             } else {
-                ctx.layout.decode_raw(start).map_err(e)?.0
+                ctx.layout.decode_raw(start, bytes).map_err(sized)?.0
             };
             numbers(&raw, &s.ty, size, ctx.layout.little_endian).map_err(e)?
         }
         other => return Err(e(format!("unknown format '{}'", shorten(other)))),
     };
-    if let Some(n) = expected {
-        if out.len() != n {
-            return Err(e(format!("holds {} values, expected {n}", out.len())));
-        }
+    if out.len() != expected {
+        let got = if out.len() > expected {
+            "more".to_string()
+        } else {
+            out.len().to_string()
+        };
+        return Err(e(format!("holds {got} values, expected {expected} ({why})")));
     }
     Ok(out)
 }
@@ -455,4 +524,82 @@ fn numbers(raw: &[u8], ty: &str, size: usize, le: bool) -> std::result::Result<V
         out.push(v);
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A one-tet `.vtu` with `extra` inserted in its `<FieldData>` and `points`
+    /// as the Points DataArray (ASCII).
+    fn one_tet(extra: &str, points_tag: &str) -> String {
+        format!(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n<UnstructuredGrid>\n\
+             <FieldData>\n{extra}</FieldData>\n<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">\n\
+             <Points>\n{points_tag}0 0 0 1 0 0 0 1 0 0 0 1</DataArray>\n</Points>\n<Cells>\n\
+             <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0 1 2 3</DataArray>\n\
+             <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</DataArray>\n\
+             <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">10</DataArray>\n\
+             </Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n"
+        )
+    }
+
+    #[test]
+    fn tag_lines_are_numbered_in_one_pass_over_the_file() {
+        // 100k tags took ~10 s when every tag's line was counted from byte 0 (work
+        // quadratic in the file size). Speed is not asserted as wall time: the line
+        // counter counts the bytes it examines, and one pass means at most the file's
+        // length. The numbering must also stay right: an error after the 100k tags
+        // names its line.
+        let n = 100_000;
+        let extra: String = (0..n).map(|_| "<Dummy/>\n").collect();
+        let good = one_tet(
+            &extra,
+            "<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">",
+        );
+        let (r, scanned) = parse_counting(Path::new("many.vtu"), good.as_bytes());
+        assert_eq!(r.unwrap().tets.len(), 1);
+        assert!(
+            scanned <= good.len(),
+            "{scanned} bytes scanned for a {}-byte file",
+            good.len()
+        );
+
+        // Points with 2 components: the error names the Points DataArray's line:
+        // 4 lines up to <FieldData>, the n dummy tags, then </FieldData>, <Piece>,
+        // <Points> and the DataArray
+        let bad = one_tet(
+            &extra,
+            "<DataArray type=\"Float64\" NumberOfComponents=\"2\" format=\"ascii\">",
+        );
+        let (r, scanned) = parse_counting(Path::new("many.vtu"), bad.as_bytes());
+        let e = r.unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("many.vtu:{}: Points have 2 components", n + 8)),
+            "{e}"
+        );
+        assert!(scanned <= bad.len());
+    }
+
+    #[test]
+    fn malformed_xml_errors_are_short_and_name_the_line() {
+        // a 100 kB tag name used to be echoed whole in the message
+        let name = "x".repeat(100_000);
+        let text = one_tet(
+            &format!("\n\n</{name}>\n"),
+            "<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">",
+        );
+        let e = parse(Path::new("bad.vtu"), text.as_bytes()).unwrap_err().to_string();
+        assert!(e.starts_with("bad.vtu:7: malformed XML"), "{}", &e[..e.len().min(200)]);
+        assert!(e.len() < 200, "{} bytes of message", e.len());
+
+        // a tag written over several lines is named by its first line (8), not its
+        // last (11)
+        let text = one_tet(
+            "",
+            "<DataArray\n type=\"Float64\"\n NumberOfComponents=\"2\"\n format=\"ascii\">",
+        );
+        let e = parse(Path::new("multi.vtu"), text.as_bytes()).unwrap_err().to_string();
+        assert!(e.starts_with("multi.vtu:8: Points have 2 components"), "{e}");
+    }
 }

@@ -15,10 +15,12 @@ use crate::Vec3;
 /// How DataArrays are stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum VtuEncoding {
-    /// Inline base64 of the raw little-endian bytes: exact and fast (default).
-    #[default]
+    /// Inline base64 of the raw little-endian bytes: exact and fastest to write.
     Base64,
-    /// Inline base64 of zlib-compressed bytes: smaller, slower to write.
+    /// Inline base64 of zlib-compressed bytes (default): exact too, and several
+    /// times smaller for simulation frames (a demo run wrote 79 MB of frames
+    /// uncompressed), for a modest cost in writing time (zlib's fastest level).
+    #[default]
     Base64Zlib,
     /// Human-readable text (shortest round-trip decimal form): for debugging.
     Ascii,

@@ -51,7 +51,51 @@ impl HexSplit {
     }
 }
 
+/// The largest mesh [`box_mesh`] and [`beam`] build: 50 million tets, about 2.9 GB
+/// while generating (see [`MeshSize::bytes`]) and several times that once a system
+/// is built on it. Asking for more is far more often a typo (`cells = [2000, 2000,
+/// 2000]` is 48 billion tets and 2.6 TB) than a plan, and it used to abort the
+/// process in the allocator; [`box_mesh_limited`] (or the scene key
+/// `[mesh] generate.max_tets`) sets another limit deliberately.
+pub const DEFAULT_MAX_GENERATED_TETS: usize = 50_000_000;
+
+/// The size of a generated mesh, computed from its cell counts before anything
+/// is allocated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MeshSize {
+    /// Number of nodes.
+    pub nodes: usize,
+    /// Number of tets.
+    pub tets: usize,
+    /// Peak memory of the generation in bytes: the nodes (24 B each), the tets as
+    /// generated (32 B) and as stored by [`TetMesh`] (16 B), and their tags (4 B).
+    pub bytes: usize,
+}
+
+/// Node and tet counts (and bytes) of [`box_mesh`] with these cells and split,
+/// with overflow-checked arithmetic: `None` when a count does not fit a `usize`.
+pub fn box_mesh_size(cells: [usize; 3], split: HexSplit) -> Option<MeshSize> {
+    let [nx, ny, nz] = cells;
+    let mul = |a: usize, b: usize, c: usize| a.checked_mul(b)?.checked_mul(c);
+    let corners = mul(nx.checked_add(1)?, ny.checked_add(1)?, nz.checked_add(1)?)?;
+    let n_cells = mul(nx, ny, nz)?;
+    let nodes = if split == HexSplit::TwentyFour {
+        // face centres of the x-, y- and z-normal faces, then cell centres
+        let faces = [mul(nx + 1, ny, nz)?, mul(nx, ny + 1, nz)?, mul(nx, ny, nz + 1)?];
+        faces
+            .iter()
+            .try_fold(corners.checked_add(n_cells)?, |a, &f| a.checked_add(f))?
+    } else {
+        corners
+    };
+    let tets = n_cells.checked_mul(split.tets_per_cell())?;
+    let bytes = nodes.checked_mul(24)?.checked_add(tets.checked_mul(32 + 16 + 4)?)?;
+    Some(MeshSize { nodes, tets, bytes })
+}
+
 /// A box `[0, size.x] × [0, size.y] × [0, size.z]` with `cells` hexahedra per axis.
+/// Meshes above [`DEFAULT_MAX_GENERATED_TETS`] are refused before anything is
+/// allocated; see [`box_mesh_limited`].
 ///
 /// ```
 /// use heml_core::mesh::generate::{box_mesh, HexSplit};
@@ -62,9 +106,39 @@ impl HexSplit {
 /// assert_eq!(m.n_tets(), 5 * 16);
 /// ```
 pub fn box_mesh(size: [f64; 3], cells: [usize; 3], split: HexSplit) -> Result<TetMesh> {
+    box_mesh_limited(size, cells, split, DEFAULT_MAX_GENERATED_TETS)
+}
+
+/// [`box_mesh`] with an explicit limit on the number of tets: the counts and the
+/// memory are computed first ([`box_mesh_size`]) and a mesh above `max_tets` (or
+/// whose node ids would not fit the `u32` of [`TetMesh`]) is refused with them.
+pub fn box_mesh_limited(size: [f64; 3], cells: [usize; 3], split: HexSplit, max_tets: usize) -> Result<TetMesh> {
     if cells.contains(&0) || size.iter().any(|&s| !(s.is_finite() && s > 0.0)) {
         return Err(HemlError::Invalid(format!(
             "box mesh needs positive finite sizes and at least one cell per axis, got size {size:?}, cells {cells:?}"
+        )));
+    }
+    let split_name = format!("{split:?}").to_lowercase();
+    let sized = box_mesh_size(cells, split).ok_or_else(|| {
+        HemlError::Invalid(format!(
+            "box mesh with cells {cells:?} (split {split_name}): the node or tet count overflows; \
+             the limit is {max_tets} tets"
+        ))
+    })?;
+    if sized.tets > max_tets || sized.nodes > u32::MAX as usize {
+        return Err(HemlError::Invalid(format!(
+            "box mesh with cells {cells:?} (split {split_name}) would have {} nodes and {} tets \
+             (~{:.1} GB to generate); the limit is {max_tets} tets{} (DEFAULT_MAX_GENERATED_TETS = {}; \
+             in a scene, raise it with `max_tets` in [mesh] generate)",
+            sized.nodes,
+            sized.tets,
+            sized.bytes as f64 / 1e9,
+            if sized.nodes > u32::MAX as usize {
+                " and 2^32 - 1 nodes"
+            } else {
+                ""
+            },
+            DEFAULT_MAX_GENERATED_TETS
         )));
     }
     let [nx, ny, nz] = cells;
@@ -72,7 +146,7 @@ pub fn box_mesh(size: [f64; 3], cells: [usize; 3], split: HexSplit) -> Result<Te
     let h = [size[0] / nx as f64, size[1] / ny as f64, size[2] / nz as f64];
     // exact end coordinates: i * size / n (not i * h) so that the far face is at `size`
     let coord = |a: usize, i: usize, n: usize| size[a] * i as f64 / n as f64;
-    let mut nodes = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+    let mut nodes = Vec::with_capacity(sized.nodes);
     for k in 0..=nz {
         for j in 0..=ny {
             for i in 0..=nx {
@@ -116,7 +190,7 @@ pub fn box_mesh(size: [f64; 3], cells: [usize; 3], split: HexSplit) -> Result<Te
             }
         }
     }
-    let mut tets = Vec::with_capacity(nx * ny * nz * split.tets_per_cell());
+    let mut tets = Vec::with_capacity(sized.tets);
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
@@ -265,6 +339,32 @@ fn face_counts(m: &TetMesh) -> std::collections::HashMap<[u32; 3], usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn huge_generated_meshes_are_sized_and_refused_before_allocating() {
+        // used to abort: "memory allocation of 192288144024 bytes failed"
+        let e = box_mesh([1.0; 3], [2000, 2000, 2000], HexSplit::Six)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("8012006001 nodes") && e.contains("48000000000 tets") && e.contains("limit is 50000000 tets"),
+            "{e}"
+        );
+        let e = beam(1.0, 1.0, 1.0, 2000, HexSplit::Six).unwrap_err().to_string();
+        assert!(e.contains("48000000000 tets"), "{e}");
+        // counts that overflow usize are an error too, not a wrap-around
+        let e = box_mesh([1.0; 3], [usize::MAX, 2, 2], HexSplit::Five)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("overflows"), "{e}");
+        // the limit is the caller's to set, and the sizing matches what is built
+        assert!(box_mesh_limited([1.0; 3], [2, 2, 2], HexSplit::Six, 47).is_err());
+        for split in HexSplit::ALL {
+            let m = box_mesh_limited([1.0; 3], [3, 2, 2], split, 12 * split.tets_per_cell()).unwrap();
+            let s = box_mesh_size([3, 2, 2], split).unwrap();
+            assert_eq!((s.nodes, s.tets), (m.n_nodes(), m.n_tets()), "{split:?}");
+        }
+    }
 
     #[test]
     fn box_of_about_hits_the_requested_tet_count() {

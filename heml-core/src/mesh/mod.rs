@@ -70,8 +70,15 @@ impl TetMesh {
                 nodes[i].as_slice()
             )));
         }
+        if tets.is_empty() {
+            return Err(HemlError::Mesh(format!(
+                "no tetrahedra ({} nodes, 0 tets): a mesh needs at least one tetrahedron",
+                nodes.len()
+            )));
+        }
         let mut out = Vec::with_capacity(tets.len());
         let mut degenerate = Vec::new();
+        let mut overflow = Vec::new();
         let mut reoriented = 0;
         for (t, tet) in tets.iter().enumerate() {
             if let Some(&bad) = tet.iter().find(|&&i| i >= nodes.len()) {
@@ -84,7 +91,17 @@ impl TetMesh {
             let mut idx = tet.map(|i| i as u32);
             let six_vol = signed_six_volume(&nodes, &idx);
             let lmax = max_edge_length(&nodes, &idx);
-            if six_vol.abs() <= DEGENERACY_TOLERANCE * lmax.powi(3) || lmax == 0.0 {
+            let scale = lmax.powi(3);
+            // Finite coordinates can still overflow: at ~1e103 m the cubed edge length
+            // is infinite, and inf − inf in the triple product gives NaN. Such a tet is
+            // not degenerate, it is out of range; say so.
+            if !(six_vol.is_finite() && scale.is_finite()) {
+                overflow.push(t);
+                continue;
+            }
+            // written so that NaN fails it (a NaN comparison is false)
+            let sound = six_vol.abs() > DEGENERACY_TOLERANCE * scale && lmax > 0.0;
+            if !sound {
                 degenerate.push(t);
                 continue;
             }
@@ -94,13 +111,19 @@ impl TetMesh {
             }
             out.push(idx);
         }
-        if !degenerate.is_empty() {
-            let shown: Vec<String> = degenerate.iter().take(20).map(|t| t.to_string()).collect();
+        if !overflow.is_empty() {
             return Err(HemlError::Mesh(format!(
-                "{} degenerate rest tet(s) (zero volume or repeated nodes): ids {}{}",
+                "{} rest tet(s) whose volume is not finite (overflow: coordinates too large, \
+                 e.g. a wrong unit scale; |x| must stay well below 1e100): ids {}",
+                overflow.len(),
+                list_ids(&overflow)
+            )));
+        }
+        if !degenerate.is_empty() {
+            return Err(HemlError::Mesh(format!(
+                "{} degenerate rest tet(s) (zero volume or repeated nodes): ids {}",
                 degenerate.len(),
-                shown.join(", "),
-                if degenerate.len() > 20 { ", …" } else { "" }
+                list_ids(&degenerate)
             )));
         }
         Ok(TetMesh {
@@ -187,15 +210,20 @@ impl TetMesh {
     }
 
     /// The same mesh with every coordinate multiplied by `factor` (unit conversion,
-    /// e.g. 0.001 for millimetres → metres).
+    /// e.g. 0.001 for millimetres → metres). The result is validated again: a
+    /// factor such as 1e300 overflows coordinates or volumes, and 1e-300 collapses
+    /// them, which must be an error rather than a mesh with NaN volumes.
     pub fn scaled(&self, factor: f64) -> Result<TetMesh> {
         if !(factor.is_finite() && factor > 0.0) {
             return Err(HemlError::Invalid(format!(
                 "scale factor {factor} must be positive and finite"
             )));
         }
-        let mut out = self.clone();
-        out.nodes.iter_mut().for_each(|p| *p *= factor);
+        let nodes = self.nodes.iter().map(|p| p * factor).collect();
+        let tets = self.tets.iter().map(|t| t.map(|i| i as usize)).collect();
+        let mut out = Self::with_tags(nodes, tets, self.tags.clone())
+            .map_err(|e| HemlError::Invalid(format!("scaling the mesh by {factor:e}: {e}")))?;
+        out.reoriented = self.reoriented;
         Ok(out)
     }
 
@@ -211,6 +239,12 @@ impl TetMesh {
         t.dedup();
         t
     }
+}
+
+/// The first 20 ids, comma-separated, then "…" if there are more.
+fn list_ids(ids: &[usize]) -> String {
+    let shown: Vec<String> = ids.iter().take(20).map(|t| t.to_string()).collect();
+    format!("{}{}", shown.join(", "), if ids.len() > 20 { ", …" } else { "" })
 }
 
 fn signed_six_volume(nodes: &[Vec3], idx: &[u32; 4]) -> f64 {
@@ -254,5 +288,51 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("node 0"), "{e}");
+    }
+
+    #[test]
+    fn a_mesh_without_tets_is_refused() {
+        // accepted before (an empty body: inverted bounding box, empty frames)
+        let e = TetMesh::from_arrays(&[[0., 0., 0.], [1., 0., 0.]], &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no tetrahedra") && e.contains("2 nodes"), "{e}");
+        assert!(TetMesh::from_arrays(&[], &[]).is_err());
+    }
+
+    #[test]
+    fn overflowing_rest_volumes_are_refused_as_overflow_not_degenerate() {
+        let unit = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]];
+        // ×1e200: finite coordinates, but l_max³ and the triple product overflow to
+        // inf/NaN; the NaN volume used to pass the degeneracy test (a NaN comparison
+        // is false). ×1e150 used to be called "degenerate".
+        for factor in [1e200, 1e150] {
+            let big: Vec<[f64; 3]> = unit.iter().map(|p| p.map(|c| c * factor)).collect();
+            let mut nodes = unit.to_vec();
+            nodes.extend(big);
+            let e = TetMesh::from_arrays(&nodes, &[[0, 1, 2, 3], [4, 5, 6, 7]])
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("not finite") && e.contains("overflow") && e.contains("ids 1") && !e.contains("degenerate"),
+                "×{factor:e}: {e}"
+            );
+        }
+        // scaling a valid mesh into overflow is caught the same way
+        let m = TetMesh::from_arrays(&unit, &[[0, 1, 2, 3]]).unwrap();
+        for factor in [1e300, 1e120] {
+            let e = m.scaled(factor).unwrap_err().to_string();
+            assert!(
+                e.contains("scaling the mesh") && e.contains("overflow") && e.contains("ids 0"),
+                "{e}"
+            );
+        }
+        // a normal unit conversion still works (volume to a few ulps: 1e-3 is inexact)
+        let v = m.scaled(1e-3).unwrap().tet_volume(0);
+        assert!((v - 1e-9 / 6.0).abs() <= 1e-24, "{v}");
+        // the largest scale that still works is accepted with a finite volume
+        let ok: Vec<[f64; 3]> = unit.iter().map(|p| p.map(|c| c * 1e100)).collect();
+        let m = TetMesh::from_arrays(&ok, &[[0, 1, 2, 3]]).unwrap();
+        assert!(m.tet_volume(0).is_finite() && m.tet_volume(0) > 0.0);
     }
 }

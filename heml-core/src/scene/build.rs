@@ -9,7 +9,7 @@ use super::Scene;
 use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
 use crate::io::{read_mesh_data, MeshData};
-use crate::mesh::generate::box_mesh;
+use crate::mesh::generate::{box_mesh_limited, DEFAULT_MAX_GENERATED_TETS};
 use crate::mesh::reorder::{morton_node_order, Permutation};
 use crate::mesh::TetMesh;
 use crate::registry::{closest, find_material, materials};
@@ -39,6 +39,8 @@ pub struct Simulation {
     pub vtu: bool,
     /// Write `energy.csv`.
     pub csv: bool,
+    /// Encoding of the VTU frames (`[output] compression`).
+    pub vtu_encoding: crate::io::VtuEncoding,
     /// What a dt above the stable estimate does.
     pub dt_policy: TimeStepPolicy,
     /// Warnings found while building (e.g. dt above the stable estimate).
@@ -116,7 +118,9 @@ impl Scene {
                         ))
                     }
                 };
-                let mesh = box_mesh(size, cells, g.split).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
+                let limit = g.max_tets.unwrap_or(DEFAULT_MAX_GENERATED_TETS);
+                let mesh = box_mesh_limited(size, cells, g.split, limit)
+                    .map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
                 let data = MeshData::from_mesh(&mesh);
                 return finish_mesh(data, 1.0, translate, &what);
             }
@@ -308,6 +312,7 @@ impl Scene {
             out_dir: PathBuf::from(o.dir.as_deref().unwrap_or("heml-output")),
             vtu: o.vtu,
             csv: o.csv,
+            vtu_encoding: o.compression.vtu_encoding(),
             dt_policy: s.dt_policy,
             warnings,
             node_order,
@@ -337,7 +342,7 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
     let entry = find_material(&m.law)
         .map_err(|e| HemlError::Invalid(format!("{e}{}", registry_hint(materials().is_empty()))))?;
     let mut names: Vec<&str> = entry.params.iter().map(|p| p.name).collect();
-    if names == ["mu", "lambda"] {
+    if entry.small_strain.is_some() {
         names.extend(["E", "nu"]);
     }
     let law = entry.instantiate(&m.params).map_err(|e| {

@@ -51,8 +51,8 @@ pub use build::Simulation;
 pub use output::CSV_HEADER;
 pub use runner::{Progress, RunSummary};
 pub use schema::{
-    BoxSpec, DampingSpec, FixSpec, GenerateKind, GenerateSpec, LoadsSpec, MaterialSpec, MeshSpec, NodalLoadSpec,
-    OutputSpec, PlaneSpec, PrescribeSpec, SolverSpec, Units,
+    BoxSpec, Compression, DampingSpec, FixSpec, GenerateKind, GenerateSpec, LoadsSpec, MaterialSpec, MeshSpec,
+    NodalLoadSpec, OutputSpec, PlaneSpec, PrescribeSpec, SolverSpec, Units,
 };
 pub use select::Selection;
 

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{HemlError, Result};
 use crate::io::atomic::write_atomic;
-use crate::io::{write_vtu, PvdWriter, VtuFrame};
+use crate::io::{write_vtu, PvdWriter, VtuEncoding, VtuFrame};
 use crate::mesh::reorder::Permutation;
 use crate::system::{Energies, System};
 use crate::Vec3;
@@ -25,6 +25,7 @@ pub const CSV_HEADER: &str =
 pub(crate) struct Output {
     dir: PathBuf,
     pvd: Option<PvdWriter>,
+    encoding: VtuEncoding,
     frames: usize,
     /// Step count and path of the last frame written.
     last: Option<(u64, PathBuf)>,
@@ -40,6 +41,7 @@ impl Output {
     pub(crate) fn create(
         dir: &Path,
         vtu: bool,
+        encoding: VtuEncoding,
         csv: bool,
         sys: &System,
         node_order: Option<&Permutation>,
@@ -62,6 +64,7 @@ impl Output {
         Ok(Output {
             dir: dir.to_path_buf(),
             pvd,
+            encoding,
             frames: 0,
             last: None,
             csv: csv.then(|| format!("{CSV_HEADER}\n")),
@@ -122,7 +125,8 @@ impl Output {
             .point_vectors("force", &force)
             .point_vectors("reaction", &reaction)
             .cell_scalars("J", &j)
-            .cell_scalars("energy_density", &w);
+            .cell_scalars("energy_density", &w)
+            .encoding(self.encoding);
         write_vtu(&path, &frame)?;
         pvd.add(sys.time(), &path)?;
         self.frames += 1;

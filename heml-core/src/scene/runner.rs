@@ -89,6 +89,7 @@ impl Simulation {
         let mut out = Output::create(
             &self.out_dir,
             self.vtu,
+            self.vtu_encoding,
             self.csv,
             &self.system,
             self.node_order.as_ref(),

@@ -102,6 +102,10 @@ pub struct GenerateSpec {
     /// Tets per cell: `five`, `six` (default) or `twentyfour`.
     #[serde(default)]
     pub split: HexSplit,
+    /// Largest number of tets to generate (default
+    /// [`crate::mesh::generate::DEFAULT_MAX_GENERATED_TETS`], 50 million): a bigger
+    /// mesh is refused, with its size, before anything is allocated.
+    pub max_tets: Option<usize>,
 }
 
 /// One material: a registered law with its parameters, over one tag or all tets.
@@ -315,6 +319,31 @@ pub struct OutputSpec {
     pub csv: bool,
     /// A CSV row every this many steps (default: 10 rows per frame).
     pub csv_every: Option<u64>,
+    /// How the VTU frames store their arrays: `zlib` (default) or `none`.
+    #[serde(default)]
+    pub compression: Compression,
+}
+
+/// `[output] compression`: zlib makes frames several times smaller (a demo run
+/// wrote 79 MB uncompressed); ParaView, VTK and meshio read both.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Compression {
+    /// zlib-compressed base64 (`vtkZLibDataCompressor`), the default.
+    #[default]
+    Zlib,
+    /// Plain base64: faster to write, larger.
+    None,
+}
+
+impl Compression {
+    /// The VTU encoding that implements it.
+    pub fn vtu_encoding(self) -> crate::io::VtuEncoding {
+        match self {
+            Compression::Zlib => crate::io::VtuEncoding::Base64Zlib,
+            Compression::None => crate::io::VtuEncoding::Base64,
+        }
+    }
 }
 
 fn yes() -> bool {
@@ -330,6 +359,7 @@ impl Default for OutputSpec {
             vtu: true,
             csv: true,
             csv_every: None,
+            compression: Compression::default(),
         }
     }
 }

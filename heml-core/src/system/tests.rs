@@ -61,6 +61,9 @@ inventory::submit! {
         kind: crate::law::LawKind::Link,
         module: module_path!(),
         build: build_link::<Spring>,
+        small_strain: None,
+        allow_prestress: false,
+        rest: crate::law::rest_state_link::<Spring>,
     }
 }
 

@@ -144,7 +144,7 @@ mod tests {
         // diag(1, −1, 1, …): the first direction r = b = (1, 1, …) has pᵀAp = 0
         let b = vec![1.0; n];
         let mut x = vec![0.0; n];
-        let sign = |i: usize| if i % 2 == 0 { 1.0 } else { -1.0 };
+        let sign = |i: usize| if i.is_multiple_of(2) { 1.0 } else { -1.0 };
         let rep = pcg(
             |p, out| (0..n).for_each(|i| out[i] = sign(i) * p[i]),
             |r, out| out.copy_from_slice(r),

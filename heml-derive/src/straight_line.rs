@@ -1,4 +1,5 @@
-//! Emission of straight-line Rust from the graph.
+//! Straight-line Rust from the graph: the `let` statements and output expressions
+//! that the emitted functions are made of.
 //!
 //! Every reachable operation becomes one `let tN: f64 = ...;` in id order (a
 //! topological order, see [`crate::expr`]); leaves (variables, parameters,
@@ -19,14 +20,25 @@ pub struct Block {
 
 /// How the generated code refers to the variables and parameters.
 pub struct Names<'a> {
-    /// Field names, in parameter order (read as `self.<name>`).
+    /// Field names, in parameter order (read as `<receiver>.<name>`).
     pub params: &'a [Ident],
+    /// The value holding the parameters: `self` when `None`.
+    pub receiver: Option<&'a Ident>,
     /// When set, `ln`/`exp`/`powf` call the inlinable, vectorisable versions at
     /// `<path>::force::fastmath` (the core crate's path) instead of `f64`'s methods.
     pub fast: Option<&'a TokenStream>,
 }
 
-impl Names<'_> {
+impl<'a> Names<'a> {
+    /// The parameters `params` read as `self.<name>`, with `f64`'s own functions.
+    pub fn of_self(params: &'a [Ident]) -> Self {
+        Self {
+            params,
+            receiver: None,
+            fast: None,
+        }
+    }
+
     /// The argument name of `var` in the generated functions, prefixed with `_`
     /// when unused so that unused arguments do not warn.
     pub fn arg(var: Var, used: bool) -> Ident {
@@ -37,6 +49,9 @@ impl Names<'_> {
             Var::J0 => "j0",
             Var::LinkL => "l",
             Var::RestL => "rest_l",
+            Var::Mu0 => "mu0",
+            Var::K0 => "k0",
+            Var::Lambda0 => "lambda0",
         };
         if used {
             Ident::new(name, Span::call_site())
@@ -86,7 +101,10 @@ fn operand(g: &Graph, names: &Names, id: Id) -> TokenStream {
         }
         Node::Param(i) => {
             let ident = &names.params[i];
-            quote!(self.#ident)
+            match names.receiver {
+                Some(receiver) => quote!(#receiver.#ident),
+                None => quote!(self.#ident),
+            }
         }
         _ => {
             let t = temp(id);

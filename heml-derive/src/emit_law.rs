@@ -1,17 +1,17 @@
-//! The items the macro emits around the struct: the `MaterialInfo` impl, the
-//! `InvariantLaw` or `LinkLaw` impl with the generated kernels, and the registry
-//! entry. `core` is the path to heml-core as seen from the calling crate.
+//! The law's trait impl: `InvariantLaw` (w, gradient, Hessian, their inversion
+//! extension and fast variants) or `LinkLaw`, with the generated kernels as
+//! bodies. `core` is the path to heml-core as seen from the calling crate.
 
-use crate::attr::{Declaration, Kind, Options};
-use crate::codegen::{self, count_ops, Names, OpTally};
+use crate::attr::Declaration;
+use crate::derivatives::{Derivatives, InvariantKernels, LinkKernels};
 use crate::expr::{Id, Var};
-use crate::kernels::{Derivatives, InvariantKernels, LinkKernels};
+use crate::straight_line::{self, count_ops, Names, OpTally};
 use proc_macro2::TokenStream;
 use quote::quote;
 
 /// Lints that straight-line generated arithmetic may trip and that say nothing
 /// about the user's code (long literals from constant folding, `let t = ..; t`).
-fn allows() -> TokenStream {
+pub fn allows() -> TokenStream {
     quote! {
         #[allow(
             unused_parens,
@@ -27,40 +27,6 @@ fn allows() -> TokenStream {
             clippy::suboptimal_flops,
             clippy::similar_names
         )]
-    }
-}
-
-/// `impl MaterialInfo`.
-pub fn material_info(core: &TokenStream, opts: &Options, decl: &Declaration) -> TokenStream {
-    let ty = &decl.item.ident;
-    let name = &opts.name;
-    let energy = &decl.energy_text;
-    let doc = &decl.doc;
-    let infos = decl.params.iter().map(|p| {
-        let name = p.ident.to_string();
-        let (doc, signed) = (&p.doc, p.signed);
-        quote!(#core::law::ParamInfo { name: #name, doc: #doc, signed: #signed })
-    });
-    let fields: Vec<_> = decl.params.iter().map(|p| &p.ident).collect();
-    let indices = 0..fields.len();
-    let values = if fields.is_empty() {
-        quote!(_values)
-    } else {
-        quote!(values)
-    };
-    quote! {
-        impl #core::law::MaterialInfo for #ty {
-            const NAME: &'static str = #name;
-            const PARAMS: &'static [#core::law::ParamInfo] = &[#(#infos),*];
-            const ENERGY: &'static str = #energy;
-            const DOC: &'static str = #doc;
-            fn to_params(&self) -> ::std::vec::Vec<f64> {
-                ::std::vec![#(self.#fields),*]
-            }
-            fn from_params(#values: &[f64]) -> Self {
-                Self { #(#fields: #values[#indices]),* }
-            }
-        }
     }
 }
 
@@ -88,7 +54,7 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
     };
 
     let roots = [d.w];
-    let (a, b) = (args(&roots), codegen::block(g, names, &roots));
+    let (a, b) = (args(&roots), straight_line::block(g, names, &roots));
     let (lets, w) = (b.lets, &b.outputs[0]);
     let w_fn = quote! {
         #[inline(always)]
@@ -96,7 +62,7 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
     };
 
     let roots = d.value_and_grad();
-    let (a, b) = (args(&roots), codegen::block(g, names, &roots));
+    let (a, b) = (args(&roots), straight_line::block(g, names, &roots));
     let (lets, o) = (b.lets, &b.outputs);
     let (w, w1, w2, wj) = (&o[0], &o[1], &o[2], &o[3]);
     let dw_fn = quote! {
@@ -108,7 +74,7 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
     };
 
     let roots: Vec<Id> = d.hess.iter().flatten().copied().collect();
-    let (a, b) = (args(&roots), codegen::block(g, names, &roots));
+    let (a, b) = (args(&roots), straight_line::block(g, names, &roots));
     let (lets, h) = (b.lets, &b.outputs);
     let rows = h.chunks(3).map(|r| quote!([#(#r),*]));
     let d2w_fn = quote! {
@@ -121,10 +87,11 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
     // the same value and gradient with the vectorisable ln/exp/powf
     let fast = Names {
         params: names.params,
+        receiver: None,
         fast: Some(core),
     };
     let roots = d.value_and_grad();
-    let (a, b) = (args(&roots), codegen::block(g, &fast, &roots));
+    let (a, b) = (args(&roots), straight_line::block(g, &fast, &roots));
     let (lets, o) = (b.lets, &b.outputs);
     let (w, w1, w2, wj) = (&o[0], &o[1], &o[2], &o[3]);
     let fn_fast = quote::format_ident!("dw{}_fast", suffix);
@@ -141,11 +108,8 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
 /// `impl InvariantLaw`.
 pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernels) -> TokenStream {
     let ty = &decl.item.ident;
-    let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
-    let names = Names {
-        params: &fields,
-        fast: None,
-    };
+    let fields = decl.fields();
+    let names = Names::of_self(&fields);
     let plain = invariant_fns(core, k, &names, &k.plain, false);
     let ext = match &k.ext {
         Some(d) => invariant_fns(core, k, &names, d, true),
@@ -187,17 +151,14 @@ pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernel
 /// `impl LinkLaw`.
 pub fn link_law(core: &TokenStream, decl: &Declaration, k: &LinkKernels) -> TokenStream {
     let ty = &decl.item.ident;
-    let fields: Vec<_> = decl.params.iter().map(|p| p.ident.clone()).collect();
-    let names = Names {
-        params: &fields,
-        fast: None,
-    };
+    let fields = decl.fields();
+    let names = Names::of_self(&fields);
     let g = &k.graph;
     let args = |roots: &[Id]| {
         let [l, rest] = [Var::LinkL, Var::RestL].map(|v| Names::arg(v, g.uses(roots, v)));
         quote!(#l: f64, #rest: f64)
     };
-    let block = |roots: &[Id]| codegen::block(g, &names, roots);
+    let block = |roots: &[Id]| straight_line::block(g, &names, roots);
 
     let (a, b) = (args(&[k.w]), block(&[k.w]));
     let (lets, w) = (b.lets, &b.outputs[0]);
@@ -221,29 +182,6 @@ pub fn link_law(core: &TokenStream, decl: &Declaration, k: &LinkKernels) -> Toke
             #w_fn
             #dw_fn
             #d2w_fn
-        }
-    }
-}
-
-/// The `inventory` registration.
-pub fn registration(core: &TokenStream, decl: &Declaration, kind: Kind) -> TokenStream {
-    let ty = &decl.item.ident;
-    let (kind, build) = match kind {
-        Kind::Invariant => (quote!(Invariant), quote!(build_invariant)),
-        Kind::Link => (quote!(Link), quote!(build_link)),
-    };
-    let info = quote!(<#ty as #core::law::MaterialInfo>);
-    quote! {
-        #core::__private::inventory::submit! {
-            #core::registry::MaterialEntry {
-                name: #info::NAME,
-                params: #info::PARAMS,
-                energy: #info::ENERGY,
-                doc: #info::DOC,
-                kind: #core::law::LawKind::#kind,
-                module: ::core::module_path!(),
-                build: #core::material::#build::<#ty>,
-            }
         }
     }
 }

@@ -1,4 +1,4 @@
-//! Which expressions each generated function evaluates: w, its gradient and
+//! The derivatives each generated kernel evaluates: w, its gradient and
 //! Hessian for invariant laws (and the same for the inversion extension), or
 //! w, ∂w/∂l, ∂²w/∂l² for link laws. All of them live in one graph, so the
 //! derivatives share sub-expressions with w and with each other.

@@ -2,18 +2,20 @@
 //! F = Ds·Dm⁻¹, P = ∂Ψ/∂F, f = −Vol·P·Dm⁻ᵀ. It is the test oracle for HEML (the two
 //! must agree to round-off) and the speed baseline HEML is measured against.
 //!
-//! Like [`crate::force::HemlField`] it has a plain serial kernel
-//! ([`FemField::add_forces_reference`], the oracle), and the same batched, parallel,
-//! deterministic assembly (the default), so that benchmarks compare the two
-//! formulations optimised alike.
+//! It is one more formulation of the generic [`super::TetField`] ([`P1Field`]): a
+//! plain serial kernel ([`P1Field::add_forces_reference`], the oracle), and the same
+//! batched, parallel, deterministic assembly as HEML (the default), so that
+//! benchmarks compare the two formulations optimised alike.
 
 // The kernels index fixed-size lane arrays in lock-step on purpose (it is what
 // vectorises); iterator chains over several arrays would obscure that.
 #![allow(clippy::needless_range_loop)]
 
+use super::assembly::{LaneForces, LanePoints, LANES};
+use super::field::{Formulation, TetField};
+use super::kernel::TetKernel;
+use super::ForceOptions;
 use crate::error::Result;
-use crate::force::assembly::{BatchKernel, LaneForces, LanePoints, LawBatches, Layout, LANES};
-use crate::force::{check_sizes, selection, Assembly, ElasticForces, ForceOptions};
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
 use crate::rest::rest_edge_matrix;
@@ -50,112 +52,99 @@ pub fn energy_and_piola<M: InvariantLaw>(law: &M, f: &Matrix3<f64>, opts: &Force
 
 /// Rest data of `LANES` consecutive tets: volume and Dm⁻¹ (row-major), SoA.
 #[derive(Debug, Clone, Copy)]
-struct FemBatch {
+pub struct P1Batch {
     vol: [f64; LANES],
     dm_inv: [[f64; LANES]; 9],
 }
 
 /// Internal forces of an invariant law computed the standard P1 way.
+pub type P1Field<M> = TetField<P1Kernel<M>>;
+
+/// The standard P1 formulation of an invariant law `M` (its law and force
+/// options): the kernel of a [`P1Field`].
 #[derive(Debug, Clone)]
-pub struct FemField<M: InvariantLaw> {
+pub struct P1Kernel<M: InvariantLaw> {
     law: M,
     opts: ForceOptions,
-    n_nodes: usize,
-    assembly: Assembly,
-    layout: Layout,
-    rest: Vec<FemBatch>,
 }
 
-impl<M: InvariantLaw> FemField<M> {
+impl<M: InvariantLaw> Formulation for P1Kernel<M> {}
+
+impl<M: InvariantLaw> P1Field<M> {
     /// The field of `law` over the tets `tets` of `mesh` (all when `None`), stored in
     /// Morton order (`tet_ids()` gives the global ids).
     pub fn on_tets(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
-        opts.validate()?;
-        let sel = selection(mesh.n_tets(), tets)?;
-        let layout = Layout::new(mesh, &sel, true);
-        let pad = FemBatch {
-            vol: [1.0; LANES],
-            dm_inv: [[0.0; LANES]; 9],
-        };
-        let mut rest = vec![pad; layout.n_batches()];
-        for (k, &t) in layout.ids.iter().enumerate() {
-            let dm = rest_edge_matrix(&mesh.tet_points(t));
-            let inv = dm.try_inverse().unwrap_or_else(Matrix3::zeros);
-            let (b, l) = (k / LANES, k % LANES);
-            rest[b].vol[l] = dm.determinant() / 6.0;
-            for r in 0..3 {
-                for c in 0..3 {
-                    rest[b].dm_inv[3 * r + c][l] = inv[(r, c)];
-                }
-            }
-        }
-        Ok(FemField {
-            law,
-            opts,
-            n_nodes: mesh.n_nodes(),
-            assembly: Assembly::default(),
-            layout,
-            rest,
-        })
+        TetField::build(P1Kernel { law, opts }, mesh, tets, opts, true)
     }
 
-    /// Chooses the evaluation path `add_forces` uses (default [`Assembly::Parallel`]).
-    pub fn set_assembly(&mut self, assembly: Assembly) {
-        self.assembly = assembly;
-    }
-
-    /// Bytes of memory per tet this field holds (see `HemlField::bytes_per_tet`).
-    pub fn bytes_per_tet(&self) -> f64 {
-        self.layout.bytes_per_tet(&self.rest)
-    }
-
-    fn vol(&self, k: usize) -> f64 {
-        self.rest[k / LANES].vol[k % LANES]
-    }
-
-    fn dm_inv(&self, k: usize) -> Matrix3<f64> {
-        let (b, l) = (k / LANES, k % LANES);
-        Matrix3::from_fn(|r, c| self.rest[b].dm_inv[3 * r + c][l])
-    }
-
-    #[inline(always)]
-    fn deformation_gradient(&self, k: usize, idx: &[u32; 4], x: &[Vec3]) -> Matrix3<f64> {
-        let p = idx.map(|i| x[i as usize]);
-        Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * self.dm_inv(k)
-    }
-
-    /// The plain serial P1 kernel (the oracle).
-    pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        let mut energy = 0.0;
-        for k in 0..self.layout.n_tets() {
-            let idx = self.layout.global_tet(k);
-            let (w, p) = energy_and_piola(&self.law, &self.deformation_gradient(k, &idx, x), &self.opts);
-            energy += self.vol(k) * w;
-            let h = -self.vol(k) * p * self.dm_inv(k).transpose();
-            for a in 0..3 {
-                let fa: Vec3 = h.column(a).into();
-                f[idx[a + 1] as usize] += fa;
-                f[idx[0] as usize] -= fa;
-            }
-        }
-        Ok(energy)
-    }
-
-    fn kernel(&self) -> LawBatches<'_, M, FemBatch> {
-        LawBatches {
-            law: &self.law,
-            opts: self.opts,
-            rest: &self.rest,
-        }
+    /// The law.
+    pub fn law(&self) -> &M {
+        &self.kernel().law
     }
 }
 
-impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, FemBatch> {
+/// Dm⁻¹ of the tet in lane `l` of `r`.
+fn dm_inv(r: &P1Batch, l: usize) -> Matrix3<f64> {
+    Matrix3::from_fn(|row, c| r.dm_inv[3 * row + c][l])
+}
+
+/// F = Ds·Dm⁻¹ of the tet in lane `l` of `r`, whose corners are at `p`.
+#[inline(always)]
+fn deformation_gradient(r: &P1Batch, l: usize, p: &[Vec3; 4]) -> Matrix3<f64> {
+    Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * dm_inv(r, l)
+}
+
+impl<M: InvariantLaw> TetKernel for P1Kernel<M> {
+    type Batch = P1Batch;
+
+    const PAD: P1Batch = P1Batch {
+        vol: [1.0; LANES],
+        dm_inv: [[0.0; LANES]; 9],
+    };
+
+    /// The oracle's energy is its plain sum whatever the assembly.
+    const PLAIN_ENERGY: bool = true;
+
+    fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut P1Batch, lane: usize) {
+        let dm = rest_edge_matrix(&mesh.tet_points(t));
+        let inv = dm.try_inverse().unwrap_or_else(Matrix3::zeros);
+        batch.vol[lane] = dm.determinant() / 6.0;
+        for r in 0..3 {
+            for c in 0..3 {
+                batch.dm_inv[3 * r + c][lane] = inv[(r, c)];
+            }
+        }
+    }
+
+    /// f_{a+1} = H[:, a] and f_0 −= H[:, a], column by column, with
+    /// H = −vol·P·Dm⁻ᵀ.
     #[inline(always)]
-    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+    fn tet(&self, rest: &P1Batch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
+        let vol = rest.vol[lane];
+        let (w, pk) = energy_and_piola(&self.law, &deformation_gradient(rest, lane, p), &self.opts);
+        let h = -vol * pk * dm_inv(rest, lane).transpose();
+        for a in 0..3 {
+            let fa: Vec3 = h.column(a).into();
+            add(a + 1, fa);
+            add(0, -fa);
+        }
+        vol * w
+    }
+
+    #[inline(always)]
+    fn tet_energy(&self, rest: &P1Batch, lane: usize, p: &[Vec3; 4]) -> f64 {
+        rest.vol[lane] * energy_and_piola(&self.law, &deformation_gradient(rest, lane, p), &self.opts).0
+    }
+
+    /// det F and the energy density.
+    fn tet_state(&self, rest: &P1Batch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
+        let f = deformation_gradient(rest, lane, p);
+        (f.determinant(), energy_and_piola(&self.law, &f, &self.opts).0)
+    }
+
+    #[inline(always)]
+    fn batch(&self, r: &P1Batch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
         const L: usize = LANES;
-        let r = &self.rest[b];
         // Ds[row][col] = (x_{col+1} - x_0)[row]; F = Ds·Dm⁻¹
         let mut ds = [[[0.0; L]; 3]; 3];
         for row in 0..3 {
@@ -219,7 +208,7 @@ impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, FemBatch> {
                 j[l] = fm[0][0][l] * cof[0][0][l] + fm[1][0][l] * cof[1][0][l] + fm[2][0][l] * cof[2][0][l];
             }
         }
-        crate::force::lanes::law_lanes!(self.law, self.opts, i1, i2, j => w, w1, w2, wj);
+        super::lanes::law_lanes!(self.law, self.opts, i1, i2, j => w, w1, w2, wj);
         // P = 2w1 F + 2w2 (I1 F − F C) + wJ cof F
         let mut pk = [[[0.0; L]; 3]; 3];
         for row in 0..3 {
@@ -257,47 +246,5 @@ impl<M: InvariantLaw> BatchKernel for LawBatches<'_, M, FemBatch> {
         for l in 0..L {
             en[l] = r.vol[l] * w[l];
         }
-    }
-}
-
-impl<M: InvariantLaw> ElasticForces for FemField<M> {
-    fn n_nodes(&self) -> usize {
-        self.n_nodes
-    }
-    fn n_tets(&self) -> usize {
-        self.layout.n_tets()
-    }
-    fn tet_ids(&self) -> &[usize] {
-        &self.layout.ids
-    }
-    fn energy(&self, x: &[Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.layout.n_tets())
-            .map(|k| {
-                let f = self.deformation_gradient(k, &self.layout.global_tet(k), x);
-                self.vol(k) * energy_and_piola(&self.law, &f, &self.opts).0
-            })
-            .sum())
-    }
-    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        match self.assembly {
-            Assembly::Reference => self.add_forces_reference(x, f),
-            a => self.layout.add_batched(&self.kernel(), a == Assembly::Parallel, x, f),
-        }
-    }
-    fn set_assembly(&mut self, assembly: Assembly) {
-        self.assembly = assembly;
-    }
-    fn bytes_per_tet(&self) -> Option<f64> {
-        Some(FemField::bytes_per_tet(self))
-    }
-    fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>> {
-        check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.layout.n_tets())
-            .map(|k| {
-                let f = self.deformation_gradient(k, &self.layout.global_tet(k), x);
-                (f.determinant(), energy_and_piola(&self.law, &f, &self.opts).0)
-            })
-            .collect())
     }
 }

@@ -1,0 +1,210 @@
+//! The block driver: evaluates a batch kernel block by block (in parallel or on
+//! this thread), each block gathering its nodes, running its batches and scattering
+//! into private buffers, then merges the blocks' forces node by node in block order.
+
+// The lanes are indexed in lock-step on purpose (it is what vectorises).
+#![allow(clippy::needless_range_loop)]
+
+#[cfg(target_arch = "x86_64")]
+use super::lane_io::Avx2;
+use super::lane_io::{scatter_lane, LaneIo, Node4, Portable};
+use super::layout::{BlockBuffers, Layout, LocalBatch, LANES};
+use super::simd::Isa;
+use crate::error::Result;
+use crate::force::field::check_sizes;
+use crate::Vec3;
+use rayon::prelude::*;
+
+/// Forces of the four corners of each lane, `[corner][xyz][lane]`.
+pub(crate) type LaneForces = [[[f64; LANES]; 3]; 4];
+
+/// Positions of the four corners of each lane, `[corner][xyz][lane]`.
+pub(crate) type LanePoints = [[[f64; LANES]; 3]; 4];
+
+/// A batch kernel: the per-tet physics of a field, evaluated `LANES` tets at a time.
+pub(crate) trait BatchKernel: Sync {
+    /// Energies and corner forces of the tets of batch `b` (field positions
+    /// `b*LANES..`), whose corner positions are `p`. Lanes past the end of the field
+    /// hold padding and may produce anything (they are never used).
+    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]);
+}
+
+/// The plain per-tet kernel of a field, for the reference path.
+pub(crate) trait PlainKernel {
+    /// Energy of field tet `k`, whose corner positions are `p`; its nodal forces go
+    /// to `add(corner, force)`, in the order the kernel defines.
+    fn tet(&self, k: usize, p: &[Vec3; 4], add: impl FnMut(usize, Vec3)) -> f64;
+}
+
+/// The blocks' local node positions and forces, block after block in two flat
+/// buffers (one indirection for the merge), and their energies; kept between calls.
+#[derive(Debug, Default)]
+pub(crate) struct Scratch {
+    x: Vec<Node4>,
+    f: Vec<Node4>,
+    energy: Vec<f64>,
+}
+
+/// Nodes per parallel task of the merge.
+const MERGE_CHUNK: usize = 2048;
+
+impl Layout {
+    /// Adds the forces of kernel `k` at `x` to `f` and returns the energy, after
+    /// checking the buffer sizes: the blocks on rayon when `parallel` (see the module
+    /// doc), else one after the other on this thread; the same merge, so the same
+    /// bits either way.
+    pub(crate) fn add_batched<K: BatchKernel>(&self, k: &K, parallel: bool, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        Ok(self.evaluate(k, x, f, parallel))
+    }
+
+    /// Adds the forces of the plain kernel `k` to `f`, one tet at a time in field
+    /// order, each force added to its node as the kernel hands it over, and returns
+    /// the energy: the reference path of every field.
+    pub(crate) fn add_plain<K: PlainKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        let mut energy = 0.0;
+        for t in 0..self.n_tets() {
+            let idx = self.global_tet(t);
+            let p = idx.map(|i| x[i as usize]);
+            energy += k.tet(t, &p, |a, fa| f[idx[a] as usize] += fa);
+        }
+        Ok(energy)
+    }
+
+    fn evaluate<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3], parallel: bool) -> f64 {
+        let isa = Isa::current();
+        let blocks = self.blocks.list();
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let s = &mut *guard;
+        if s.f.len() != self.n_slots || s.energy.len() != blocks.len() {
+            s.x = vec![Node4::default(); self.n_slots];
+            s.f = s.x.clone();
+            s.energy = vec![0.0; blocks.len()];
+        }
+        // each block's own part of the flat buffers
+        type Task<'a> = (usize, BlockBuffers<'a>, &'a mut f64);
+        let mut tasks: Vec<Task> = Vec::with_capacity(blocks.len());
+        let (mut xs, mut fs) = (&mut s.x[..], &mut s.f[..]);
+        for (b, e) in s.energy.iter_mut().enumerate() {
+            tasks.push((b, self.blocks.buffers(b, &mut xs, &mut fs), e));
+        }
+        let n_tets = self.n_tets();
+        let one = |(b, mut bufs, e): Task| {
+            let blk = &blocks[b];
+            for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
+                *xi = Node4::from_vec(&x[g as usize]);
+            }
+            bufs.f_mut().fill(Node4::default());
+            *e = run_block(isa, k, blk.batch_start, n_tets, bufs);
+        };
+        if parallel {
+            tasks.into_par_iter().with_max_len(1).for_each(one);
+        } else {
+            tasks.into_iter().for_each(one);
+        }
+        let bufs: &[Node4] = &s.f;
+        let merge = |(c, chunk): (usize, &mut [Vec3])| {
+            for (o, fi) in chunk.iter_mut().enumerate() {
+                let i = c * MERGE_CHUNK + o;
+                let (lo, hi) = (self.merge_off[i] as usize, self.merge_off[i + 1] as usize);
+                for &slot in &self.merge[lo..hi] {
+                    *fi += bufs[slot as usize].to_vec();
+                }
+            }
+        };
+        if parallel {
+            f.par_chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
+        } else {
+            f.chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
+        }
+        s.energy.iter().sum()
+    }
+}
+
+/// Runs the batches of one block with the driver compiled for `isa`.
+fn run_block<K: BatchKernel>(isa: Isa, k: &K, batch0: usize, n_tets: usize, blk: BlockBuffers) -> f64 {
+    // separate references, so that the driver knows the buffers do not alias
+    let (tets, x, f) = blk.into_parts();
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the token proves the CPU has avx512f, avx512dq, avx512vl, avx2 and
+        // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
+        // of one `BlockBuffers`, so every index is below both buffers' length.
+        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, tets, x, f) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the token proves the CPU has avx2 and fma, the features
+        // `block_avx2` enables; the indices as above.
+        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, tets, x, f) },
+        // SAFETY: the indices as above (and the portable I/O checks them anyway).
+        _ => unsafe { block_body(Portable, k, batch0, n_tets, tets, x, f) },
+    }
+}
+
+/// The block driver compiled with `$features` enabled (the SIMD gather and scatter
+/// need AVX2 at least).
+///
+/// # Safety
+/// The CPU has `$features`, and the preconditions of [`block_body`] hold.
+macro_rules! block_with_features {
+    ($name:ident, $features:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name<K: BatchKernel>(
+            io: Avx2,
+            k: &K,
+            batch0: usize,
+            n_tets: usize,
+            tets: &[LocalBatch],
+            x: &[Node4],
+            f: &mut [Node4],
+        ) -> f64 {
+            // SAFETY: the caller's preconditions.
+            unsafe { block_body(io, k, batch0, n_tets, tets, x, f) }
+        }
+    };
+}
+block_with_features!(block_avx512, "avx512f,avx512dq,avx512vl,avx2,fma");
+block_with_features!(block_avx2, "avx2,fma");
+
+/// The batches of one block: gather, kernel, scatter (all lanes at once for full
+/// batches, lane by lane for the padded last one).
+///
+/// # Safety
+/// Every index of `tets` is below `x.len()` and `f.len()` (the parts of one
+/// [`BlockBuffers`]), as `IO` requires.
+#[inline(always)]
+unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
+    io: IO,
+    k: &K,
+    batch0: usize,
+    n_tets: usize,
+    tets: &[LocalBatch],
+    x: &[Node4],
+    f: &mut [Node4],
+) -> f64 {
+    let mut energy = 0.0;
+    let mut p = [[[0.0; LANES]; 3]; 4];
+    let mut fl = [[[0.0; LANES]; 3]; 4];
+    let mut el = [0.0; LANES];
+    for (bo, idx) in tets.iter().enumerate() {
+        let b = batch0 + bo;
+        // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
+        unsafe { io.gather(idx, x, &mut p) };
+        k.batch(b, &p, &mut fl, &mut el);
+        let count = (n_tets - b * LANES).min(LANES);
+        if count == LANES {
+            // SAFETY: as for the gather, below `f.len()`
+            unsafe { io.scatter(idx, &fl, f) };
+            for l in 0..LANES {
+                energy += el[l];
+            }
+        } else {
+            for l in 0..count {
+                energy += el[l];
+                scatter_lane(idx, &fl, f, l);
+            }
+        }
+    }
+    energy
+}

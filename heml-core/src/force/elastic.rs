@@ -1,0 +1,50 @@
+//! The interface through which a system evaluates any force field, and the choice
+//! of evaluation path the HEML, link and P1 fields offer.
+
+use crate::error::Result;
+use crate::Vec3;
+
+/// Which evaluation path a field's `add_forces` takes. All give the same forces to
+/// round-off; `Parallel` gives the same bits for any number of threads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Assembly {
+    /// The plain serial kernel, one tet at a time (the reference).
+    Reference,
+    /// Batches of [`super::assembly::LANES`] tets, vectorised, serial.
+    Batched,
+    /// Batches on blocks of tets in parallel (rayon), deterministic (the default).
+    #[default]
+    Parallel,
+}
+
+/// A force field over a mesh, evaluated once per step behind one dynamic call.
+pub trait ElasticForces: Send + Sync {
+    /// Number of nodes the positions must have.
+    fn n_nodes(&self) -> usize;
+    /// Number of tets it sums over.
+    fn n_tets(&self) -> usize;
+    /// Total elastic energy at positions `x`.
+    fn energy(&self, x: &[Vec3]) -> Result<f64>;
+    /// Adds the internal forces at `x` to `f` and returns the total energy.
+    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64>;
+    /// Per tet of this field (in its order): J and the energy density w per unit rest
+    /// volume (for link laws: the tet's energy divided by its rest volume).
+    fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>>;
+    /// Global ids of the tets this field covers, in its order.
+    fn tet_ids(&self) -> &[usize];
+
+    /// Chooses the evaluation path of [`Self::add_forces`] for fields that have
+    /// several (HEML, link and P1 fields); a no-op for the others.
+    fn set_assembly(&mut self, _assembly: Assembly) {}
+    /// Memory the field holds per tet, in bytes, when it reports it.
+    fn bytes_per_tet(&self) -> Option<f64> {
+        None
+    }
+
+    /// Energy and forces in one freshly allocated buffer.
+    fn forces(&self, x: &[Vec3]) -> Result<(f64, Vec<Vec3>)> {
+        let mut f = vec![Vec3::zeros(); self.n_nodes()];
+        let e = self.add_forces(x, &mut f)?;
+        Ok((e, f))
+    }
+}

@@ -1,0 +1,207 @@
+//! One force field over a per-formulation kernel: the mesh's tets in a block
+//! layout with the formulation's rest data in batches, and the three evaluation
+//! paths ([`Assembly`]) written once for the HEML, link and P1 formulations.
+
+use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, PlainKernel, LANES};
+use super::kernel::TetKernel;
+use super::{Assembly, ElasticForces, ForceOptions};
+use crate::error::{HemlError, Result};
+use crate::mesh::TetMesh;
+use crate::Vec3;
+
+/// A formulation a [`TetField`] can evaluate: [`super::HemlKernel`] (HEML links),
+/// [`super::LinkKernel`] (link laws) and [`super::P1Kernel`] (standard P1). Its
+/// kernels are crate-internal, so no other formulation can be added from outside.
+pub trait Formulation: TetKernel {}
+
+/// Internal forces of formulation `K` over (a region of) a mesh: the fields users
+/// name as [`super::HemlField`], [`super::LinkField`] and [`super::P1Field`].
+///
+/// The tets are kept in the block layout's order (Morton order unless built
+/// unordered; `tet_ids()` gives the global id of each), with the rest data in
+/// batches of [`LANES`] tets. `add_forces` takes the path chosen by
+/// [`Self::set_assembly`]; see [`super::assembly`] for the parallel, deterministic
+/// one.
+#[derive(Debug, Clone)]
+pub struct TetField<K: Formulation> {
+    kernel: K,
+    n_nodes: usize,
+    assembly: Assembly,
+    layout: Layout,
+    rest: Vec<K::Batch>,
+}
+
+/// A field's kernel and rest batches, borrowed for one evaluation (no lock inside,
+/// so the compiler may keep them in registers across the batches).
+struct Tets<'a, K: TetKernel> {
+    kernel: &'a K,
+    rest: &'a [K::Batch],
+}
+
+impl<K: TetKernel> BatchKernel for Tets<'_, K> {
+    #[inline(always)]
+    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
+        self.kernel.batch(&self.rest[b], p, f, e)
+    }
+}
+
+impl<K: TetKernel> PlainKernel for Tets<'_, K> {
+    #[inline(always)]
+    fn tet(&self, k: usize, p: &[Vec3; 4], add: impl FnMut(usize, Vec3)) -> f64 {
+        self.kernel.tet(&self.rest[k / LANES], k % LANES, p, add)
+    }
+}
+
+impl<K: Formulation> TetField<K> {
+    /// The field of `kernel` over the tets `tets` of `mesh` (all when `None`), in
+    /// Morton order when `reorder`.
+    pub(crate) fn build(
+        mut kernel: K,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: ForceOptions,
+        reorder: bool,
+    ) -> Result<Self> {
+        opts.validate()?;
+        let sel = selection(mesh.n_tets(), tets)?;
+        let layout = Layout::new(mesh, &sel, reorder);
+        let mut rest = vec![K::PAD; layout.n_batches()];
+        for (k, &t) in layout.ids.iter().enumerate() {
+            kernel.store_rest(mesh, t, k, &mut rest[k / LANES], k % LANES);
+        }
+        Ok(TetField {
+            kernel,
+            n_nodes: mesh.n_nodes(),
+            assembly: Assembly::default(),
+            layout,
+            rest,
+        })
+    }
+
+    /// The formulation's kernel (law and options).
+    pub(crate) fn kernel(&self) -> &K {
+        &self.kernel
+    }
+
+    /// The evaluation path `add_forces` uses.
+    pub fn assembly(&self) -> Assembly {
+        self.assembly
+    }
+
+    /// Chooses the evaluation path `add_forces` uses (default [`Assembly::Parallel`]).
+    pub fn set_assembly(&mut self, assembly: Assembly) {
+        self.assembly = assembly;
+    }
+
+    /// Bytes of memory per tet this field holds: rest data, indices, blocks, merge
+    /// lists and the scratch buffers of the parallel path.
+    pub fn bytes_per_tet(&self) -> f64 {
+        self.layout.bytes_per_tet(&self.rest) + self.kernel.side_bytes() as f64 / self.layout.n_tets().max(1) as f64
+    }
+
+    /// The plain serial kernel: one tet at a time in field order, forces added node
+    /// by node. The reference every optimised path is tested against.
+    pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        self.layout.add_plain(&self.tets(), x, f)
+    }
+
+    fn tets(&self) -> Tets<'_, K> {
+        Tets {
+            kernel: &self.kernel,
+            rest: &self.rest,
+        }
+    }
+
+    /// Field tet `k`'s rest batch, lane and corner positions at `x`.
+    #[inline(always)]
+    fn tet_at(&self, k: usize, x: &[Vec3]) -> (&K::Batch, usize, [Vec3; 4]) {
+        let p = self.layout.global_tet(k).map(|i| x[i as usize]);
+        (&self.rest[k / LANES], k % LANES, p)
+    }
+}
+
+impl<K: Formulation> ElasticForces for TetField<K> {
+    fn n_nodes(&self) -> usize {
+        self.n_nodes
+    }
+    fn n_tets(&self) -> usize {
+        self.layout.n_tets()
+    }
+    fn tet_ids(&self) -> &[usize] {
+        &self.layout.ids
+    }
+
+    fn energy(&self, x: &[Vec3]) -> Result<f64> {
+        check_sizes(self.n_nodes, x, None)?;
+        if K::PLAIN_ENERGY || self.assembly == Assembly::Reference {
+            Ok((0..self.layout.n_tets())
+                .map(|k| {
+                    let (rest, lane, p) = self.tet_at(k, x);
+                    self.kernel.tet_energy(rest, lane, &p)
+                })
+                .sum())
+        } else {
+            self.add_forces(x, &mut vec![Vec3::zeros(); self.n_nodes])
+        }
+    }
+
+    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        match self.assembly {
+            Assembly::Reference => self.add_forces_reference(x, f),
+            a => self.layout.add_batched(&self.tets(), a == Assembly::Parallel, x, f),
+        }
+    }
+
+    fn set_assembly(&mut self, assembly: Assembly) {
+        self.assembly = assembly;
+    }
+    fn bytes_per_tet(&self) -> Option<f64> {
+        Some(TetField::bytes_per_tet(self))
+    }
+
+    fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>> {
+        check_sizes(self.n_nodes, x, None)?;
+        Ok((0..self.layout.n_tets())
+            .map(|k| {
+                let (rest, lane, p) = self.tet_at(k, x);
+                self.kernel.tet_state(rest, lane, k, &p)
+            })
+            .collect())
+    }
+}
+
+/// Checks the sizes of a position and (optionally) a force buffer.
+pub(crate) fn check_sizes(n_nodes: usize, x: &[Vec3], f: Option<&[Vec3]>) -> Result<()> {
+    if x.len() != n_nodes {
+        return Err(HemlError::SizeMismatch {
+            what: "positions",
+            got: x.len(),
+            expected: n_nodes,
+        });
+    }
+    if let Some(f) = f {
+        if f.len() != n_nodes {
+            return Err(HemlError::SizeMismatch {
+                what: "forces",
+                got: f.len(),
+                expected: n_nodes,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Which tets a field covers: all of them, or a region.
+pub(crate) fn selection(n_tets: usize, tets: Option<&[usize]>) -> Result<Vec<usize>> {
+    match tets {
+        None => Ok((0..n_tets).collect()),
+        Some(ids) => {
+            if let Some(&bad) = ids.iter().find(|&&t| t >= n_tets) {
+                return Err(HemlError::Invalid(format!(
+                    "tet id {bad} out of range (mesh has {n_tets} tets)"
+                )));
+            }
+            Ok(ids.to_vec())
+        }
+    }
+}
