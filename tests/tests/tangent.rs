@@ -11,20 +11,6 @@ use heml_tests::*;
 use proptest::prelude::*;
 use rand::Rng;
 
-/// Every registered law with random parameters, as (name, law).
-fn all_laws(rng: &mut TestRng) -> Vec<(&'static str, Box<dyn Material>)> {
-    let laws: Vec<_> = heml::materials_list()
-        .into_iter()
-        .map(|e| (e.name, e.instantiate(&sample_params(e, rng)).unwrap()))
-        .collect();
-    assert!(
-        laws.len() >= 11,
-        "expected the built-in laws and test_quartic, got {}",
-        laws.len()
-    );
-    laws
-}
-
 fn tangent(law: &dyn Material, mesh: &TetMesh, x: &[Vec3], project: bool) -> Box<dyn TangentOperator> {
     let mut k = law
         .tangent(mesh, None, &ForceOptions::default(), project)
