@@ -312,3 +312,86 @@ fn organ_20k_backward_euler_settles_and_is_timed() {
     assert!(max_u < 2.0 * sag, "bounded: {max_u} vs {sag}");
     assert!(err < 1e-3, "relative displacement error {err:e}");
 }
+
+/// Where a backward-Euler step on the 20k-tet kidney spends its time (printed, never
+/// asserted): one tangent update (Hessians + PSD projection), one matrix-free
+/// product, and the median step at CG tolerances 1e-6 (default) and 1e-3. Long mode.
+#[test]
+#[ignore = "long: 20k-tet organ timing breakdown (run with --ignored)"]
+fn organ_20k_step_timing_breakdown() {
+    link();
+    let rel = "shared/meshes/msh/gen_kidney_20k.msh";
+    let Some(path) = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .map(|d| d.join(rel))
+        .find(|p| p.is_file())
+    else {
+        eprintln!("SKIPPED: {rel} not found next to the repository or above it");
+        return;
+    };
+    let mesh = heml::io::read_mesh(&path).unwrap().0.scaled(1e-3).unwrap();
+    let (lo, hi) = mesh.bounding_box();
+    let cut = lo.x + 0.1 * (hi.x - lo.x);
+    let build = || {
+        System::builder(mesh.clone())
+            .material("neo_hookean", Params::from([("E", 5e3), ("nu", 0.45)]))
+            .unwrap()
+            .density(1000.0)
+            .gravity(Vec3::new(0.0, 0.0, -9.81))
+            .fix_where(|p| p.x < cut)
+            .rayleigh(15.0, 0.0)
+            .energy_every(0)
+            .build()
+            .unwrap()
+    };
+    let sys = build();
+    let r = &sys.regions()[0];
+    let mut k = r
+        .material()
+        .tangent(sys.mesh(), Some(r.field().tet_ids()), &ForceOptions::default(), true)
+        .unwrap()
+        .unwrap();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        1e3 * v[v.len() / 2]
+    };
+    let x = sys.positions().to_vec();
+    let upd: Vec<f64> = (0..5)
+        .map(|_| {
+            let t = std::time::Instant::now();
+            k.update(&x).unwrap();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    let mut y = vec![Vec3::zeros(); x.len()];
+    let prod: Vec<f64> = (0..20)
+        .map(|_| {
+            let t = std::time::Instant::now();
+            k.add_product(&x, &mut y).unwrap();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    eprintln!(
+        "kidney 20k ({} tets, {} threads): tangent update {:.1} ms, product {:.2} ms",
+        sys.mesh().n_tets(),
+        rayon::current_num_threads(),
+        median(upd),
+        median(prod)
+    );
+    for tol in [1e-6, 1e-3] {
+        let mut sys = build();
+        let mut be = BackwardEuler::with_settings(ImplicitSettings {
+            cg_tolerance: tol,
+            ..ImplicitSettings::default()
+        });
+        let mut times = Vec::new();
+        let mut cg = Vec::new();
+        for _ in 0..7 {
+            let t = std::time::Instant::now();
+            let s = be.step(&mut sys, 0.01).unwrap();
+            times.push(t.elapsed().as_secs_f64());
+            cg.push(s.cg_iterations);
+        }
+        eprintln!("  cg_tolerance {tol:.0e}: median step {:.1} ms, CG it. {cg:?}", median(times));
+    }
+}

@@ -405,18 +405,26 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
 
     fn add_product(&self, dx: &[Vec3], y: &mut [Vec3]) -> Result<()> {
         check_sizes(self.n_nodes, dx, Some(y))?;
+        // K is symmetric, so row 3a + r of a tet's K is its column 3a + r: 12
+        // contiguous numbers in nalgebra's column-major storage (a dot product that
+        // vectorises, where the row would be strided)
         y.par_iter_mut().enumerate().with_min_len(256).for_each(|(i, yi)| {
-            let mut acc = Vec3::zeros();
+            let mut acc = [0.0; 3];
             for &(k, a) in &self.inc[self.start[i]..self.start[i + 1]] {
                 let (k, a) = (k as usize, a as usize);
-                let m = &self.k[k];
-                for (b, &node) in self.tets[k].iter().enumerate() {
-                    let d = dx[node as usize];
-                    let blk = m.fixed_view::<3, 3>(3 * a, 3 * b);
-                    acc += blk * d;
+                let t = &self.tets[k];
+                let mut d = [0.0; 12];
+                for b in 0..4 {
+                    let v = dx[t[b] as usize];
+                    d[3 * b..3 * b + 3].copy_from_slice(v.as_slice());
+                }
+                let m = self.k[k].as_slice();
+                for (r, out) in acc.iter_mut().enumerate() {
+                    let col = &m[12 * (3 * a + r)..12 * (3 * a + r) + 12];
+                    *out += col.iter().zip(&d).map(|(p, q)| p * q).sum::<f64>();
                 }
             }
-            *yi += acc;
+            *yi += Vec3::from(acc);
         });
         Ok(())
     }
