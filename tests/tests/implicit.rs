@@ -392,6 +392,9 @@ fn organ_20k_step_timing_breakdown() {
             times.push(t.elapsed().as_secs_f64());
             cg.push(s.cg_iterations);
         }
-        eprintln!("  cg_tolerance {tol:.0e}: median step {:.1} ms, CG it. {cg:?}", median(times));
+        eprintln!(
+            "  cg_tolerance {tol:.0e}: median step {:.1} ms, CG it. {cg:?}",
+            median(times)
+        );
     }
 }
