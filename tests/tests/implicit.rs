@@ -234,13 +234,11 @@ fn cg_that_misses_its_tolerance_warns_or_refuses() {
     assert_eq!(sys.step_count(), 1);
 }
 
-/// The 20k-tet kidney: backward Euler at 10 ms converges to the static solution, and
-/// the time per step is measured (printed, never asserted). Long mode only.
-#[test]
-#[ignore = "long: 20k-tet organ (run with --ignored)"]
-fn organ_20k_backward_euler_settles_and_is_timed() {
-    link();
-    // `../shared` next to the repository, searched upwards (worktrees sit deeper)
+/// The 20k-tet kidney of `../shared` (searched upwards from this crate: worktrees sit
+/// deeper), in metres, and a builder of the soft-tissue scene on it: E = 5 kPa,
+/// ν = 0.45, gravity, the 10 % of the organ at smallest x clamped, α = 15/s. `None`
+/// (with a loud message) when the shared meshes are absent.
+fn kidney_20k() -> Option<impl Fn() -> System> {
     let rel = "shared/meshes/msh/gen_kidney_20k.msh";
     let Some(path) = Path::new(env!("CARGO_MANIFEST_DIR"))
         .ancestors()
@@ -248,13 +246,12 @@ fn organ_20k_backward_euler_settles_and_is_timed() {
         .find(|p| p.is_file())
     else {
         eprintln!("SKIPPED: {rel} not found next to the repository or above it");
-        return;
+        return None;
     };
-    let (mesh, _) = heml::io::read_mesh(&path).unwrap();
-    let mesh = mesh.scaled(1e-3).unwrap();
+    let mesh = heml::io::read_mesh(&path).unwrap().0.scaled(1e-3).unwrap();
     let (lo, hi) = mesh.bounding_box();
     let cut = lo.x + 0.1 * (hi.x - lo.x);
-    let build = || {
+    Some(move || {
         System::builder(mesh.clone())
             .material("neo_hookean", Params::from([("E", 5e3), ("nu", 0.45)]))
             .unwrap()
@@ -265,7 +262,16 @@ fn organ_20k_backward_euler_settles_and_is_timed() {
             .energy_every(0)
             .build()
             .unwrap()
-    };
+    })
+}
+
+/// The 20k-tet kidney: backward Euler at 10 ms converges to the static solution, and
+/// the time per step is measured (printed, never asserted). Long mode only.
+#[test]
+#[ignore = "long: 20k-tet organ (run with --ignored)"]
+fn organ_20k_backward_euler_settles_and_is_timed() {
+    link();
+    let Some(build) = kidney_20k() else { return };
     let mut stat = build();
     let t0 = std::time::Instant::now();
     let report = stat
@@ -320,30 +326,7 @@ fn organ_20k_backward_euler_settles_and_is_timed() {
 #[ignore = "long: 20k-tet organ timing breakdown (run with --ignored)"]
 fn organ_20k_step_timing_breakdown() {
     link();
-    let rel = "shared/meshes/msh/gen_kidney_20k.msh";
-    let Some(path) = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|d| d.join(rel))
-        .find(|p| p.is_file())
-    else {
-        eprintln!("SKIPPED: {rel} not found next to the repository or above it");
-        return;
-    };
-    let mesh = heml::io::read_mesh(&path).unwrap().0.scaled(1e-3).unwrap();
-    let (lo, hi) = mesh.bounding_box();
-    let cut = lo.x + 0.1 * (hi.x - lo.x);
-    let build = || {
-        System::builder(mesh.clone())
-            .material("neo_hookean", Params::from([("E", 5e3), ("nu", 0.45)]))
-            .unwrap()
-            .density(1000.0)
-            .gravity(Vec3::new(0.0, 0.0, -9.81))
-            .fix_where(|p| p.x < cut)
-            .rayleigh(15.0, 0.0)
-            .energy_every(0)
-            .build()
-            .unwrap()
-    };
+    let Some(build) = kidney_20k() else { return };
     let sys = build();
     let r = &sys.regions()[0];
     let mut k = r
