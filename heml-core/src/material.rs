@@ -4,7 +4,7 @@
 
 use crate::error::Result;
 use crate::force::p1::energy_and_piola;
-use crate::force::{ElasticForces, ForceOptions, HemlField, LinkField, P1Field};
+use crate::force::{ElasticForces, ForceOptions, HemlField, LinkField, P1Field, TangentField, TangentOperator};
 use crate::law::{InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo};
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
@@ -41,6 +41,18 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// Energy density and first Piola–Kirchhoff stress at deformation gradient `f`
     /// (`None` for link laws).
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)>;
+    /// The exact tangent stiffness K = ∂²W/∂x² over the tets `tets` of `mesh` (all
+    /// when `None`) as a matrix-free operator, from the generated second derivatives
+    /// (link laws: the per-edge closed form); `project_psd` projects each tet's
+    /// 12×12 matrix to positive semi-definite (see [`crate::force::tangent`]).
+    /// `None` for a law that has no second derivatives (none of the built-in kinds).
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>>;
 }
 
 /// Wraps an invariant law as a [`Material`].
@@ -99,6 +111,21 @@ impl<M: InvariantLaw> Material for Invariant<M> {
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
         Some(energy_and_piola(&self.0, f, opts))
     }
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>> {
+        Ok(Some(Box::new(TangentField::invariant(
+            self.0,
+            mesh,
+            tets,
+            *opts,
+            project_psd,
+        )?)))
+    }
 }
 
 impl<M: LinkLaw> Material for Link<M> {
@@ -133,5 +160,15 @@ impl<M: LinkLaw> Material for Link<M> {
     }
     fn stress(&self, _: &Matrix3<f64>, _: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
         None
+    }
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>> {
+        opts.validate()?;
+        Ok(Some(Box::new(TangentField::link(self.0, mesh, tets, project_psd)?)))
     }
 }

@@ -8,6 +8,8 @@
 //! | `explicit_euler` | [`ExplicitEuler`]: x += dt·v_n, v += dt·a_n | 1 | grows at any dt |
 //! | `symplectic_euler` | [`SymplecticEuler`]: v += dt·a_n, x += dt·v_{n+1} | 1 | bounded, O(ω dt) oscillation |
 //! | `velocity_verlet` | [`VelocityVerlet`]: kick ½, drift, force, kick ½ | 2 | bounded, O((ω dt)²) |
+//! | `backward_euler` | [`BackwardEuler`]: M(v⁺ − v)/h = f(x + h v⁺), Newton/CG | 1 | dissipated (unconditionally stable) |
+//! | `newmark` | [`Newmark`]: average acceleration β = ¼, γ = ½, Newton/CG | 2 | conserved (unconditionally stable) |
 //!
 //! Constraints, loads, damping, Prony updates, NaN detection and the time-step policy
 //! belong to the [`System`](heml_core::system::System); an integrator only orders
@@ -47,11 +49,13 @@
 #![warn(missing_docs)]
 
 mod explicit_euler;
+mod implicit;
 mod symplectic_euler;
 mod velocity_verlet;
 
 pub use explicit_euler::ExplicitEuler;
 pub use heml_core::system::{find_integrator, integrators, Integrator, IntegratorEntry};
+pub use implicit::{BackwardEuler, Newmark};
 pub use symplectic_euler::SymplecticEuler;
 pub use velocity_verlet::VelocityVerlet;
 
@@ -60,6 +64,12 @@ pub use velocity_verlet::VelocityVerlet;
 pub fn __link() -> usize {
     // Naming the registering modules' items keeps their object code, and with it the
     // `inventory::submit!` constructors, in the final binary.
-    let names = [ExplicitEuler.name(), SymplecticEuler.name(), VelocityVerlet.name()];
+    let names = [
+        ExplicitEuler.name(),
+        SymplecticEuler.name(),
+        VelocityVerlet.name(),
+        BackwardEuler::default().name(),
+        Newmark::default().name(),
+    ];
     std::hint::black_box(names.len())
 }

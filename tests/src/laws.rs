@@ -43,3 +43,18 @@ pub fn sample_params(entry: &MaterialEntry, rng: &mut impl Rng) -> Params {
     }
     p
 }
+
+/// Every registered law with random parameters from [`sample_params`], as
+/// (name, law); asserts that the built-in laws and `test_quartic` are all there.
+pub fn all_laws(rng: &mut impl Rng) -> Vec<(&'static str, Box<dyn Material>)> {
+    let laws: Vec<_> = heml::materials_list()
+        .into_iter()
+        .map(|e| (e.name, e.instantiate(&sample_params(e, rng)).unwrap()))
+        .collect();
+    assert!(
+        laws.len() >= 11,
+        "expected the 10 built-in laws and test_quartic, got {}",
+        laws.len()
+    );
+    laws
+}

@@ -2,24 +2,9 @@
 //! force-free, and internal forces are balanced (zero net force and torque), for
 //! every registered law, on random meshes under large deformations.
 
-use heml::law::*;
 use heml::prelude::*;
 use heml_tests::*;
 use proptest::prelude::*;
-
-/// Every registered law with random parameters, as (name, law).
-fn all_laws(rng: &mut TestRng) -> Vec<(&'static str, Box<dyn Material>)> {
-    let laws: Vec<_> = heml::materials_list()
-        .into_iter()
-        .map(|e| (e.name, e.instantiate(&sample_params(e, rng)).unwrap()))
-        .collect();
-    assert!(
-        laws.len() >= 11,
-        "expected the 10 built-in laws and test_quartic, got {}",
-        laws.len()
-    );
-    laws
-}
 
 fn mesh_for(seed: u64, rng: &mut TestRng) -> TetMesh {
     if seed.is_multiple_of(3) {

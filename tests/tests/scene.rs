@@ -573,9 +573,10 @@ fn energy_csv_is_appended_whole_rows_at_frame_boundaries() {
     assert_eq!(rows.len(), 101);
     for (k, r) in rows.iter().enumerate() {
         let cols: Vec<&str> = r.split(',').collect();
-        assert_eq!(cols.len(), 13, "{r}");
+        assert_eq!(cols.len(), 14, "{r}");
         assert_eq!(cols[1].parse::<u64>().unwrap(), k as u64);
         assert_eq!(cols[12], "fixed");
+        assert_eq!(cols[13], "0", "an explicit step takes no CG iteration");
     }
     // appended, never rewritten: the bytes written are the file's length, in one
     // write for the header and one per frame boundary (t = 0 and every 25 steps),

@@ -81,7 +81,12 @@ pub fn execute(mut scene: Scene, opts: &RunOptions) -> heml::Result<()> {
     let result = sim.run(|p| {
         bar.set_position(p.step);
         if p.step % 64 == 0 || p.step == p.steps {
-            bar.set_message(format!("t = {:.4} / {} s, {} frames", p.time, p.duration, p.frames));
+            let cg = if p.cg_iterations > 0 {
+                format!(", {} CG it./step", p.cg_iterations)
+            } else {
+                String::new()
+            };
+            bar.set_message(format!("t = {:.4} / {} s, {} frames{cg}", p.time, p.duration, p.frames));
         }
     });
     bar.finish_and_clear();

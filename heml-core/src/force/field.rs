@@ -192,7 +192,7 @@ pub(crate) fn check_sizes(n_nodes: usize, x: &[Vec3], f: Option<&[Vec3]>) -> Res
 }
 
 /// Which tets a field covers: all of them, or a region.
-fn selection(n_tets: usize, tets: Option<&[usize]>) -> Result<Vec<usize>> {
+pub(crate) fn selection(n_tets: usize, tets: Option<&[usize]>) -> Result<Vec<usize>> {
     match tets {
         None => Ok((0..n_tets).collect()),
         Some(ids) => {

@@ -13,6 +13,7 @@ pub(crate) mod lanes;
 mod link;
 mod options;
 pub mod p1;
+pub mod tangent;
 
 pub use assembly::SimdLevel;
 pub use elastic::{Assembly, ElasticForces};
@@ -21,3 +22,4 @@ pub use heml::{HemlField, HemlKernel};
 pub use link::{LinkField, LinkKernel};
 pub use options::ForceOptions;
 pub use p1::{P1Field, P1Kernel};
+pub use tangent::{TangentField, TangentOperator, TetStiffness};

@@ -194,9 +194,10 @@ impl Scene {
                 return invalid(format!("{solver_what}: dt = {dt} must be a finite number > 0"));
             }
         }
-        let integrator = find_integrator(&s.integrator)
+        let mut integrator = find_integrator(&s.integrator)
             .map_err(|e| HemlError::Invalid(format!("{solver_what}: {e}{}", registry_hint(integrators().is_empty()))))?
             .instantiate();
+        let implicit = s.configure_implicit(integrator.as_mut(), &solver_what)?;
 
         if !self.mesh.pin_unreferenced {
             let loose = mesh.unreferenced_nodes();
@@ -365,7 +366,7 @@ impl Scene {
         let steps = steps as u64;
         let dt = s.duration / steps as f64;
         let mut warnings = Vec::new();
-        if dt > stable && dt_policy != TimeStepPolicy::Adapt {
+        if dt > stable && dt_policy != TimeStepPolicy::Adapt && !implicit {
             let msg = format!(
                 "{solver_what}: dt = {dt:e} s exceeds the stable estimate {stable:e} s; \
                  the explicit integration may blow up (set a smaller dt, or dt_policy)"

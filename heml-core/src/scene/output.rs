@@ -21,9 +21,11 @@ use crate::Vec3;
 /// [`crate::system::Energies`] (gravity and nodal-load potentials relative to the
 /// rest configuration), and the total support reaction (N) with its norm.
 /// `dt` is the step that led to the row's state and `dt_reason` why it was chosen
-/// (see [`crate::system::DtReason`]; `fixed` unless `dt_policy = "adapt"`).
-pub const CSV_HEADER: &str =
-    "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,reaction_norm,dt,dt_reason";
+/// (see [`crate::system::DtReason`]; `fixed` unless `dt_policy = "adapt"`), and
+/// `cg_iterations` the conjugate-gradient iterations of that step (0 for explicit
+/// integrators).
+pub const CSV_HEADER: &str = "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,\
+                              reaction_norm,dt,dt_reason,cg_iterations";
 
 /// The open `energy.csv`: rows not yet written, and what was written so far.
 struct Csv {
@@ -168,13 +170,14 @@ impl Output {
     }
 
     /// Queues a CSV row (written by the next [`Output::flush_csv`]); `dt` is the step
-    /// that led to this state and `reason` why it was chosen.
-    pub(crate) fn row(&mut self, sys: &System, e: &Energies, dt: f64, reason: DtReason) {
+    /// that led to this state, `reason` why it was chosen, and `cg_iterations` the
+    /// conjugate-gradient iterations it took (0 for explicit integrators).
+    pub(crate) fn row(&mut self, sys: &System, e: &Energies, dt: f64, reason: DtReason, cg_iterations: usize) {
         if let Some(csv) = &mut self.csv {
             let r = sys.total_reaction();
             let _ = writeln!(
                 csv.pending,
-                "{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
+                "{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{},{}",
                 sys.time(),
                 sys.step_count(),
                 e.kinetic,
@@ -187,7 +190,8 @@ impl Output {
                 r.z,
                 r.norm(),
                 dt,
-                reason.as_str()
+                reason.as_str(),
+                cg_iterations
             );
         }
     }

@@ -80,7 +80,7 @@ pub fn frame_bytes(n_nodes: usize, n_tets: usize, encoding: VtuEncoding, precisi
     raw / 3 * 4 + 1200
 }
 
-/// Bytes of one `energy.csv` row: 13 columns, numbers in `{:e}` form (up to 23
+/// Bytes of one `energy.csv` row: 14 columns, numbers in `{:e}` form (up to 23
 /// characters, ~15 on average: exact zeros are `0e0`).
 pub const CSV_ROW_BYTES: u64 = 200;
 

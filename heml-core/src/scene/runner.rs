@@ -21,6 +21,8 @@ pub struct Progress {
     pub duration: f64,
     /// Frames written so far.
     pub frames: usize,
+    /// Conjugate-gradient iterations of the last step (0 for explicit integrators).
+    pub cg_iterations: usize,
 }
 
 /// What a completed run did.
@@ -128,7 +130,7 @@ impl Simulation {
         };
         if out.wants_csv() {
             let e = sys.energies()?;
-            out.row(sys, &e, self.dt, first_reason);
+            out.row(sys, &e, self.dt, first_reason, 0);
         }
         out.frame(sys)?;
         out.flush_csv()?;
@@ -176,9 +178,10 @@ impl Simulation {
                     (step, dt, reason)
                 }
             };
-            if let Err(e) = self.integrator.step(sys, dt) {
-                return Err(fail(&mut out, sys, e));
-            }
+            let stats = match self.integrator.step(sys, dt) {
+                Ok(stats) => stats,
+                Err(e) => return Err(fail(&mut out, sys, e)),
+            };
             dt_min = dt_min.min(dt);
             dt_max = dt_max.max(dt);
             let (last, row_due, frame_due) = match adapt {
@@ -209,7 +212,7 @@ impl Simulation {
             };
             if out.wants_csv() && row_due {
                 let e = sys.energies()?;
-                out.row(sys, &e, chosen, reason);
+                out.row(sys, &e, chosen, reason, stats.cg_iterations);
             }
             if frame_due {
                 out.frame(sys)?;
@@ -221,6 +224,7 @@ impl Simulation {
                 time: sys.time(),
                 duration: self.duration,
                 frames: out.frames(),
+                cg_iterations: stats.cg_iterations,
             });
             if last {
                 break;

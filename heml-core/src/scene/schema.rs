@@ -3,9 +3,10 @@
 
 use serde::Deserialize;
 
+use crate::error::{HemlError, Result};
 use crate::mesh::generate::HexSplit;
 use crate::params::Params;
-use crate::system::{PronyTerm, Ramp, TimeStepPolicy};
+use crate::system::{CgFailure, Integrator, PronyTerm, Ramp, TimeStepPolicy};
 
 /// Where the body comes from and how its coordinates map to metres.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -260,6 +261,55 @@ pub struct SolverSpec {
     pub safety: Option<f64>,
     /// Inversion threshold J0 of the laws, in (0, 1) (default 0.4).
     pub j0: Option<f64>,
+    /// Implicit integrators: relative tolerance of the conjugate-gradient solves, in
+    /// (0, 1) (default 1e-6).
+    pub cg_tolerance: Option<f64>,
+    /// Implicit integrators: CG iterations per linear solve at most (default 1000).
+    pub cg_max_iterations: Option<usize>,
+    /// Implicit integrators: what a CG solve that misses its tolerance does: `warn`
+    /// (default) or `refuse`.
+    pub cg_failure: Option<CgFailure>,
+    /// Implicit integrators: Newton iterations per step at most, 1..=100 (default 1).
+    pub newton_iterations: Option<usize>,
+    /// Implicit integrators: relative residual at which Newton stops early (default 1e-6).
+    pub newton_tolerance: Option<f64>,
+    /// Implicit integrators: project each tet's stiffness to positive semi-definite
+    /// (default true).
+    pub project_psd: Option<bool>,
+}
+
+impl SolverSpec {
+    /// Applies the implicit-integrator keys to `integrator`; returns whether it is
+    /// implicit. The keys are an error on an explicit integrator.
+    pub(crate) fn configure_implicit(&self, integrator: &mut dyn Integrator, what: &str) -> Result<bool> {
+        let given = [
+            ("cg_tolerance", self.cg_tolerance.is_some()),
+            ("cg_max_iterations", self.cg_max_iterations.is_some()),
+            ("cg_failure", self.cg_failure.is_some()),
+            ("newton_iterations", self.newton_iterations.is_some()),
+            ("newton_tolerance", self.newton_tolerance.is_some()),
+            ("project_psd", self.project_psd.is_some()),
+        ];
+        let name = integrator.name();
+        let Some(settings) = integrator.implicit_settings_mut() else {
+            if let Some((key, _)) = given.iter().find(|(_, g)| *g) {
+                return Err(HemlError::Invalid(format!(
+                    "{what}: `{key}` applies to implicit integrators (backward_euler, newmark), not `{name}`"
+                )));
+            }
+            return Ok(false);
+        };
+        let mut s = *settings;
+        s.cg_tolerance = self.cg_tolerance.unwrap_or(s.cg_tolerance);
+        s.cg_max_iterations = self.cg_max_iterations.unwrap_or(s.cg_max_iterations);
+        s.cg_failure = self.cg_failure.unwrap_or(s.cg_failure);
+        s.newton_iterations = self.newton_iterations.unwrap_or(s.newton_iterations);
+        s.newton_tolerance = self.newton_tolerance.unwrap_or(s.newton_tolerance);
+        s.project_psd = self.project_psd.unwrap_or(s.project_psd);
+        s.validate().map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
+        *settings = s;
+        Ok(true)
+    }
 }
 
 fn default_integrator() -> String {

@@ -50,4 +50,9 @@ pub struct StepStats {
     /// evaluation when it happened at the final positions (velocity Verlet) and
     /// evaluated once more otherwise.
     pub energies: Option<Energies>,
+    /// Newton iterations of an implicit step (0 for explicit integrators).
+    pub newton_iterations: usize,
+    /// Conjugate-gradient iterations (operator products) of an implicit step, summed
+    /// over its Newton iterations (0 for explicit integrators).
+    pub cg_iterations: usize,
 }

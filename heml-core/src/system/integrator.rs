@@ -15,7 +15,7 @@
 //! 5. [`System::finish_step`] — imposes the constraints at t + dt, counts the step,
 //!    checks for NaN/∞ and returns the [`StepStats`].
 
-use super::{StepStats, System};
+use super::{ImplicitSettings, StepStats, System};
 use crate::error::Result;
 use crate::registry::find_by_name;
 
@@ -25,6 +25,12 @@ pub trait Integrator: Send {
     fn step(&mut self, sys: &mut System, dt: f64) -> Result<StepStats>;
     /// Registry name.
     fn name(&self) -> &'static str;
+    /// The Newton/CG settings of an implicit integrator, to configure it (scene keys
+    /// `cg_tolerance`, `cg_max_iterations`, `newton_iterations`); `None` for explicit
+    /// integrators.
+    fn implicit_settings_mut(&mut self) -> Option<&mut ImplicitSettings> {
+        None
+    }
 }
 
 /// A registered integrator.

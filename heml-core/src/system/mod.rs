@@ -67,6 +67,7 @@ mod adaptive;
 mod builder;
 mod constraints;
 mod energy;
+pub mod implicit;
 mod integrator;
 mod prony;
 mod stability;
@@ -79,6 +80,7 @@ pub use adaptive::{AdaptiveStep, DeformedEstimate, DtReason, DEFAULT_ADAPT_EVERY
 pub use builder::SystemBuilder;
 pub use constraints::{Constraints, Prescribed, Ramp};
 pub use energy::{Energies, StepStats};
+pub use implicit::{CgFailure, ImplicitScheme, ImplicitSettings, ImplicitSolver};
 pub use integrator::{find_integrator, integrators, Integrator, IntegratorEntry};
 pub use prony::{relaxation, validate_prony, PronyTerm};
 pub use stability::{
@@ -365,12 +367,18 @@ impl System {
     /// [`TimeStepPolicy`] against [`System::stable_dt`], and saves the state that a
     /// failed step rolls back to.
     pub fn begin_step(&mut self, dt: f64) -> Result<()> {
+        self.begin_step_with(dt, true)
+    }
+
+    /// [`System::begin_step`]; `explicit` applies the time-step policy (implicit
+    /// schemes are not bound by the explicit stable step).
+    fn begin_step_with(&mut self, dt: f64, explicit: bool) -> Result<()> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(HemlError::Invalid(format!(
                 "time step dt = {dt} must be a finite number > 0"
             )));
         }
-        if dt > self.stable_dt {
+        if explicit && dt > self.stable_dt {
             let msg = format!(
                 "time step dt = {dt:e} exceeds the stable estimate {:e} (see stable_time_step); \
                  the explicit integration may blow up",
@@ -642,6 +650,8 @@ impl System {
             max_speed,
             reaction: self.reaction_total,
             energies,
+            newton_iterations: 0,
+            cg_iterations: 0,
         })
     }
 

@@ -8,7 +8,7 @@ use crate::Vec3;
 const HELD: usize = usize::MAX;
 
 /// Numbering of the free coordinates and the half-bandwidth it gives the tangent.
-pub(super) struct DofMap {
+pub(in crate::system) struct DofMap {
     /// Per node and axis, the degree of freedom, or [`HELD`].
     dof: Vec<[usize; 3]>,
     /// Number of degrees of freedom.
@@ -20,7 +20,7 @@ pub(super) struct DofMap {
 impl DofMap {
     /// Numbers the coordinates not marked in `held` (one entry per node), nodes in
     /// reverse Cuthill–McKee order of the tets' graph.
-    pub(super) fn new(held: &[[bool; 3]], tets: &[[u32; 4]]) -> Self {
+    pub(in crate::system) fn new(held: &[[bool; 3]], tets: &[[u32; 4]]) -> Self {
         let order = rcm_order(held.len(), tets);
         let mut dof = vec![[HELD; 3]; held.len()];
         let mut n = 0;
@@ -47,23 +47,23 @@ impl DofMap {
     }
 
     /// Number of degrees of freedom.
-    pub(super) fn len(&self) -> usize {
+    pub(in crate::system) fn len(&self) -> usize {
         self.n
     }
 
     /// Half-bandwidth of the tangent.
-    pub(super) fn band(&self) -> usize {
+    pub(in crate::system) fn band(&self) -> usize {
         self.band
     }
 
     /// The degree of freedom of coordinate `axis` of `node`, if free.
-    pub(super) fn get(&self, node: usize, axis: usize) -> Option<usize> {
+    pub(in crate::system) fn get(&self, node: usize, axis: usize) -> Option<usize> {
         let d = self.dof[node][axis];
         (d != HELD).then_some(d)
     }
 
     /// The free components of a nodal vector field, by degree of freedom.
-    pub(super) fn gather(&self, field: &[Vec3]) -> Vec<f64> {
+    pub(in crate::system) fn gather(&self, field: &[Vec3]) -> Vec<f64> {
         let mut out = vec![0.0; self.n];
         for (i, d) in self.dof.iter().enumerate() {
             for a in 0..3 {
@@ -75,8 +75,18 @@ impl DofMap {
         out
     }
 
+    /// The nodal vector field with the free components taken from `v` (by degree of
+    /// freedom) and zeros on the held ones: the inverse of [`DofMap::gather`].
+    pub(in crate::system) fn scatter(&self, v: &[f64], out: &mut [Vec3]) {
+        for (o, d) in out.iter_mut().zip(&self.dof) {
+            for a in 0..3 {
+                o[a] = if d[a] != HELD { v[d[a]] } else { 0.0 };
+            }
+        }
+    }
+
     /// x = x0 + step·dx on the free coordinates (held ones are left as they are).
-    pub(super) fn step(&self, x: &mut [Vec3], x0: &[Vec3], dx: &[f64], step: f64) {
+    pub(in crate::system) fn step(&self, x: &mut [Vec3], x0: &[Vec3], dx: &[f64], step: f64) {
         for (i, d) in self.dof.iter().enumerate() {
             for a in 0..3 {
                 if d[a] != HELD {

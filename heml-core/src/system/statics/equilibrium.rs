@@ -1,6 +1,8 @@
 //! Static equilibrium as a [`NewtonProblem`]: the residual is the system's force
 //! (elastic + gravity + loads, constraints and sliders imposed), the tangent the
-//! elastic stiffness, the merit the total potential.
+//! elastic stiffness, the merit the total potential. The tangent system is solved by
+//! the banded LDLᵀ when the band fits in memory, else by the implicit integrators'
+//! conjugate gradients on the generated (projected) tangent.
 
 use super::banded::BandLdl;
 use super::dofs::DofMap;
@@ -8,14 +10,31 @@ use super::newton::{newton, NewtonProblem};
 use super::options::{Slider, StaticOptions, StaticReport};
 use super::tangent::Stiffness;
 use crate::error::Result;
+use crate::force::TangentOperator;
+use crate::system::implicit::linear::TangentSolve;
 use crate::system::System;
 use crate::Vec3;
+
+/// How the tangent system of a static Newton step is solved.
+enum Linear {
+    /// Banded LDLᵀ of the assembled stiffness (fits in memory).
+    Banded(Stiffness),
+    /// Preconditioned conjugate gradients on the matrix-free generated tangent
+    /// (projected to positive semi-definite per tet).
+    Cg(Vec<Box<dyn TangentOperator>>),
+}
+
+/// CG relative tolerance of the static Newton steps: an inexact Newton step whose
+/// error contracts the residual by ~1e-6 per iteration, ample for the 1e-6 criterion.
+const CG_TOL: f64 = 1e-6;
+/// CG iteration cap of the static Newton steps.
+const CG_MAX_ITERATIONS: usize = 5000;
 
 /// The static problem of one [`System::solve_static_with`] call.
 struct Equilibrium<'a> {
     sliders: &'a [Slider],
     opts: &'a StaticOptions,
-    stiffness: Stiffness,
+    linear: Linear,
     /// Reaction on each slider at the last evaluation.
     slider_reactions: Vec<f64>,
 }
@@ -45,8 +64,35 @@ impl NewtonProblem for Equilibrium<'_> {
         report.converged.then_some(report)
     }
 
-    fn add_tangent(&self, sys: &System, dofs: &DofMap, k: &mut BandLdl) {
-        self.stiffness.add_to(sys, dofs, k);
+    fn solve_linear(&mut self, sys: &System, dofs: &DofMap, rhs: &mut [f64]) -> Result<bool> {
+        match &mut self.linear {
+            Linear::Banded(stiffness) => {
+                let mut k = BandLdl::new(dofs.len(), dofs.band());
+                stiffness.add_to(sys, dofs, &mut k);
+                if !k.factor() {
+                    return Ok(false);
+                }
+                k.solve(rhs);
+                Ok(true)
+            }
+            Linear::Cg(tangents) => {
+                let solve = TangentSolve {
+                    ck: 1.0,
+                    cm: 0.0,
+                    tol: CG_TOL,
+                    max_iterations: CG_MAX_ITERATIONS,
+                };
+                let report = solve.solve(sys, tangents, dofs, rhs)?;
+                if self.opts.progress_every > 0 {
+                    log::debug!(
+                        "quasi-static Newton: CG {} iterations, relative residual {:.1e}",
+                        report.iterations,
+                        report.relative_residual
+                    );
+                }
+                Ok(report.iterations > 0 && !rhs.iter().all(|v| *v == 0.0))
+            }
+        }
     }
 
     fn merit(&self, sys: &System) -> Result<f64> {
@@ -57,12 +103,9 @@ impl NewtonProblem for Equilibrium<'_> {
 
 impl System {
     /// Newton iterations towards equilibrium; `Ok(None)` when not applicable (a law
-    /// without stress, nothing free, a band too wide for memory) or stalled (then
-    /// dynamic relaxation goes on from the current iterate).
+    /// without stress, nothing free) or stalled (then dynamic relaxation goes on from the
+    /// current iterate).
     pub(super) fn static_newton(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<Option<StaticReport>> {
-        let Some(stiffness) = Stiffness::new(self) else {
-            return Ok(None);
-        };
         let t = self.t;
         let n = self.x.len();
         let mut held = vec![[false; 3]; n];
@@ -75,16 +118,36 @@ impl System {
             held[s.node][s.axis] = true;
         }
         let dofs = DofMap::new(&held, self.mesh.tets());
-        if dofs.len() == 0 || !BandLdl::fits(dofs.len(), dofs.band()) {
+        if dofs.len() == 0 {
             return Ok(None);
         }
+        // link laws (no stress) keep dynamic relaxation, as before
+        let Some(stiffness) = Stiffness::new(self) else {
+            return Ok(None);
+        };
+        let linear = match stiffness {
+            stiffness if BandLdl::fits(dofs.len(), dofs.band()) => Linear::Banded(stiffness),
+            _ => {
+                let mut tangents = Vec::with_capacity(self.regions.len());
+                for r in &self.regions {
+                    match r
+                        .material
+                        .tangent(&self.mesh, Some(r.field.tet_ids()), &self.force_options, true)?
+                    {
+                        Some(t) => tangents.push(t),
+                        None => return Ok(None),
+                    }
+                }
+                Linear::Cg(tangents)
+            }
+        };
         self.v.fill(Vec3::zeros());
         self.apply_constraints(t);
         self.apply_sliders(sliders);
         let mut problem = Equilibrium {
             sliders,
             opts,
-            stiffness,
+            linear,
             slider_reactions: vec![0.0; sliders.len()],
         };
         newton(self, &dofs, &mut problem)

@@ -6,16 +6,21 @@
 //! (fixed nodes, prescribed displacements evaluated at the system's current time)
 //! imposed. The residual is always the system's own (HEML) force.
 //!
-//! **Newton** (used when every region's law has a stress, i.e. invariant laws): the
-//! tangent stiffness is assembled per tet from the law's first Piola–Kirchhoff stress,
+//! **Newton** (used when every region's law has a stress, i.e. invariant laws): when
+//! the band fits in memory, the tangent
+//! stiffness is assembled per tet from the law's first Piola–Kirchhoff stress,
 //! K_e = Vol·Gᵀ (∂P/∂F) G, with ∂P/∂F by central differences of
 //! [`crate::Material::stress`] (step 1e-6: ~1e-10 relative, ample for a Newton
 //! tangent), the free degrees of freedom ordered by reverse Cuthill–McKee, and K
 //! factored as a banded LDLᵀ (no pivoting; indefinite tangents, e.g. SVK past its
-//! compression peak, are fine while no pivot vanishes). Each step is damped by
+//! compression peak, are fine while no pivot vanishes). Otherwise (a band too wide,
+//! e.g. organ meshes of 20k tets and more) each Newton step is solved
+//! by the implicit integrators' block-Jacobi preconditioned conjugate gradients on
+//! the exact generated tangent ([`crate::force::tangent`], projected to positive
+//! semi-definite per tet), to a relative tolerance of 1e-6. Each step is damped by
 //! backtracking until the total potential does not increase or the Euclidean residual
-//! norm decreases. If the band is too wide for memory, a pivot vanishes or the line
-//! search stalls, the solver continues with:
+//! norm decreases. If a pivot vanishes, CG makes no progress or the line search
+//! stalls, the solver continues with:
 //!
 //! **Dynamic relaxation** (any law): a fictitious, damped motion integrated until
 //! it stops. The damping is FIRE (Bitzek et al., "Structural relaxation made simple", PRL 97 (2006), with
@@ -38,9 +43,9 @@
 //! # Layout
 //!
 //! The Newton iteration (`newton.rs`) is written against a problem trait — what the
-//! residual, the tangent and the line-search merit are — so that an implicit time
-//! integrator (backward Euler, Newmark: residual f − M a, tangent K + M/(β dt²)) can
-//! reuse it together with the numbering of the free coordinates (`dofs.rs`), the
+//! residual, the tangent solve and the line-search merit are — so that the implicit
+//! time integrators ([`crate::system::implicit`]: residual f − M a, tangent
+//! K + c M) reuse it together with the numbering of the free coordinates (`dofs.rs`), the
 //! stiffness assembly (`tangent.rs`) and the banded LDLᵀ solver (`banded.rs`, with
 //! the reverse Cuthill–McKee ordering of `rcm.rs`). `equilibrium.rs` is the static
 //! problem, `fire.rs` the fallback, `solve.rs` the public entry points,
@@ -82,10 +87,10 @@
 
 mod banded;
 mod criterion;
-mod dofs;
+pub(super) mod dofs;
 mod equilibrium;
 mod fire;
-mod newton;
+pub(super) mod newton;
 mod options;
 mod rcm;
 mod sliders;

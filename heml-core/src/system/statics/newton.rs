@@ -1,29 +1,29 @@
 //! Damped Newton iterations over the free coordinates of a [`DofMap`], independent
-//! of what the residual is: the caller's [`NewtonProblem`] evaluates the residual,
-//! adds its tangent and gives the line-search merit. The static equilibrium is one
-//! such problem (`equilibrium.rs`); an implicit time step (residual f − M a, tangent
-//! K + M/(β dt²), merit the incremental potential) is meant to be another.
+//! of what the residual is and how the linear system is solved: the caller's
+//! [`NewtonProblem`] evaluates the residual, solves its tangent system and gives the
+//! line-search merit. The static equilibrium is one such problem (`equilibrium.rs`,
+//! banded LDLᵀ); an implicit time step (`system::implicit`: residual f − M a,
+//! tangent K + c M, merit the incremental potential, conjugate gradients) is another.
 //!
-//! Each iteration factors the tangent (banded LDLᵀ), solves for the full step and
-//! backtracks (halving, at most [`MAX_HALVINGS`] times) until the merit does not
+//! Each iteration solves the tangent system for the full step and backtracks (halving, at most [`MAX_HALVINGS`] times) until the merit does not
 //! increase or the residual norm decreases. A vanishing pivot, a failed line search
 //! or [`MAX_ITERATIONS`] without convergence ends the iteration without an error, so
 //! that the caller can go on with a more robust method from the current iterate.
 
-use super::banded::BandLdl;
 use super::dofs::DofMap;
 use crate::error::Result;
 use crate::system::System;
 use crate::Vec3;
 
-/// Newton iterations before giving up (a converging Newton needs far fewer).
+/// Newton iterations before giving up (a converging Newton needs far fewer), unless
+/// the problem sets its own cap ([`NewtonProblem::max_iterations`]).
 const MAX_ITERATIONS: usize = 50;
 /// Step halvings of the line search before giving up (2⁻¹² ≈ 2.4e-4 of the step).
 const MAX_HALVINGS: usize = 12;
 
 /// What a Newton solve needs from the problem it solves. The unknowns are the free
 /// coordinates of the system's positions, numbered by the [`DofMap`] passed along.
-pub(super) trait NewtonProblem {
+pub(in crate::system) trait NewtonProblem {
     /// What a converged solve returns.
     type Report;
 
@@ -40,9 +40,16 @@ pub(super) trait NewtonProblem {
     /// step taken (0 before the first).
     fn converged(&self, sys: &System, it: usize, step: f64) -> Option<Self::Report>;
 
-    /// Adds the tangent −∂residual/∂x at the current positions into the lower
-    /// triangle of `k`.
-    fn add_tangent(&self, sys: &System, dofs: &DofMap, k: &mut BandLdl);
+    /// Solves T dx = rhs in place, T = −∂residual/∂x the tangent at the current
+    /// positions (`rhs` is the residual gathered by degree of freedom). `Ok(false)`
+    /// when the tangent cannot be solved (the Newton iteration then gives up without
+    /// an error); an error ends the solve with it.
+    fn solve_linear(&mut self, sys: &System, dofs: &DofMap, rhs: &mut [f64]) -> Result<bool>;
+
+    /// The cap on Newton iterations.
+    fn max_iterations(&self) -> usize {
+        MAX_ITERATIONS
+    }
 
     /// The merit the line search must not increase (e.g. the total potential), at
     /// the current positions.
@@ -51,28 +58,29 @@ pub(super) trait NewtonProblem {
 
 /// Runs damped Newton iterations from the system's current positions.
 ///
-/// `Ok(Some(report))` when converged; `Ok(None)` when the tangent has a vanishing
-/// pivot, the line search stalls (positions restored to the last iterate) or the
+/// `Ok(Some(report))` when converged; `Ok(None)` when the tangent cannot be solved, the line search stalls (positions restored to the last iterate) or the
 /// iterations run out (positions left at the last iterate). Errors come from the
 /// first evaluation and from the merit.
-pub(super) fn newton<P: NewtonProblem>(sys: &mut System, dofs: &DofMap, problem: &mut P) -> Result<Option<P::Report>> {
+pub(in crate::system) fn newton<P: NewtonProblem>(
+    sys: &mut System,
+    dofs: &DofMap,
+    problem: &mut P,
+) -> Result<Option<P::Report>> {
     let norm2 = |f: &[Vec3]| f.iter().map(|v| v.norm_squared()).sum::<f64>();
     problem.evaluate(sys)?;
     let mut step_taken = 0.0;
-    for it in 0..=MAX_ITERATIONS {
+    let max_iterations = problem.max_iterations();
+    for it in 0..=max_iterations {
         if let Some(report) = problem.converged(sys, it, step_taken) {
             return Ok(Some(report));
         }
-        if it == MAX_ITERATIONS {
+        if it == max_iterations {
             break;
         }
-        let mut k = BandLdl::new(dofs.len(), dofs.band());
-        problem.add_tangent(sys, dofs, &mut k);
-        if !k.factor() {
+        let mut dx = dofs.gather(problem.residual(sys));
+        if !problem.solve_linear(sys, dofs, &mut dx)? {
             return Ok(None);
         }
-        let mut dx = dofs.gather(problem.residual(sys));
-        k.solve(&mut dx);
         let x0 = sys.x.clone();
         let r0 = norm2(problem.residual(sys));
         let e0 = problem.merit(sys)?;

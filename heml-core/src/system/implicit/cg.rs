@@ -1,0 +1,170 @@
+//! Preconditioned conjugate gradients, matrix-free: the linear solver of the
+//! implicit integrators' Newton iterations.
+
+/// What a conjugate-gradient solve reached.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CgReport {
+    /// Iterations (operator products) used.
+    pub iterations: usize,
+    /// Final ‖b − A x‖ / ‖b‖ (0 when b = 0), from the recursively updated residual.
+    pub relative_residual: f64,
+    /// Whether the relative residual reached the tolerance.
+    pub converged: bool,
+    /// Whether a direction of non-positive curvature (pᵀAp ≤ 0) stopped the
+    /// iteration: A is not positive definite (the solution so far is kept).
+    pub breakdown: bool,
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Solves A x = b for symmetric positive definite A, given only the products
+/// `apply(p, out)`: out = A p, and the preconditioner `precond(r, out)`: out = P⁻¹ r
+/// (symmetric positive definite). `x` is the starting guess and holds the result.
+/// Stops when ‖b − A x‖ ≤ `tol`·‖b‖ or after `max_iterations` products.
+pub fn pcg(
+    mut apply: impl FnMut(&[f64], &mut [f64]),
+    precond: impl Fn(&[f64], &mut [f64]),
+    b: &[f64],
+    x: &mut [f64],
+    tol: f64,
+    max_iterations: usize,
+) -> CgReport {
+    let n = b.len();
+    let bnorm = dot(b, b).sqrt();
+    if bnorm == 0.0 {
+        x.fill(0.0);
+        return CgReport {
+            converged: true,
+            ..CgReport::default()
+        };
+    }
+    let mut r = vec![0.0; n];
+    let mut ap = vec![0.0; n];
+    apply(x, &mut ap);
+    let mut products = 1;
+    for i in 0..n {
+        r[i] = b[i] - ap[i];
+    }
+    let mut z = vec![0.0; n];
+    precond(&r, &mut z);
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    let mut report = CgReport::default();
+    let mut rnorm = dot(&r, &r).sqrt();
+    let mut it = 0;
+    while rnorm > tol * bnorm && it < max_iterations {
+        apply(&p, &mut ap);
+        products += 1;
+        let pap = dot(&p, &ap);
+        // not `pap <= 0.0`: a NaN curvature is a breakdown too
+        if pap.is_nan() || pap <= 0.0 {
+            report.breakdown = true;
+            break;
+        }
+        let alpha = rz / pap;
+        for i in 0..n {
+            x[i] += alpha * p[i];
+            r[i] -= alpha * ap[i];
+        }
+        it += 1;
+        rnorm = dot(&r, &r).sqrt();
+        precond(&r, &mut z);
+        let rz_new = dot(&r, &z);
+        let beta = rz_new / rz;
+        rz = rz_new;
+        for i in 0..n {
+            p[i] = z[i] + beta * p[i];
+        }
+    }
+    report.iterations = products - 1;
+    report.relative_residual = rnorm / bnorm;
+    report.converged = rnorm <= tol * bnorm;
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    /// A random symmetric positive definite matrix with a spread diagonal (condition
+    /// number ~1e3) and a right-hand side.
+    fn spd(n: usize, seed: u64) -> (DMatrix<f64>, DVector<f64>) {
+        let mut s = seed;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let g = DMatrix::from_fn(n, n, |_, _| rnd());
+        let d = DMatrix::from_diagonal(&DVector::from_fn(n, |i, _| 10f64.powf(3.0 * i as f64 / n as f64)));
+        let a = &g * g.transpose() * 0.1 + d;
+        let b = DVector::from_fn(n, |_, _| rnd());
+        (a, b)
+    }
+
+    #[test]
+    fn pcg_matches_a_direct_solve() {
+        let n = 60;
+        let (a, b) = spd(n, 0x1234_5678_9abc_def1);
+        let exact = a.clone().cholesky().unwrap().solve(&b);
+        for jacobi in [false, true] {
+            let diag: Vec<f64> = (0..n).map(|i| a[(i, i)]).collect();
+            let mut x = vec![0.0; n];
+            let rep = pcg(
+                |p, out| {
+                    let y = &a * DVector::from_column_slice(p);
+                    out.copy_from_slice(y.as_slice());
+                },
+                |r, out| {
+                    for i in 0..n {
+                        out[i] = if jacobi { r[i] / diag[i] } else { r[i] };
+                    }
+                },
+                b.as_slice(),
+                &mut x,
+                1e-12,
+                1000,
+            );
+            assert!(rep.converged && !rep.breakdown, "{rep:?}");
+            // in exact arithmetic CG ends in n steps; allow the loss of orthogonality
+            assert!(rep.iterations <= 3 * n, "{rep:?}");
+            // ‖x − x*‖ ≤ κ·tol·‖x*‖ with κ ~ 1e3 and tol 1e-12: 1e-8 is a safe bound
+            let err = (DVector::from_column_slice(&x) - &exact).norm() / exact.norm();
+            assert!(err < 1e-8, "jacobi {jacobi}: relative error {err:e}");
+        }
+    }
+
+    #[test]
+    fn pcg_reports_an_indefinite_operator_and_the_iteration_cap() {
+        let n = 10;
+        // diag(1, −1, 1, …): the first direction r = b = (1, 1, …) has pᵀAp = 0
+        let b = vec![1.0; n];
+        let mut x = vec![0.0; n];
+        let sign = |i: usize| if i.is_multiple_of(2) { 1.0 } else { -1.0 };
+        let rep = pcg(
+            |p, out| (0..n).for_each(|i| out[i] = sign(i) * p[i]),
+            |r, out| out.copy_from_slice(r),
+            &b,
+            &mut x,
+            1e-10,
+            50,
+        );
+        assert!(rep.breakdown && !rep.converged, "{rep:?}");
+        let (a, b) = spd(40, 99);
+        let mut x = vec![0.0; 40];
+        let rep = pcg(
+            |p, out| out.copy_from_slice((&a * DVector::from_column_slice(p)).as_slice()),
+            |r, out| out.copy_from_slice(r),
+            b.as_slice(),
+            &mut x,
+            1e-14,
+            3,
+        );
+        assert_eq!(rep.iterations, 3);
+        assert!(!rep.converged && rep.relative_residual > 1e-14);
+    }
+}

@@ -1,0 +1,175 @@
+//! One implicit time step as a [`NewtonProblem`] in the end-of-step positions x⁺.
+//!
+//! Both schemes write the end-of-step acceleration and velocity as affine functions
+//! of d = x⁺ − x − h v (free nodes): a⁺ = c_a d − â, v⁺ = v + c_v d, with
+//! backward Euler c_a = 1/h², c_v = 1/h, â = 0 and Newmark (β = ¼, γ = ½)
+//! c_a = 4/h², c_v = 2/h, â = a (the acceleration at the start of the step). The
+//! residual is r = f(x⁺, v⁺) − M a⁺ — f the system's full force: elastic (viscous-
+//! elastic), gravity, loads and Rayleigh damping −αMv − βKv — and the tangent
+//! −∂r/∂x⁺ = (1 + β c_v) K + (c_a + α c_v) M, with K the elastic stiffness of
+//! [`crate::force::tangent`]. The line-search merit is the incremental potential
+//! W(x⁺) + gravity and load potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
+//! without damping (with damping, a decreasing residual norm is accepted too).
+
+use super::linear::TangentSolve;
+use super::settings::{CgFailure, ImplicitSettings};
+use crate::error::{HemlError, Result};
+use crate::force::TangentOperator;
+use crate::system::statics::dofs::DofMap;
+use crate::system::statics::newton::NewtonProblem;
+use crate::system::System;
+use crate::Vec3;
+
+/// How the Newton iterations of a step ended.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct NewtonOutcome {
+    /// Newton iterations done.
+    pub iterations: usize,
+}
+
+/// The state of one implicit step.
+pub(super) struct ImplicitStep<'a> {
+    pub settings: &'a ImplicitSettings,
+    pub tangents: &'a mut [Box<dyn TangentOperator>],
+    /// Positions, velocities and â at the start of the step.
+    pub x0: &'a [Vec3],
+    pub v0: &'a [Vec3],
+    pub a0: &'a [Vec3],
+    pub h: f64,
+    pub ca: f64,
+    pub cv: f64,
+    /// Norm of the external loads on the free nodes (tolerance scale).
+    pub load_norm: f64,
+    /// Residual per node (zero on constrained nodes).
+    pub r: Vec<Vec3>,
+    /// Residual norm at the start of the step.
+    pub r0: Option<f64>,
+    /// CG iterations summed over the step.
+    pub cg_iterations: usize,
+    /// Messages of linear solves that missed their tolerance.
+    pub warnings: Vec<String>,
+}
+
+impl ImplicitStep<'_> {
+    /// d_i = x_i − x0_i − h v0_i on a free node.
+    fn d(&self, sys: &System, i: usize) -> Vec3 {
+        sys.x[i] - self.x0[i] - self.v0[i] * self.h
+    }
+
+    /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
+    /// velocity).
+    pub fn set_velocities(&self, sys: &mut System) {
+        for i in 0..sys.x.len() {
+            if sys.inv_mass[i] > 0.0 {
+                sys.v[i] = self.v0[i] + self.d(sys, i) * self.cv;
+            }
+        }
+        sys.forces_current = false;
+    }
+
+    /// a⁺ = c_a d − â on the free nodes, zero on the constrained ones.
+    pub fn accelerations(&self, sys: &System) -> Vec<Vec3> {
+        (0..sys.x.len())
+            .map(|i| {
+                if sys.inv_mass[i] > 0.0 {
+                    self.d(sys, i) * self.ca - self.a0[i]
+                } else {
+                    Vec3::zeros()
+                }
+            })
+            .collect()
+    }
+
+    /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.
+    fn coefficients(&self, sys: &System) -> (f64, f64) {
+        (self.ca + sys.damping.alpha * self.cv, 1.0 + sys.damping.beta * self.cv)
+    }
+}
+
+fn norm(f: &[Vec3]) -> f64 {
+    f.iter().map(|v| v.norm_squared()).sum::<f64>().sqrt()
+}
+
+impl NewtonProblem for ImplicitStep<'_> {
+    type Report = NewtonOutcome;
+
+    fn evaluate(&mut self, sys: &mut System) -> Result<()> {
+        self.set_velocities(sys);
+        sys.invalidate();
+        // no rollback here: a failed line-search trial must leave the step going
+        sys.compute_forces_inner()?;
+        let a = self.accelerations(sys);
+        for (i, r) in self.r.iter_mut().enumerate() {
+            *r = sys.force[i] - a[i] * sys.mass[i];
+            if sys.inv_mass[i] == 0.0 {
+                *r = Vec3::zeros();
+            }
+        }
+        Ok(())
+    }
+
+    fn residual<'s>(&'s self, _: &'s System) -> &'s [Vec3] {
+        &self.r
+    }
+
+    fn converged(&self, _: &System, it: usize, _: f64) -> Option<NewtonOutcome> {
+        let r = norm(&self.r);
+        let r0 = self.r0.unwrap_or(r);
+        let done =
+            r <= self.settings.newton_tolerance * r0.max(self.load_norm) || it >= self.settings.newton_iterations;
+        done.then_some(NewtonOutcome { iterations: it })
+    }
+
+    fn max_iterations(&self) -> usize {
+        self.settings.newton_iterations
+    }
+
+    fn solve_linear(&mut self, sys: &System, dofs: &DofMap, rhs: &mut [f64]) -> Result<bool> {
+        if self.r0.is_none() {
+            self.r0 = Some(norm(&self.r));
+        }
+        let (cm, ck) = self.coefficients(sys);
+        let s = self.settings;
+        let solve = TangentSolve {
+            ck,
+            cm,
+            tol: s.cg_tolerance,
+            max_iterations: s.cg_max_iterations,
+        };
+        let report = solve.solve(sys, self.tangents, dofs, rhs)?;
+        self.cg_iterations += report.iterations;
+        if !report.converged {
+            let msg = format!(
+                "step {}: conjugate gradients stopped at relative residual {:.2e} after {} iterations \
+                 (tolerance {:.1e}, cap {}){}",
+                sys.attempted_step(),
+                report.relative_residual,
+                report.iterations,
+                s.cg_tolerance,
+                s.cg_max_iterations,
+                if report.breakdown {
+                    "; the tangent is not positive definite (set project_psd)"
+                } else {
+                    ""
+                }
+            );
+            match s.cg_failure {
+                CgFailure::Refuse => return Err(HemlError::Numerical(msg)),
+                CgFailure::Warn => self.warnings.push(msg),
+            }
+        }
+        Ok(report.iterations > 0 || report.converged)
+    }
+
+    fn merit(&self, sys: &System) -> Result<f64> {
+        let e = sys.energies()?;
+        let inertia: f64 = (0..sys.x.len())
+            .filter(|&i| sys.inv_mass[i] > 0.0)
+            .map(|i| {
+                let a = self.d(sys, i) * self.ca - self.a0[i];
+                0.5 * sys.mass[i] * a.norm_squared() / self.ca
+            })
+            .sum();
+        Ok(e.elastic + e.gravity + e.loads + inertia)
+    }
+}

@@ -1,0 +1,88 @@
+//! The public settings of the implicit integrators.
+
+use crate::error::{HemlError, Result};
+
+/// Which implicit scheme an [`super::ImplicitSolver`] steps with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImplicitScheme {
+    /// Backward (implicit) Euler: M(v⁺ − v)/h = f(x + h v⁺, v⁺). First order,
+    /// unconditionally stable, numerically dissipative (damps high frequencies).
+    BackwardEuler,
+    /// Newmark average acceleration (β = 1/4, γ = 1/2, the trapezoidal rule): second
+    /// order, unconditionally stable, no numerical dissipation (undamped energy is
+    /// conserved up to the Newton/CG tolerances for linear problems).
+    Newmark,
+}
+
+/// What happens when conjugate gradients stop before their tolerance (iteration cap,
+/// or an indefinite tangent when the projection is off).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CgFailure {
+    /// Use the approximate solution and record a warning (step, residual) in
+    /// [`crate::system::System::warnings`] (the default).
+    #[default]
+    Warn,
+    /// Fail the step with an error (the system keeps its state before the step).
+    Refuse,
+}
+
+/// Settings of the implicit integrators (`backward_euler`, `newmark`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImplicitSettings {
+    /// Newton iterations per step at most (default 1: one linearised solve per step,
+    /// as SOFA's EulerImplicit does; the equilibrium of a steady state is reached
+    /// exactly whatever the count).
+    pub newton_iterations: usize,
+    /// Newton stops early when the residual norm is at most this fraction of the
+    /// larger of its value at the start of the step and the norm of the external
+    /// loads (default 1e-6).
+    pub newton_tolerance: f64,
+    /// Conjugate gradients stop when ‖b − A x‖ ≤ `cg_tolerance`·‖b‖ (default 1e-6).
+    pub cg_tolerance: f64,
+    /// Conjugate-gradient iterations per linear solve at most (default 1000).
+    pub cg_max_iterations: usize,
+    /// What a solve that misses its tolerance does (default: warn).
+    pub cg_failure: CgFailure,
+    /// Project each tet's stiffness to positive semi-definite (default true), so that
+    /// the system matrix K + c·M stays positive definite and CG cannot break down.
+    pub project_psd: bool,
+}
+
+impl Default for ImplicitSettings {
+    fn default() -> Self {
+        ImplicitSettings {
+            newton_iterations: 1,
+            newton_tolerance: 1e-6,
+            cg_tolerance: 1e-6,
+            cg_max_iterations: 1000,
+            cg_failure: CgFailure::Warn,
+            project_psd: true,
+        }
+    }
+}
+
+impl ImplicitSettings {
+    /// Checks the ranges: at least one Newton and one CG iteration (at most 100 Newton
+    /// iterations), tolerances finite and in (0, 1).
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=100).contains(&self.newton_iterations) {
+            return Err(HemlError::Invalid(format!(
+                "newton_iterations = {} must lie in 1..=100",
+                self.newton_iterations
+            )));
+        }
+        if self.cg_max_iterations == 0 {
+            return Err(HemlError::Invalid("cg_max_iterations must be at least 1".into()));
+        }
+        for (name, v) in [
+            ("newton_tolerance", self.newton_tolerance),
+            ("cg_tolerance", self.cg_tolerance),
+        ] {
+            if !(v > 0.0 && v < 1.0) {
+                return Err(HemlError::Invalid(format!("{name} = {v} must lie in (0, 1)")));
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,211 @@
+//! [`ImplicitSolver`]: the state an implicit integrator keeps between steps (tangent
+//! operators, numbering of the unknowns, Newmark's acceleration) and its step.
+
+use super::problem::ImplicitStep;
+use super::settings::{ImplicitScheme, ImplicitSettings};
+use crate::error::{HemlError, Result};
+use crate::force::TangentOperator;
+use crate::system::statics::dofs::DofMap;
+use crate::system::statics::newton::newton;
+use crate::system::{StepStats, System};
+use crate::Vec3;
+
+/// What the cached operators were built for: rebuilt when any of it changes.
+#[derive(Debug, Clone, PartialEq)]
+struct Shape {
+    n_nodes: usize,
+    tets: Vec<usize>,
+    constrained: Vec<usize>,
+    project: bool,
+}
+
+/// An implicit time stepper: backward Euler or Newmark on the shared Newton core
+/// (`statics::newton`, the static solver's) with matrix-free preconditioned
+/// conjugate gradients on the generated tangent. The integrators `backward_euler`
+/// and `newmark` of `heml-integrators` wrap it.
+pub struct ImplicitSolver {
+    scheme: ImplicitScheme,
+    settings: ImplicitSettings,
+    shape: Option<Shape>,
+    tangents: Vec<Box<dyn TangentOperator>>,
+    dofs: Option<DofMap>,
+    /// Newmark: the acceleration at the end of the last step, valid at `accel_at`
+    /// (step count, time).
+    accel: Vec<Vec3>,
+    accel_at: Option<(u64, f64)>,
+}
+
+impl std::fmt::Debug for ImplicitSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ImplicitSolver")
+            .field("scheme", &self.scheme)
+            .field("settings", &self.settings)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ImplicitSolver {
+    /// A solver for `scheme` with `settings` (checked at each step).
+    pub fn new(scheme: ImplicitScheme, settings: ImplicitSettings) -> Self {
+        ImplicitSolver {
+            scheme,
+            settings,
+            shape: None,
+            tangents: Vec::new(),
+            dofs: None,
+            accel: Vec::new(),
+            accel_at: None,
+        }
+    }
+
+    /// The scheme.
+    pub fn scheme(&self) -> ImplicitScheme {
+        self.scheme
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &ImplicitSettings {
+        &self.settings
+    }
+
+    /// Mutable settings (take effect at the next step).
+    pub fn settings_mut(&mut self) -> &mut ImplicitSettings {
+        &mut self.settings
+    }
+
+    /// Builds the tangent operators and the numbering of the free coordinates when
+    /// the system's regions, constraints or the projection setting changed.
+    fn prepare(&mut self, sys: &System) -> Result<()> {
+        let shape = Shape {
+            n_nodes: sys.x.len(),
+            tets: sys
+                .regions
+                .iter()
+                .flat_map(|r| r.field.tet_ids().iter().copied())
+                .collect(),
+            constrained: sys.constrained_ids.clone(),
+            project: self.settings.project_psd,
+        };
+        if self.shape.as_ref() == Some(&shape) {
+            return Ok(());
+        }
+        let mut tangents = Vec::with_capacity(sys.regions.len());
+        for r in &sys.regions {
+            let t = r
+                .material
+                .tangent(&sys.mesh, Some(r.field.tet_ids()), &sys.force_options, shape.project)?
+                .ok_or_else(|| {
+                    HemlError::Invalid(format!(
+                        "law `{}` has no tangent stiffness: it cannot be integrated implicitly",
+                        r.material.name()
+                    ))
+                })?;
+            tangents.push(t);
+        }
+        let held: Vec<[bool; 3]> = (0..sys.x.len()).map(|i| [sys.inv_mass[i] == 0.0; 3]).collect();
+        self.dofs = Some(DofMap::new(&held, sys.mesh.tets()));
+        self.tangents = tangents;
+        self.shape = Some(shape);
+        Ok(())
+    }
+
+    /// Advances `sys` by `dt` with the scheme (the explicit time-step policy does not
+    /// apply). On error the system keeps its state before the step. The returned
+    /// statistics count the Newton and CG iterations; a CG solve that missed its
+    /// tolerance or a stalled line search adds a warning to
+    /// [`System::warnings`] (or, with [`super::CgFailure::Refuse`], fails the step).
+    pub fn step(&mut self, sys: &mut System, dt: f64) -> Result<StepStats> {
+        self.settings.validate()?;
+        sys.begin_step_with(dt, false)?;
+        match self.step_inner(sys, dt) {
+            Ok(stats) => Ok(stats),
+            Err(e) => {
+                sys.rollback();
+                self.accel_at = None;
+                Err(e)
+            }
+        }
+    }
+
+    fn step_inner(&mut self, sys: &mut System, h: f64) -> Result<StepStats> {
+        self.prepare(sys)?;
+        let n = sys.x.len();
+        let (ca, cv) = match self.scheme {
+            ImplicitScheme::BackwardEuler => (1.0 / (h * h), 1.0 / h),
+            ImplicitScheme::Newmark => (4.0 / (h * h), 2.0 / h),
+        };
+        let a0 = match self.scheme {
+            ImplicitScheme::BackwardEuler => vec![Vec3::zeros(); n],
+            ImplicitScheme::Newmark => {
+                if self.accel_at != Some((sys.step, sys.t)) || self.accel.len() != n {
+                    // the acceleration of the current state (first step, or the state
+                    // was changed since the last Newmark step)
+                    sys.compute_forces_inner()?;
+                    self.accel = (0..n).map(|i| sys.force[i] * sys.inv_mass[i]).collect();
+                }
+                self.accel.clone()
+            }
+        };
+        let x0 = sys.x.clone();
+        let v0 = sys.v.clone();
+        sys.advance_time()?;
+        // predictor a⁺ = â (d = 2â/c_a): x⁺ = x + h v for backward Euler, the
+        // constant-acceleration guess for Newmark
+        for i in 0..n {
+            if sys.inv_mass[i] > 0.0 {
+                sys.x[i] = x0[i] + v0[i] * h + a0[i] * (2.0 / ca);
+            }
+        }
+        sys.invalidate();
+        let load_norm = {
+            let mut ext: Vec<Vec3> = sys.mass.iter().map(|m| sys.gravity * *m).collect();
+            for &(i, f) in &sys.nodal {
+                ext[i] += f;
+            }
+            (0..n)
+                .filter(|&i| sys.inv_mass[i] > 0.0)
+                .map(|i| ext[i].norm_squared())
+                .sum::<f64>()
+                .sqrt()
+        };
+        let settings = self.settings;
+        let dofs = self.dofs.as_ref().expect("prepared");
+        let mut problem = ImplicitStep {
+            settings: &settings,
+            tangents: &mut self.tangents,
+            x0: &x0,
+            v0: &v0,
+            a0: &a0,
+            h,
+            ca,
+            cv,
+            load_norm,
+            r: vec![Vec3::zeros(); n],
+            r0: None,
+            cg_iterations: 0,
+            warnings: Vec::new(),
+        };
+        let outcome = newton(sys, dofs, &mut problem)?;
+        problem.set_velocities(sys);
+        let mut warnings = std::mem::take(&mut problem.warnings);
+        if outcome.is_none() {
+            warnings.push(format!(
+                "step {}: the implicit step's line search stalled; the step ends at the last Newton iterate",
+                sys.attempted_step()
+            ));
+        }
+        let newton_iterations = outcome.map_or(settings.newton_iterations, |o| o.iterations);
+        let cg_iterations = problem.cg_iterations;
+        if self.scheme == ImplicitScheme::Newmark {
+            self.accel = problem.accelerations(sys);
+        }
+        for w in warnings {
+            sys.warn(w);
+        }
+        let mut stats = sys.finish_step()?;
+        stats.newton_iterations = newton_iterations;
+        stats.cg_iterations = cg_iterations;
+        self.accel_at = Some((sys.step, sys.t));
+        Ok(stats)
+    }
+}
