@@ -97,8 +97,7 @@ impl<M: InvariantLaw> HemlKernel<M> {
             (0.0, [0.0; 6])
         };
         let (j, crosses) = if M::USES_J {
-            let c = [v[1].cross(&v[2]), v[2].cross(&v[0]), v[0].cross(&v[1])];
-            (v[0].dot(&c[0]) / (6.0 * vol), c)
+            volume_terms(&v, vol)
         } else {
             (1.0, [Vec3::zeros(); 3])
         };
@@ -272,6 +271,15 @@ impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
             en[l] = r.vol[l] * w[l];
         }
     }
+}
+
+/// J and the cross products v2×v3, v3×v1, v1×v2 of the edge vectors `v` of a tet of
+/// rest volume `vol` (∂vol/∂x_a = crosses[a−1]/6 for a = 1..3): shared by the force
+/// kernel and the tangent, so both see the same J to the bit.
+#[inline(always)]
+pub(crate) fn volume_terms(v: &[Vec3; 6], vol: f64) -> (f64, [Vec3; 3]) {
+    let c = [v[1].cross(&v[2]), v[2].cross(&v[0]), v[0].cross(&v[1])];
+    (v[0].dot(&c[0]) / (6.0 * vol), c)
 }
 
 /// J of a tet from its current positions, for fields whose law does not need it.

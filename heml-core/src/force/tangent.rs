@@ -36,6 +36,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::field::{check_sizes, selection};
+use super::heml::volume_terms;
 use super::ForceOptions;
 use crate::error::{HemlError, Result};
 use crate::law::{InvariantLaw, LinkLaw};
@@ -167,8 +168,7 @@ impl<M: InvariantLaw> TetHessian for InvariantHessian<M> {
             (0.0, [0.0; 6])
         };
         let (j, crosses) = if M::USES_J {
-            let c = [v[1].cross(&v[2]), v[2].cross(&v[0]), v[0].cross(&v[1])];
-            (v[0].dot(&c[0]) / (6.0 * vol), c)
+            volume_terms(&v, vol)
         } else {
             (1.0, [Vec3::zeros(); 3])
         };
