@@ -253,6 +253,10 @@ impl Simulation {
 /// error.
 fn fail(out: &mut Output, sys: &mut crate::system::System, e: HemlError) -> HemlError {
     let saved = match out.frame(sys) {
+        // the system's error already names the state it kept (step and time)
+        Ok(Some(path)) if e.to_string().contains("keeps its last good state") => {
+            format!("; that state is saved as {}", path.display())
+        }
         Ok(Some(path)) => format!(
             "; the last good state (step {}, t = {:e} s) is saved as {}",
             sys.step_count(),
