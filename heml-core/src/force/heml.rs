@@ -87,15 +87,7 @@ impl<M: InvariantLaw> HemlKernel<M> {
         let l = v.map(|e| e.norm_squared());
         let vtr: [f64; 6] = std::array::from_fn(|e| r.vtr[e][lane]);
         let vol = r.vol[lane];
-        let i1: f64 = (0..6).map(|e| vtr[e] * l[e]).sum();
-        let (i2, ml) = if M::USES_I2 {
-            // tr C² = lᵀ Mtr l and Mtr l through B (`rest::i2_terms`, tested against
-            // the definition); the P1 oracle checks the result independently
-            let (tr_c2, ml) = i2_terms(&vtr, &l);
-            (0.5 * (i1 * i1 - tr_c2), ml)
-        } else {
-            (0.0, [0.0; 6])
-        };
+        let (i1, i2, ml) = invariant_terms(&vtr, &l, M::USES_I2);
         let (j, crosses) = if M::USES_J {
             volume_terms(&v, vol)
         } else {
@@ -270,6 +262,22 @@ impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
         for l in 0..L {
             en[l] = r.vol[l] * w[l];
         }
+    }
+}
+
+/// I1, I2 (0 when `uses_i2` is false) and Mtr·l from the rest traces `vtr` and the
+/// squared lengths `l`: shared by the force kernel and the tangent, so both evaluate
+/// the law at the same invariants to the bit. tr C² = lᵀ Mtr l and Mtr·l go through
+/// B (`rest::i2_terms`, tested against the definition); the P1 oracle checks the
+/// result independently.
+#[inline(always)]
+pub(crate) fn invariant_terms(vtr: &[f64; 6], l: &[f64; 6], uses_i2: bool) -> (f64, f64, [f64; 6]) {
+    let i1: f64 = (0..6).map(|e| vtr[e] * l[e]).sum();
+    if uses_i2 {
+        let (tr_c2, ml) = i2_terms(vtr, l);
+        (i1, 0.5 * (i1 * i1 - tr_c2), ml)
+    } else {
+        (i1, 0.0, [0.0; 6])
     }
 }
 

@@ -36,12 +36,12 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::field::{check_sizes, selection};
-use super::heml::volume_terms;
+use super::heml::{invariant_terms, volume_terms};
 use super::ForceOptions;
 use crate::error::{HemlError, Result};
 use crate::law::{InvariantLaw, LinkLaw};
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, mtr_index, mtr_times, RestTet, EDGES};
+use crate::rest::{edge_vectors, mtr_index, RestTet, EDGES};
 use crate::Vec3;
 use nalgebra::{Matrix3, SMatrix, SymmetricEigen};
 use rayon::prelude::*;
@@ -158,15 +158,8 @@ impl<M: InvariantLaw> TetHessian for InvariantHessian<M> {
         let (vtr, vol) = (r.vtr, r.vol);
         let v = edge_vectors(p);
         let l = v.map(|e| e.norm_squared());
-        let i1: f64 = (0..6).map(|e| vtr[e] * l[e]).sum();
         // the force kernel's inputs: I2 = 0 for laws without I2, J = 1 without J
-        let (i2, ml) = if M::USES_I2 {
-            let ml = mtr_times(&r.mtr, &l);
-            let tr_c2: f64 = (0..6).map(|e| ml[e] * l[e]).sum();
-            (0.5 * (i1 * i1 - tr_c2), ml)
-        } else {
-            (0.0, [0.0; 6])
-        };
+        let (i1, i2, ml) = invariant_terms(&vtr, &l, M::USES_I2);
         let (j, crosses) = if M::USES_J {
             volume_terms(&v, vol)
         } else {
