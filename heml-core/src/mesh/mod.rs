@@ -4,6 +4,7 @@
 pub mod generate;
 pub mod quality;
 pub mod reorder;
+pub mod surface;
 
 use crate::error::{HemlError, Result};
 use crate::Vec3;
