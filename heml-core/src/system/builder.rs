@@ -8,6 +8,7 @@ use super::{Rayleigh, Region, Snapshot, System};
 use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
 use crate::material::Material;
+use crate::mesh::surface::BoundarySurface;
 use crate::mesh::TetMesh;
 use crate::params::Params;
 use crate::registry::find_material;
@@ -514,6 +515,7 @@ impl SystemBuilder {
             scratch: vec![Vec3::zeros(); n],
             elastic: vec![Vec3::zeros(); n],
             input_ids: self.input_ids,
+            surface: BoundarySurface::of_mesh(mesh.tets()),
             mesh,
         };
         sys.apply_constraints(0.0);

@@ -66,6 +66,7 @@
 mod adaptive;
 mod builder;
 mod constraints;
+pub mod control;
 mod energy;
 pub mod implicit;
 mod integrator;
@@ -92,6 +93,7 @@ pub use statics::{Slider, StaticOptions, StaticReport};
 use crate::error::{HemlError, Result};
 use crate::force::{ElasticForces, ForceOptions};
 use crate::material::Material;
+use crate::mesh::surface::BoundarySurface;
 use crate::mesh::TetMesh;
 use crate::Vec3;
 use prony::PronyState;
@@ -204,6 +206,8 @@ pub struct System {
     /// The options the force fields were built with (the adaptive step evaluates the
     /// laws' tangents with the same J0 extension).
     force_options: ForceOptions,
+    /// The outward boundary triangles of the tets in the dynamics.
+    surface: BoundarySurface,
 }
 
 impl System {
@@ -217,6 +221,11 @@ impl System {
     /// The mesh (rest configuration).
     pub fn mesh(&self) -> &TetMesh {
         &self.mesh
+    }
+    /// The outward boundary surface of the body (what tools touch and pressure
+    /// loads act on), as triangles of node ids.
+    pub fn surface(&self) -> &BoundarySurface {
+        &self.surface
     }
     /// Rest positions.
     pub fn rest_positions(&self) -> &[Vec3] {
