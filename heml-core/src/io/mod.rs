@@ -19,6 +19,7 @@
 pub mod atomic;
 mod cursor;
 pub mod gmsh;
+mod gmsh_binary;
 pub mod medit;
 pub mod pvd;
 pub mod tetgen;
@@ -82,6 +83,12 @@ pub enum MeshFormat {
     Gmsh22,
     /// Gmsh `.msh` version 4.1, ASCII.
     Gmsh41,
+    /// Gmsh `.msh` version 1 (`$NOD`/`$ELM`, no `$MeshFormat`), as SOFA ships its meshes.
+    Gmsh1,
+    /// Gmsh `.msh` version 2.2, binary (meshio's `gmsh22` default); either byte order.
+    Gmsh22Binary,
+    /// Gmsh `.msh` version 4.1, binary (meshio's `gmsh` default); either byte order.
+    Gmsh41Binary,
     /// VTK legacy `.vtk` UNSTRUCTURED_GRID.
     VtkLegacy,
     /// VTK XML `.vtu` UnstructuredGrid.
@@ -97,6 +104,9 @@ impl fmt::Display for MeshFormat {
         f.write_str(match self {
             MeshFormat::Gmsh22 => "Gmsh msh 2.2 ASCII",
             MeshFormat::Gmsh41 => "Gmsh msh 4.1 ASCII",
+            MeshFormat::Gmsh1 => "Gmsh msh 1",
+            MeshFormat::Gmsh22Binary => "Gmsh msh 2.2 binary",
+            MeshFormat::Gmsh41Binary => "Gmsh msh 4.1 binary",
             MeshFormat::VtkLegacy => "VTK legacy",
             MeshFormat::Vtu => "VTK XML (vtu)",
             MeshFormat::TetGen => "TetGen node/ele",
@@ -245,6 +255,9 @@ pub fn write_mesh_as(path: &Path, mesh: &TetMesh, format: MeshFormat) -> Result<
     match format {
         MeshFormat::Gmsh22 => gmsh::write(path, mesh, gmsh::Version::V22),
         MeshFormat::Gmsh41 => gmsh::write(path, mesh, gmsh::Version::V41),
+        MeshFormat::Gmsh1 => gmsh::write(path, mesh, gmsh::Version::V1),
+        MeshFormat::Gmsh22Binary => gmsh::write_binary(path, mesh, gmsh::Version::V22),
+        MeshFormat::Gmsh41Binary => gmsh::write_binary(path, mesh, gmsh::Version::V41),
         MeshFormat::VtkLegacy => vtk_legacy::write(path, mesh),
         MeshFormat::Vtu => write_vtu(path, &VtuFrame::from_mesh(mesh)),
         MeshFormat::TetGen => tetgen::write(path, mesh),

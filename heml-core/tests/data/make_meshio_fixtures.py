@@ -1,0 +1,20 @@
+#!/usr/bin/env python3
+"""Regenerates the meshio-written fixtures of tests/mesh_io.rs: the 5-node,
+2-tet "tiny" mesh (tags [1, 2], plus one triangle that readers must skip) as
+meshio (5.3.5) writes it by default: binary Gmsh 2.2 (`gmsh22`), binary Gmsh 4.1
+(`gmsh`), and VTU with lzma compression. Run from this directory with a Python
+that has meshio (`python3 -m venv /tmp/mv && /tmp/mv/bin/pip install meshio`)."""
+import meshio
+import numpy as np
+
+P = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)], dtype=float)
+cells = [("tetra", np.array([(0, 1, 2, 3), (1, 2, 3, 4)])), ("triangle", np.array([(0, 1, 2)]))]
+tags = [np.array([1, 2], dtype=np.int32), np.array([0], dtype=np.int32)]
+gmsh = meshio.Mesh(P, cells, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags})
+meshio.write("tiny_meshio_b22.msh", gmsh, file_format="gmsh22", binary=True)
+# meshio's 4.1 writer needs each node's entity to write two cell types, and then
+# writes entities its own reader refuses: the 4.1 fixture holds the tets only
+tets = meshio.Mesh(P, cells[:1], cell_data={"gmsh:physical": tags[:1], "gmsh:geometrical": tags[:1]})
+meshio.write("tiny_meshio_b41.msh", tets, file_format="gmsh", binary=True)
+vtu = meshio.Mesh(P, cells, cell_data={"tag": tags})
+meshio.write("tiny_meshio_lzma.vtu", vtu, compression="lzma")
