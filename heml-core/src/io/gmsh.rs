@@ -1,18 +1,21 @@
-//! Gmsh `.msh` files, ASCII versions 2.2 (any 2.x) and 4.1.
+//! Gmsh `.msh` files: versions 1 (`$NOD`/`$ELM`), 2.2 (any 2.x) and 4.1, ASCII
+//! or binary (either byte order, see `gmsh_binary`).
 //!
-//! * Nodes may carry arbitrary, non-contiguous tags (v4.1 files often do); they are
-//!   mapped to dense indices in file order.
-//! * Region tag of a tet: v2: the first element tag (the physical group; 0 when the
-//!   element has no tags). v4.1: if the `$Entities` section gives any volume a
-//!   physical group, the first physical tag of the element's volume (0 for volumes
-//!   without one); otherwise the element's volume (entity) tag, so that distinct
-//!   volumes stay distinguishable in meshes saved without physical groups.
+//! * Nodes may carry arbitrary, non-contiguous tags (v4.1 and v1 files often do);
+//!   they are mapped to dense indices in file order.
+//! * Region tag of a tet: v1: its physical region; v2: the first element tag (the
+//!   physical group; 0 when the element has no tags). v4.1: if the `$Entities`
+//!   section gives any volume a physical group, the first physical tag of the
+//!   element's volume (0 for volumes without one); otherwise the element's volume
+//!   (entity) tag, so that distinct volumes stay distinguishable in meshes saved
+//!   without physical groups.
 //! * 4-node tets (type 4) are read; points, lines and surface elements are skipped
 //!   and counted; other volume elements (hexahedra, prisms, pyramids and quadratic
 //!   tets, e.g. type 11) are an error, because dropping them would silently remove
 //!   material. Re-export such meshes with linear tets (`gmsh -3 -order 1`).
-//! * Binary `.msh` is refused with an explicit message: it is easy to re-save as
-//!   ASCII and supporting it would double the parser for little gain.
+//! * Binary records are checked against the bytes left in the file before they
+//!   are reserved or read (a header announcing 10¹⁸ nodes is an error, not an
+//!   allocation); errors in binary data name the line and the byte offset.
 //! * Unknown sections (`$PhysicalNames`, `$NodeData`, …) are skipped.
 
 use std::collections::{BTreeMap, HashMap};

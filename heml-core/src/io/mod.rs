@@ -1,7 +1,21 @@
 //! Mesh input/output: readers for the tetrahedral mesh formats soft-tissue users
-//! actually have (Gmsh, VTK legacy and XML, TetGen, Medit), writers for the same
-//! formats (so every reader is round-trip tested), VTU frames and `.pvd` series for
-//! ParaView.
+//! actually have, writers for the same formats (so every reader is round-trip
+//! tested), VTU frames and `.pvd` series for ParaView.
+//!
+//! | extension | format | read | written by [`write_mesh`] / [`write_mesh_as`] |
+//! |---|---|---|---|
+//! | `.msh` | Gmsh 4.1, ASCII or binary (meshio's `gmsh` default) | ✓ | ASCII (default), binary |
+//! | `.msh` | Gmsh 2.2 (any 2.x), ASCII or binary (meshio's `gmsh22`) | ✓ | ASCII, binary |
+//! | `.msh` | Gmsh 1 (`$NOD`/`$ELM`: SOFA's `liver.msh`, `truthcylinder1.msh`) | ✓ | ✓ |
+//! | `.vtk` | VTK legacy UNSTRUCTURED_GRID, ASCII or binary | ✓ | ASCII |
+//! | `.vtu` | VTK XML UnstructuredGrid: ascii, base64 or appended (raw/base64); uncompressed, zlib or lzma | ✓ | base64 + zlib (default), base64, ascii |
+//! | `.node` + `.ele` | TetGen | ✓ | ✓ |
+//! | `.mesh` | Medit / INRIA, ASCII | ✓ | ✓ |
+//!
+//! Binary Gmsh files are read in either byte order (the integer 1 after
+//! `$MeshFormat` tells the writer's); binary writers write little-endian. The
+//! version is detected from the content, whatever the extension says
+//! ([`ReadReport::format`]).
 //!
 //! Design choices, and why:
 //! * **Hand-written parsers.** Every error must name the file and the line, and no

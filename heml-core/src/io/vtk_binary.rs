@@ -149,7 +149,14 @@ impl Layout {
                         .read_to_end(&mut out),
                 ),
             };
-            r.map_err(|e| format!("{name} block {k} cannot be decompressed: {e}"))?;
+            r.map_err(|e| match e.kind() {
+                std::io::ErrorKind::OutOfMemory => format!(
+                    "{name} block {k} declares a dictionary needing more than {} MiB to decompress \
+                     (corrupt header?)",
+                    LZMA_MEM_LIMIT_KIB / 1024
+                ),
+                _ => format!("{name} block {k} cannot be decompressed: {e}"),
+            })?;
             if out.len() - before != want {
                 return Err(format!(
                     "{name} block {k} decompresses to {} bytes, its header says {want}",
