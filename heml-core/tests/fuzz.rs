@@ -220,8 +220,8 @@ struct Tally {
 }
 
 /// Checks what a reader returned: an error is fine; data must have in-range
-/// indices and one tag per tet, and as a mesh (when it validates) positive finite
-/// volumes and finite nodes.
+/// indices and one tag per tet and per hex, and as a mesh (hexes split, when it
+/// validates) positive finite volumes and finite nodes.
 fn check_data(r: heml_core::Result<MeshData>, tally: &mut Tally) -> Result<(), String> {
     let data = match r {
         Ok(d) => d,
@@ -230,14 +230,20 @@ fn check_data(r: heml_core::Result<MeshData>, tally: &mut Tally) -> Result<(), S
             return Ok(());
         }
     };
-    if data.tets.is_empty() {
-        return Err("a reader returned a mesh without tets".into());
+    if data.tets.is_empty() && data.hexes.is_empty() {
+        return Err("a reader returned a mesh without tets or hexes".into());
     }
     if data.tags.len() != data.tets.len() {
         return Err(format!("{} tags for {} tets", data.tags.len(), data.tets.len()));
     }
+    if data.hex_tags.len() != data.hexes.len() {
+        return Err(format!("{} tags for {} hexes", data.hex_tags.len(), data.hexes.len()));
+    }
     if let Some(t) = data.tets.iter().position(|t| t.iter().any(|&i| i >= data.nodes.len())) {
         return Err(format!("tet {t} refers to a node out of range"));
+    }
+    if let Some(h) = data.hexes.iter().position(|h| h.iter().any(|&i| i >= data.nodes.len())) {
+        return Err(format!("hex {h} refers to a node out of range"));
     }
     if let Some(i) = data.nodes.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         return Err(format!("node {i} is not finite"));

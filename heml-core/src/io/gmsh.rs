@@ -9,10 +9,12 @@
 //!   element's volume (0 for volumes without one); otherwise the element's volume
 //!   (entity) tag, so that distinct volumes stay distinguishable in meshes saved
 //!   without physical groups.
-//! * 4-node tets (type 4) are read; points, lines and surface elements are skipped
-//!   and counted; other volume elements (hexahedra, prisms, pyramids and quadratic
-//!   tets, e.g. type 11) are an error, because dropping them would silently remove
-//!   material. Re-export such meshes with linear tets (`gmsh -3 -order 1`).
+//! * 4-node tets (type 4) are read, and 8-node hexahedra (type 5), which the load
+//!   splits into tets ([`MeshData::split_hexes`]); points, lines and surface
+//!   elements are skipped and counted; other volume elements (prisms, pyramids,
+//!   quadratic tets and hexes, e.g. type 11) are an error, because dropping them
+//!   would silently remove material. Re-export such meshes with linear elements
+//!   (`gmsh -3 -order 1`).
 //! * Binary records are checked against the bytes left in the file before they
 //!   are reserved or read (a header announcing 10¹⁸ nodes is an error, not an
 //!   allocation); errors in binary data name the line and the byte offset.
@@ -43,8 +45,11 @@ pub enum Version {
 }
 
 /// How the reader treats a Gmsh element type.
+#[derive(Clone, Copy)]
 enum Kind {
     Tet,
+    /// A linear hexahedron, split into tets at load.
+    Hex,
     Skip(&'static str),
     Volume(&'static str),
 }
@@ -56,7 +61,8 @@ fn kind(element_type: i64) -> Kind {
         1 | 8 | 26 | 27 | 28 => Kind::Skip("line"),
         2 | 9 | 20 | 21 | 22 | 23 | 24 | 25 => Kind::Skip("triangle"),
         3 | 10 | 16 | 36 | 37 | 38 => Kind::Skip("quadrangle"),
-        5 | 12 | 17 | 92 | 93 => Kind::Volume("hexahedron"),
+        5 => Kind::Hex,
+        12 | 17 | 92 | 93 => Kind::Volume("high-order hexahedron"),
         6 | 13 | 18 => Kind::Volume("prism"),
         7 | 14 | 19 => Kind::Volume("pyramid"),
         11 | 29 | 30 | 31 => Kind::Volume("high-order tetrahedron"),
@@ -131,7 +137,6 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
     let mut have_elements = false;
     // v4.1: volume entity tag → first physical tag (if any), and tets' entity tags.
     let mut volume_physical: Option<HashMap<i32, Option<i32>>> = None;
-    let mut tet_entities: Vec<i32> = Vec::new();
 
     while let Some((line, ln)) = c.next_line()? {
         let name = line.split_ascii_whitespace().next().unwrap_or("");
@@ -220,10 +225,8 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                     return Err(c.err_at(ln, "second $Elements section (only one is supported)"));
                 }
                 match (d, bin) {
-                    (Dialect::V41, Some(b)) => {
-                        read_elements_v41_bin(&mut c, b, &mut data, &node_index, &mut tet_entities)?
-                    }
-                    (Dialect::V41, None) => read_elements_v41(&mut c, &mut data, &node_index, &mut tet_entities)?,
+                    (Dialect::V41, Some(b)) => read_elements_v41_bin(&mut c, b, &mut data, &node_index)?,
+                    (Dialect::V41, None) => read_elements_v41(&mut c, &mut data, &node_index)?,
                     (_, Some(b)) => read_elements_v2_bin(&mut c, b, &mut data, &node_index)?,
                     (_, None) => read_elements_v2(&mut c, &mut data, &node_index)?,
                 }
@@ -247,17 +250,16 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
     if !have_elements {
         return Err(c.err(format!("missing {elements_name} section")));
     }
-    if data.tets.is_empty() {
+    if data.tets.is_empty() && data.hexes.is_empty() {
         return Err(c.err(no_tets_message(&data)));
     }
-    if header.dialect == Dialect::V41 {
-        data.tags = match &volume_physical {
-            Some(phys) if phys.values().any(Option::is_some) => tet_entities
-                .iter()
-                .map(|e| phys.get(e).copied().flatten().unwrap_or(0))
-                .collect(),
-            _ => tet_entities,
-        };
+    // v4.1 elements were tagged with their volume entity: map to physical groups
+    if let (Dialect::V41, Some(phys)) = (header.dialect, &volume_physical) {
+        if phys.values().any(Option::is_some) {
+            for t in data.tags.iter_mut().chain(data.hex_tags.iter_mut()) {
+                *t = phys.get(t).copied().flatten().unwrap_or(0);
+            }
+        }
     }
     let format = match (header.dialect, header.binary.is_some()) {
         (Dialect::V1, _) => MeshFormat::Gmsh1,
@@ -430,21 +432,37 @@ fn node_of(c: &Cursor<'_>, ln: usize, tok: &str, map: &HashMap<u64, usize>) -> R
         .ok_or_else(|| c.err_at(ln, format!("element refers to node {tag}, which is not in $Nodes")))
 }
 
-fn tet_nodes<'t>(
+/// The node indices of a tet or hex element line (the tokens after its tags).
+fn element_nodes<'t>(
     c: &Cursor<'_>,
     ln: usize,
     toks: impl Iterator<Item = &'t str>,
     map: &HashMap<u64, usize>,
-) -> Result<[usize; 4]> {
+    k: Kind,
+) -> Result<Vec<usize>> {
     let toks: Vec<&str> = toks.collect();
-    if toks.len() != 4 {
-        return Err(c.err_at(ln, format!("a 4-node tetrahedron lists {} nodes", toks.len())));
+    let (want, name) = match k {
+        Kind::Hex => (8, "an 8-node hexahedron"),
+        _ => (4, "a 4-node tetrahedron"),
+    };
+    if toks.len() != want {
+        return Err(c.err_at(ln, format!("{name} lists {} nodes", toks.len())));
     }
-    let mut t = [0; 4];
-    for (k, tok) in toks.iter().enumerate() {
-        t[k] = node_of(c, ln, tok, map)?;
+    toks.iter().map(|tok| node_of(c, ln, tok, map)).collect()
+}
+
+/// Stores a tet or hex (`nodes` of the right length, checked by the caller) with its tag.
+fn store(data: &mut MeshData, k: Kind, nodes: &[usize], tag: i32) {
+    match k {
+        Kind::Hex => {
+            data.hexes.push(std::array::from_fn(|i| nodes[i]));
+            data.hex_tags.push(tag);
+        }
+        _ => {
+            data.tets.push(std::array::from_fn(|i| nodes[i]));
+            data.tags.push(tag);
+        }
     }
-    Ok(t)
 }
 
 fn volume_error(c: &Cursor<'_>, ln: usize, ty: i64, name: &str) -> HemlError {
@@ -452,7 +470,8 @@ fn volume_error(c: &Cursor<'_>, ln: usize, ty: i64, name: &str) -> HemlError {
         ln,
         format!(
             "element type {ty} ({name}) is a volume element HEML cannot simulate; only 4-node tetrahedra \
-             (type 4) are supported: re-mesh with linear tets (gmsh -3 -order 1)"
+             (type 4) and 8-node hexahedra (type 5, split into tets at load) are supported: re-mesh with \
+             linear elements (gmsh -3 -order 1)"
         ),
     )
 }
@@ -477,10 +496,7 @@ fn read_elements_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, 
             }
         }
         match kind(ty) {
-            Kind::Tet => {
-                data.tets.push(tet_nodes(c, ln, f, map)?);
-                data.tags.push(tag);
-            }
+            k @ (Kind::Tet | Kind::Hex) => store(data, k, &element_nodes(c, ln, f, map, k)?, tag),
             Kind::Skip(name) => data.skip(name),
             Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
         }
@@ -488,12 +504,7 @@ fn read_elements_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, 
     Ok(())
 }
 
-fn read_elements_v41(
-    c: &mut Cursor<'_>,
-    data: &mut MeshData,
-    map: &HashMap<u64, usize>,
-    entities: &mut Vec<i32>,
-) -> Result<()> {
+fn read_elements_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
     let header_line = c.line_of_next_token();
     let blocks = count(c, "the number of element entity blocks")?;
     let total = count(c, "the number of elements")?;
@@ -516,10 +527,7 @@ fn read_elements_v41(
             let id = f.next().unwrap_or("");
             parse_at::<u64>(c.file(), ln, id, "an element tag")?;
             match k {
-                Kind::Tet => {
-                    data.tets.push(tet_nodes(c, ln, f, map)?);
-                    entities.push(entity);
-                }
+                Kind::Tet | Kind::Hex => store(data, k, &element_nodes(c, ln, f, map, k)?, entity),
                 Kind::Skip(name) => data.skip(name),
                 Kind::Volume(_) => {}
             }
@@ -562,10 +570,7 @@ fn read_elements_v1(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, 
             ));
         }
         match kind(ty) {
-            Kind::Tet => {
-                data.tets.push(tet_nodes(c, ln, f, map)?);
-                data.tags.push(tag);
-            }
+            k @ (Kind::Tet | Kind::Hex) => store(data, k, &element_nodes(c, ln, f, map, k)?, tag),
             Kind::Skip(name) => data.skip(name),
             Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
         }
@@ -604,7 +609,8 @@ struct Record {
     nodes: Vec<(u64, usize)>,
 }
 
-/// Stores one binary element of type `ty` (node tags with their byte offsets).
+/// Stores one binary element of type `ty` (node tags with their byte offsets;
+/// their number is the type's, as read).
 fn store_binary_element(
     c: &Cursor<'_>,
     ln: usize,
@@ -612,22 +618,20 @@ fn store_binary_element(
     r: &Record,
     data: &mut MeshData,
     map: &HashMap<u64, usize>,
-) -> Result<bool> {
+) -> Result<()> {
     match kind(ty) {
-        Kind::Tet => {
-            let mut t = [0usize; 4];
-            for (k, &(tag, off)) in r.nodes.iter().enumerate() {
-                t[k] = node_of_tag(c, off, tag, r.number, map)?;
-            }
-            data.tets.push(t);
-            Ok(true)
+        k @ (Kind::Tet | Kind::Hex) => {
+            let nodes = r
+                .nodes
+                .iter()
+                .map(|&(tag, off)| node_of_tag(c, off, tag, r.number, map))
+                .collect::<Result<Vec<usize>>>()?;
+            store(data, k, &nodes, r.tag);
         }
-        Kind::Skip(name) => {
-            data.skip(name);
-            Ok(false)
-        }
-        Kind::Volume(name) => Err(volume_error(c, ln, ty, name)),
+        Kind::Skip(name) => data.skip(name),
+        Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
     }
+    Ok(())
 }
 
 /// The node count of a binary element type, which is needed to find the next record.
@@ -694,10 +698,7 @@ fn read_elements_v2_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map:
                 let off = c.offset();
                 nodes.push((b.uint(c, "a node number of an element")?, off));
             }
-            let r = Record { number, tag, nodes };
-            if store_binary_element(c, ln, ty, &r, data, map)? {
-                data.tags.push(r.tag);
-            }
+            store_binary_element(c, ln, ty, &Record { number, tag, nodes }, data, map)?;
         }
         read += follow;
     }
@@ -750,13 +751,7 @@ fn read_nodes_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &
 /// Binary 4.1 `$Elements`: `size_t blocks, total, min, max`, then per block `int
 /// dim, int entity, int type, size_t count` and `count` records of `size_t` tag
 /// and node tags.
-fn read_elements_v41_bin(
-    c: &mut Cursor<'_>,
-    b: Binary,
-    data: &mut MeshData,
-    map: &HashMap<u64, usize>,
-    entities: &mut Vec<i32>,
-) -> Result<()> {
+fn read_elements_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
     let header_line = c.line();
     let blocks = b.count(c, "the number of element entity blocks")?;
     let total = b.count(c, "the number of elements")?;
@@ -785,9 +780,7 @@ fn read_elements_v41_bin(
                 tag: entity,
                 nodes,
             };
-            if store_binary_element(c, ln, ty, &r, data, map)? {
-                entities.push(entity);
-            }
+            store_binary_element(c, ln, ty, &r, data, map)?;
         }
         seen = seen.saturating_add(n);
     }

@@ -309,11 +309,13 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
         out.nodes.extend(data.nodes);
         out.tets.extend(data.tets.into_iter().map(|t| t.map(|i| i + base)));
         out.tags.extend(data.tags);
+        out.hexes.extend(data.hexes.into_iter().map(|h| h.map(|i| i + base)));
+        out.hex_tags.extend(data.hex_tags);
         for (k, v) in data.skipped {
             *out.skipped.entry(k).or_insert(0) += v;
         }
     }
-    if out.tets.is_empty() {
+    if out.tets.is_empty() && out.hexes.is_empty() {
         return Err(perr(pieces[0].line, no_tets_message(&out)));
     }
     Ok(out)
