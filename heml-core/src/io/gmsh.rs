@@ -172,7 +172,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                     if have_elements {
                         return Err(c.err_at(ln, "second $ELM section (only one is supported)"));
                     }
-                    read_elements_v1(&mut c, &mut data, &node_index)?;
+                    read_element_lines(&mut c, &mut data, &node_index, true)?;
                     expect_end(&mut c, "$ENDELM")?;
                     have_elements = true;
                 }
@@ -228,7 +228,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                     (Dialect::V41, Some(b)) => read_elements_v41_bin(&mut c, b, &mut data, &node_index)?,
                     (Dialect::V41, None) => read_elements_v41(&mut c, &mut data, &node_index)?,
                     (_, Some(b)) => read_elements_v2_bin(&mut c, b, &mut data, &node_index)?,
-                    (_, None) => read_elements_v2(&mut c, &mut data, &node_index)?,
+                    (_, None) => read_element_lines(&mut c, &mut data, &node_index, false)?,
                 }
                 expect_end(&mut c, "$EndElements")?;
                 have_elements = true;
@@ -413,13 +413,16 @@ fn read_nodes_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64
             add_node(c, ln, tag, p, data, map)?;
         }
     }
-    if data.nodes.len() != total {
+    check_total(c, header_line, "$Nodes", total, data.nodes.len(), "nodes")
+}
+
+/// The v4.1 header count of a section (at `header_line`) against what its
+/// blocks held: a mismatch means a truncated or edited file.
+fn check_total(c: &Cursor<'_>, header_line: usize, section: &str, total: usize, held: usize, what: &str) -> Result<()> {
+    if held != total {
         return Err(c.err_at(
             header_line,
-            format!(
-                "the $Nodes header announces {total} nodes but the blocks hold {}",
-                data.nodes.len()
-            ),
+            format!("the {section} header announces {total} {what} but the blocks hold {held}"),
         ));
     }
     Ok(())
@@ -476,7 +479,10 @@ fn volume_error(c: &Cursor<'_>, ln: usize, ty: i64, name: &str) -> HemlError {
     )
 }
 
-fn read_elements_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
+/// ASCII element lines, one per element: v2 `number type tag-count tags… nodes…`
+/// (the region tag is the first tag), v1 `number type physical-region
+/// elementary-region node-count nodes…` (the region tag is the physical region).
+fn read_element_lines(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>, v1: bool) -> Result<()> {
     let n = count(c, "the number of elements")?;
     for _ in 0..n {
         let (line, ln) = c.expect_line("an element line")?;
@@ -485,14 +491,30 @@ fn read_elements_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, 
             f.next()
                 .ok_or_else(|| c.err_at(ln, format!("element line ends before its {what}")))
         };
-        parse_at::<u64>(c.file(), ln, next("number")?, "an element number")?;
+        let number: u64 = parse_at(c.file(), ln, next("number")?, "an element number")?;
         let ty: i64 = parse_at(c.file(), ln, next("type")?, "an element type")?;
-        let ntags: usize = parse_at(c.file(), ln, next("number of tags")?, "the number of element tags")?;
         let mut tag = 0;
-        for k in 0..ntags {
-            let t: i32 = parse_at(c.file(), ln, next("tags")?, "an integer element tag")?;
-            if k == 0 {
-                tag = t;
+        if v1 {
+            tag = parse_at(c.file(), ln, next("physical region")?, "an integer physical region")?;
+            parse_at::<i32>(c.file(), ln, next("elementary region")?, "an integer elementary region")?;
+            let nn: usize = parse_at(c.file(), ln, next("number of nodes")?, "the number of nodes")?;
+            let listed = f.clone().count();
+            if listed != nn {
+                return Err(c.err_at(ln, format!("element {number} announces {nn} nodes and lists {listed}")));
+            }
+            if let Some(want) = nodes_per_element(ty).filter(|&w| w != nn) {
+                return Err(c.err_at(
+                    ln,
+                    format!("element {number} of type {ty} has {nn} nodes, that type has {want}"),
+                ));
+            }
+        } else {
+            let ntags: usize = parse_at(c.file(), ln, next("number of tags")?, "the number of element tags")?;
+            for k in 0..ntags {
+                let t: i32 = parse_at(c.file(), ln, next("tags")?, "an integer element tag")?;
+                if k == 0 {
+                    tag = t;
+                }
             }
         }
         match kind(ty) {
@@ -534,48 +556,7 @@ fn read_elements_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64,
         }
         seen = seen.saturating_add(n);
     }
-    if seen != total {
-        return Err(c.err_at(
-            header_line,
-            format!("the $Elements header announces {total} elements but the blocks hold {seen}"),
-        ));
-    }
-    Ok(())
-}
-
-/// Gmsh 1 `$ELM`: `number type physical-region elementary-region node-count
-/// nodes…` per line; the region tag of a tet is its physical region.
-fn read_elements_v1(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
-    let n = count(c, "the number of elements")?;
-    for _ in 0..n {
-        let (line, ln) = c.expect_line("an element line")?;
-        let mut f = line.split_ascii_whitespace();
-        let mut next = |what: &str| {
-            f.next()
-                .ok_or_else(|| c.err_at(ln, format!("element line ends before its {what}")))
-        };
-        let number: u64 = parse_at(c.file(), ln, next("number")?, "an element number")?;
-        let ty: i64 = parse_at(c.file(), ln, next("type")?, "an element type")?;
-        let tag: i32 = parse_at(c.file(), ln, next("physical region")?, "an integer physical region")?;
-        parse_at::<i32>(c.file(), ln, next("elementary region")?, "an integer elementary region")?;
-        let nn: usize = parse_at(c.file(), ln, next("number of nodes")?, "the number of nodes")?;
-        let listed = f.clone().count();
-        if listed != nn {
-            return Err(c.err_at(ln, format!("element {number} announces {nn} nodes and lists {listed}")));
-        }
-        if let Some(want) = nodes_per_element(ty).filter(|&w| w != nn) {
-            return Err(c.err_at(
-                ln,
-                format!("element {number} of type {ty} has {nn} nodes, that type has {want}"),
-            ));
-        }
-        match kind(ty) {
-            k @ (Kind::Tet | Kind::Hex) => store(data, k, &element_nodes(c, ln, f, map, k)?, tag),
-            Kind::Skip(name) => data.skip(name),
-            Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
-        }
-    }
-    Ok(())
+    check_total(c, header_line, "$Elements", total, seen, "elements")
 }
 
 /// Three binary coordinates of node `tag`, refused when not finite (as in ASCII).
@@ -736,16 +717,7 @@ fn read_nodes_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &
             add_node(c, ln, tag, p, data, map)?;
         }
     }
-    if data.nodes.len() != total {
-        return Err(c.err_at(
-            header_line,
-            format!(
-                "the $Nodes header announces {total} nodes but the blocks hold {}",
-                data.nodes.len()
-            ),
-        ));
-    }
-    Ok(())
+    check_total(c, header_line, "$Nodes", total, data.nodes.len(), "nodes")
 }
 
 /// Binary 4.1 `$Elements`: `size_t blocks, total, min, max`, then per block `int
@@ -784,13 +756,7 @@ fn read_elements_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map
         }
         seen = seen.saturating_add(n);
     }
-    if seen != total {
-        return Err(c.err_at(
-            header_line,
-            format!("the $Elements header announces {total} elements but the blocks hold {seen}"),
-        ));
-    }
-    Ok(())
+    check_total(c, header_line, "$Elements", total, seen, "elements")
 }
 
 /// Binary 4.1 `$Entities`: volume tag → its first physical tag.
