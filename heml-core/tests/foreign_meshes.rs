@@ -397,3 +397,70 @@ fn damaged_lzma_vtu_gives_an_error_naming_the_array() {
     assert!(e.starts_with("bad.vtu:"), "{e}");
     assert!(e.contains("lzma block 0"), "{e}");
 }
+
+/// The other direction: meshio reads the binary Gmsh files HEML writes (2.2, and
+/// 4.1 with its binary `$Entities`) to the same points (bit for bit), tets and
+/// physical tags: the writer and the reader do not merely agree with each other.
+#[test]
+fn meshio_reads_our_binary_gmsh_files() {
+    const TEST: &str = "meshio_reads_our_binary_gmsh_files";
+    if !python_with_meshio(TEST) {
+        return;
+    }
+    use heml_core::io::write_mesh_as;
+    use heml_core::mesh::generate::{box_mesh, HexSplit};
+    let dir = scratch("meshio-reads");
+    let m = box_mesh([1.0 / 3.0, 0.7, 0.9], [3, 2, 2], HexSplit::Five).unwrap();
+    let tags: Vec<i32> = (0..m.n_tets()).map(|k| [3, 7, 5][k % 3] + (k / 20) as i32).collect();
+    let tets: Vec<[usize; 4]> = m.tets().iter().map(|t| t.map(|i| i as usize)).collect();
+    let mesh = heml_core::TetMesh::with_tags(m.nodes().to_vec(), tets, tags).unwrap();
+    let script = r#"
+import sys, meshio, numpy as np
+m = meshio.read(sys.argv[1])
+out = sys.argv[2]
+np.asarray(m.points, dtype='<f8').tofile(out + '.points')
+tets = [c.data for c in m.cells if c.type == 'tetra']
+np.asarray(np.concatenate(tets), dtype='<i8').tofile(out + '.tets')
+phys = [d for d, c in zip(m.cell_data['gmsh:physical'], m.cells) if c.type == 'tetra']
+np.asarray(np.concatenate(phys), dtype='<i4').tofile(out + '.tags')
+"#;
+    for (file, format) in [
+        ("b22.msh", MeshFormat::Gmsh22Binary),
+        ("b41.msh", MeshFormat::Gmsh41Binary),
+    ] {
+        let path = dir.join(file);
+        write_mesh_as(&path, &mesh, format).unwrap();
+        let out = dir.join(file).with_extension("out");
+        let o = Command::new("python3")
+            .args(["-c", script, path.to_str().unwrap(), out.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{file}: meshio failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let words = |ext: &str, size: usize| -> Vec<u64> {
+            std::fs::read(format!("{}.{ext}", out.display()))
+                .unwrap()
+                .chunks_exact(size)
+                .map(|c| {
+                    let mut a = [0u8; 8];
+                    a[..size].copy_from_slice(c);
+                    u64::from_le_bytes(a)
+                })
+                .collect()
+        };
+        let points: Vec<u64> = mesh
+            .nodes()
+            .iter()
+            .flat_map(|p| p.iter().map(|x| x.to_bits()))
+            .collect();
+        assert_eq!(words("points", 8), points, "{file}");
+        let tets: Vec<u64> = mesh.tets().iter().flatten().map(|&i| u64::from(i)).collect();
+        assert_eq!(words("tets", 8), tets, "{file}");
+        let tags: Vec<u64> = mesh.tags().iter().map(|&t| t as u32 as u64).collect();
+        assert_eq!(words("tags", 4), tags, "{file}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
