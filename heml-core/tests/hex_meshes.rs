@@ -4,7 +4,7 @@
 //!
 //! Fixtures (`tests/data/make_meshio_fixtures.py`, written by meshio): a box of
 //! 3 × 2 × 2 hexahedra with graded spacing and shuffled node ids, tags 1–12, as
-//! VTU and as binary Gmsh 2.2 and 4.1.
+//! VTU, as binary Gmsh 2.2 and 4.1, and as ASCII Gmsh 2.2.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -75,7 +75,13 @@ fn assert_conforming_box(mesh: &TetMesh, what: &str) {
 #[test]
 fn meshio_hex_files_split_into_conforming_tets_of_the_same_volume() {
     let volume = SIZE[0] * SIZE[1] * SIZE[2];
-    for file in ["hex_box_meshio.vtu", "hex_box_meshio_b22.msh", "hex_box_meshio_b41.msh"] {
+    let files = [
+        "hex_box_meshio.vtu",
+        "hex_box_meshio_b22.msh",
+        "hex_box_meshio_b41.msh",
+        "hex_box_meshio_v22.msh",
+    ];
+    for file in files {
         for split in HexSplit::ALL {
             let what = format!("{file} {split:?}");
             let (mesh, report) = read_mesh_with(&data(file), &ReadOptions { hex_split: split })

@@ -44,3 +44,4 @@ box = meshio.Mesh(pts, [("hexahedron", np.array(hexes))],
                   cell_data={"gmsh:physical": [hex_tags], "gmsh:geometrical": [hex_tags]})
 meshio.write("hex_box_meshio_b22.msh", box, file_format="gmsh22", binary=True)
 meshio.write("hex_box_meshio_b41.msh", box, file_format="gmsh", binary=True)
+meshio.write("hex_box_meshio_v22.msh", box, file_format="gmsh22", binary=False)
