@@ -1,6 +1,8 @@
 //! `heml view`'s WebSocket protocol against a running server: malformed, oversized,
 //! non-finite and unknown messages are ignored (the server stays up, the
 //! simulation's state does not change), and valid commands keep working after them.
+#[path = "support/bin.rs"]
+mod bin;
 #[path = "support/view.rs"]
 mod view;
 
@@ -106,4 +108,68 @@ async fn bad_messages_are_ignored_and_change_nothing() {
     );
     assert_eq!(c.steps(), steps0 + 1, "the rebuild reset the clock");
     assert!(server.alive());
+}
+
+/// `heml view OUTPUT_DIR` plays a finished run's frames: the mesh is the run's
+/// surface, the frames carry its positions, `step` shows the next frame and commands
+/// of the live simulation are refused; a directory without a `.pvd` is an error.
+#[tokio::test(flavor = "current_thread")]
+async fn a_finished_run_plays_back() {
+    let dir = bin::temp_dir("view", "playback");
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[mesh]
+generate = { kind = "box", size = [0.04, 0.01, 0.01], cells = [4, 1, 1] }
+[[material]]
+law = "neo_hookean"
+params = { E = 5e3, nu = 0.3 }
+[[fix]]
+plane = { point = [0, 0, 0], normal = [1, 0, 0] }
+[loads]
+gravity = [0, 0, -9.81]
+[solver]
+duration = 0.01
+[output]
+dir = "out"
+frame_interval = 0.002
+csv = false
+"#,
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let (ok, _, err) = bin::heml(&["run", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(ok, "{err}");
+    let frames = heml::io::read_pvd(&out.join("frames.pvd")).unwrap();
+    assert!(frames.len() >= 5, "{frames:?}");
+
+    let server = ViewServer::start(&["view", out.to_str().unwrap()]);
+    let mut c = Client::connect(&server).await;
+    assert!(c.until(WAIT, |c| c.mesh.is_object() && c.frames > 0 && c.status.is_object()).await);
+    assert_eq!(c.mesh["mode"], "playback");
+    // a 4 × 1 × 1 box of 6-tet cells: 20 nodes, all on the surface
+    assert_eq!(c.mesh["nodes"].as_array().unwrap().len(), 20);
+    assert_eq!(c.status["integrator"], "playback");
+    c.send(json!({"type": "pause"})).await;
+    assert!(c.until(WAIT, |c| c.paused()).await);
+    c.drain(Duration::from_millis(200)).await;
+    let k = c.steps();
+    c.send(json!({"type": "step"})).await;
+    assert!(c.until(WAIT, |c| c.steps() == (k + 1) % frames.len() as u64).await, "{}", c.status);
+    // the shown frame's time is the .pvd's
+    let t = c.time();
+    assert!(frames.iter().any(|(ft, _)| *ft == t), "time {t} not in {frames:?}");
+    let n = c.replies.len();
+    c.send(json!({"type": "set_param", "name": "E", "value": 1e4})).await;
+    assert!(c.until(WAIT, |c| c.replies.len() > n).await);
+    assert_eq!(c.replies[n]["ok"], false);
+    assert!(c.replies[n]["message"].as_str().unwrap().contains("playback"));
+
+    let (ok, _, err) = bin::heml(&["view", dir.join("nothing").to_str().unwrap(), "--no-open"]);
+    assert!(!ok);
+    assert!(err.contains("nothing"), "{err}");
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    let (ok, _, err) = bin::heml(&["view", dir.join("empty").to_str().unwrap(), "--no-open"]);
+    assert!(!ok && err.contains("no .pvd file"), "{err}");
 }
