@@ -9,6 +9,7 @@
 #[path = "support/view.rs"]
 mod view;
 
+use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -30,7 +31,12 @@ fn on_path(name: &str) -> Option<PathBuf> {
 struct Driver(Child);
 
 impl Drop for Driver {
+    /// Ends chromedriver and the browser it started (same process group), even when
+    /// the test failed before closing its session.
     fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", "--", &format!("-{}", self.0.id())])
+            .status();
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
@@ -44,22 +50,30 @@ fn free_port() -> u16 {
         .port()
 }
 
-#[tokio::test(flavor = "current_thread")]
-async fn the_page_draws_the_organ_and_drives_the_simulation() {
-    let (Some(chromium), Some(chromedriver)) = (on_path("chromium"), on_path("chromedriver")) else {
-        let msg = "chromium and chromedriver are not on PATH: the browser test of `heml view` did NOT run \
-                   (apt-get install chromium chromium-driver; .ci/run installs them)";
-        if std::env::var_os("CI").is_some() {
-            panic!("{msg}");
+/// chromium and chromedriver, or None after saying loudly why the test cannot run
+/// (a failure under CI).
+fn browser_binaries() -> Option<(PathBuf, PathBuf)> {
+    match (on_path("chromium"), on_path("chromedriver")) {
+        (Some(c), Some(d)) => Some((c, d)),
+        _ => {
+            let msg = "chromium and chromedriver are not on PATH: the browser test of `heml view` did NOT run \
+                       (apt-get install chromium chromium-driver; .ci/run installs them)";
+            if std::env::var_os("CI").is_some() {
+                panic!("{msg}");
+            }
+            eprintln!("\n*** SKIPPED: {msg} ***\n");
+            None
         }
-        eprintln!("\n*** SKIPPED: {msg} ***\n");
-        return;
-    };
-    let server = ViewServer::start(&["view", "--demo", "--threads", "1"]);
+    }
+}
+
+/// A headless Chromium session (WebGL through SwiftShader) and its chromedriver.
+async fn open_browser(chromium: &Path, chromedriver: &Path) -> (fantoccini::Client, Driver, PathBuf) {
     let port = free_port();
-    let _driver = Driver(
+    let driver = Driver(
         Command::new(&chromedriver)
             .arg(format!("--port={port}"))
+            .process_group(0)
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -74,6 +88,7 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
             "args": [
                 "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                "--disable-crash-reporter", "--disable-breakpad",
                 "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--window-size=1000,700",
                 format!("--user-data-dir={}", profile.display()),
             ]
@@ -99,9 +114,10 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
             Err(e) => panic!("cannot start a WebDriver session: {e}"),
         }
     };
-    browser.goto(&server.url).await.expect("open the page");
+    (browser, driver, profile)
+}
 
-    // frames arrive and are drawn
+async fn wait_for_frames(browser: &fantoccini::Client, n: u64) {
     let start = Instant::now();
     loop {
         let frames = browser
@@ -110,12 +126,25 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
             .unwrap()
             .as_u64()
             .unwrap_or(0);
-        if frames >= 10 {
+        if frames >= n {
             break;
         }
         assert!(start.elapsed() < WAIT, "the page received {frames} frames in {WAIT:?}");
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+}
+
+#[tokio::test(flavor = "current_thread")]
+async fn the_page_draws_the_organ_and_drives_the_simulation() {
+    let Some((chromium, chromedriver)) = browser_binaries() else {
+        return;
+    };
+    let server = ViewServer::start(&["view", "--demo", "--threads", "1"]);
+    let (browser, _driver, profile) = open_browser(&chromium, &chromedriver).await;
+    browser.goto(&server.url).await.expect("open the page");
+
+    // frames arrive and are drawn
+    wait_for_frames(&browser, 10).await;
     tokio::time::sleep(Duration::from_millis(500)).await;
     let probe = browser.execute("return window.hemlView.probe()", vec![]).await.unwrap();
     let inside = probe["inside"].as_f64().unwrap();
@@ -170,4 +199,63 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
 
     browser.close().await.unwrap();
     let _ = std::fs::remove_dir_all(&profile);
+}
+
+/// The README's measurement (not a test: run it by hand, once):
+/// `HEML_VIEW_BENCH=scene.toml cargo test --release -p heml-cli --test view_browser -- --ignored --nocapture`.
+/// Frames per second received by a headless page over 10 s, bytes per frame, and the
+/// real-time factor with the page open and after it closed.
+#[tokio::test(flavor = "current_thread")]
+#[ignore = "a measurement for the README, run by hand"]
+async fn measure_frames_per_second() {
+    let Some(scene) = std::env::var_os("HEML_VIEW_BENCH") else {
+        eprintln!("set HEML_VIEW_BENCH=scene.toml");
+        return;
+    };
+    let Some((chromium, chromedriver)) = browser_binaries() else {
+        return;
+    };
+    let threads = std::env::var("HEML_VIEW_THREADS").unwrap_or_else(|_| "2".into());
+    let server = ViewServer::start(&["view", scene.to_str().unwrap(), "--threads", &threads]);
+    let mut ws = Client::connect(&server).await;
+    let closed_before = mean_rtf(&mut ws, 10).await;
+    let (browser, _driver, profile) = open_browser(&chromium, &chromedriver).await;
+    browser.goto(&server.url).await.expect("open the page");
+    wait_for_frames(&browser, 5).await;
+    let count = |b: &fantoccini::Client| {
+        let b = b.clone();
+        async move {
+            b.execute("return window.hemlView.frames", vec![])
+                .await
+                .unwrap()
+                .as_f64()
+                .unwrap()
+        }
+    };
+    let f0 = count(&browser).await;
+    let t0 = Instant::now();
+    let open = mean_rtf(&mut ws, 10).await;
+    let fps = (count(&browser).await - f0) / t0.elapsed().as_secs_f64();
+    let bytes = browser.execute("return window.hemlView.bytes", vec![]).await.unwrap();
+    browser.close().await.unwrap();
+    let _ = std::fs::remove_dir_all(&profile);
+    let closed_after = mean_rtf(&mut ws, 10).await;
+    println!(
+        "{}: {fps:.1} frames/s received, {bytes} bytes/frame, real-time factor {open:.3} with the page open, \
+         {closed_before:.3} / {closed_after:.3} closed (before / after), step p50 {} ms",
+        scene.to_string_lossy(),
+        ws.status["step_ms_p50"]
+    );
+}
+
+/// Mean real-time factor of the status messages over `secs` seconds.
+async fn mean_rtf(ws: &mut Client, secs: u64) -> f64 {
+    let mut samples = Vec::new();
+    let end = Instant::now() + Duration::from_secs(secs);
+    while Instant::now() < end {
+        let before = ws.status["frame"].clone();
+        ws.until(Duration::from_secs(1), |c| c.status["frame"] != before).await;
+        samples.push(ws.status["real_time_factor"].as_f64().unwrap_or(f64::NAN));
+    }
+    samples.iter().sum::<f64>() / samples.len() as f64
 }

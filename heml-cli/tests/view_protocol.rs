@@ -139,14 +139,23 @@ csv = false
     )
     .unwrap();
     let out = dir.join("out");
-    let (ok, _, err) = bin::heml(&["run", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    let (ok, _, err) = bin::heml(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
     assert!(ok, "{err}");
     let frames = heml::io::read_pvd(&out.join("frames.pvd")).unwrap();
     assert!(frames.len() >= 5, "{frames:?}");
 
     let server = ViewServer::start(&["view", out.to_str().unwrap()]);
     let mut c = Client::connect(&server).await;
-    assert!(c.until(WAIT, |c| c.mesh.is_object() && c.frames > 0 && c.status.is_object()).await);
+    assert!(
+        c.until(WAIT, |c| c.mesh.is_object() && c.frames > 0 && c.status.is_object())
+            .await
+    );
     assert_eq!(c.mesh["mode"], "playback");
     // a 4 × 1 × 1 box of 6-tet cells: 20 nodes, all on the surface
     assert_eq!(c.mesh["nodes"].as_array().unwrap().len(), 20);
@@ -156,7 +165,11 @@ csv = false
     c.drain(Duration::from_millis(200)).await;
     let k = c.steps();
     c.send(json!({"type": "step"})).await;
-    assert!(c.until(WAIT, |c| c.steps() == (k + 1) % frames.len() as u64).await, "{}", c.status);
+    assert!(
+        c.until(WAIT, |c| c.steps() == (k + 1) % frames.len() as u64).await,
+        "{}",
+        c.status
+    );
     // the shown frame's time is the .pvd's
     let t = c.time();
     assert!(frames.iter().any(|(ft, _)| *ft == t), "time {t} not in {frames:?}");
