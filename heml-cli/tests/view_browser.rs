@@ -71,7 +71,7 @@ fn browser_binaries() -> Option<(PathBuf, PathBuf)> {
 async fn open_browser(chromium: &Path, chromedriver: &Path) -> (fantoccini::Client, Driver, PathBuf) {
     let port = free_port();
     let driver = Driver(
-        Command::new(&chromedriver)
+        Command::new(chromedriver)
             .arg(format!("--port={port}"))
             .process_group(0)
             .stdout(Stdio::null())

@@ -233,22 +233,11 @@ pub fn nearest_to_ray(surface: &BoundarySurface, x: &[Vec3], ray: &Ray) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
-    use heml::prelude::*;
-
-    fn block() -> System {
-        let mesh =
-            heml::mesh::generate::box_mesh([0.1, 0.1, 0.1], [2, 2, 2], heml::mesh::generate::HexSplit::Six).unwrap();
-        heml::system(mesh)
-            .material("neo_hookean", &Params::from([("E", 1e4), ("nu", 0.3)]))
-            .unwrap()
-            .fix_where(|p| p.x < 1e-9)
-            .build()
-            .unwrap()
-    }
+    use crate::cli::view::fields::tests::block;
 
     #[test]
     fn a_ray_picks_the_surface_node_on_its_line() {
-        let sys = block();
+        let sys = block(0.1, true);
         // straight down through the top corner (0.1, 0.1, 0.1)
         let ray = Ray {
             origin: [0.1, 0.1, 1.0],
@@ -260,7 +249,7 @@ mod tests {
 
     #[test]
     fn without_the_api_grasps_tools_and_cuts_are_refused_and_change_nothing() {
-        let mut sys = block();
+        let mut sys = block(0.1, true);
         let before = sys.positions().to_vec();
         let mut a = Adapter::new(Box::new(Unavailable));
         let top = *sys.surface().nodes().last().unwrap();

@@ -181,19 +181,23 @@ impl SurfaceFields {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use heml::prelude::*;
 
+    /// A neo-Hookean cube of `size` m in 2 × 2 × 2 cells, clamped at x = 0 when `clamp`.
+    pub(in crate::cli::view) fn block(size: f64, clamp: bool) -> System {
+        let mesh = heml::mesh::generate::box_mesh([size; 3], [2, 2, 2], heml::mesh::generate::HexSplit::Six).unwrap();
+        let b = heml::system(mesh)
+            .material("neo_hookean", Params::from([("E", 1e4), ("nu", 0.3)]))
+            .unwrap();
+        let b = if clamp { b.fix_where(|p| p.x < 1e-9) } else { b };
+        b.build().unwrap()
+    }
+
     #[test]
     fn a_uniform_stretch_gives_its_j_and_displacement_everywhere() {
-        let mesh =
-            heml::mesh::generate::box_mesh([1.0, 1.0, 1.0], [2, 2, 2], heml::mesh::generate::HexSplit::Six).unwrap();
-        let mut sys = heml::system(mesh)
-            .material("neo_hookean", &Params::from([("E", 1e4), ("nu", 0.3)]))
-            .unwrap()
-            .build()
-            .unwrap();
+        let mut sys = block(1.0, false);
         let f = SurfaceFields::new(&sys);
         // rest: J = 1, no displacement, no energy
         assert!(f.values(&sys, FieldKind::J).iter().all(|&j| (j - 1.0).abs() < 1e-6));
