@@ -158,15 +158,15 @@ impl Client {
     }
     /// A law parameter of the first material (e.g. `mu`).
     pub fn law_param(&self, name: &str) -> f64 {
-        self.status["law_params"]
-            .as_array()
-            .and_then(|a| a.iter().find(|p| p[0] == name))
-            .and_then(|p| p[1].as_f64())
-            .unwrap_or(f64::NAN)
+        self.named("law_params", name)
     }
     /// A scene parameter of the first material (e.g. `E`).
     pub fn scene_param(&self, name: &str) -> f64 {
-        self.status["scene_params"]
+        self.named("scene_params", name)
+    }
+    /// The value of `name` in the status's list of (name, value) pairs `list`.
+    fn named(&self, list: &str, name: &str) -> f64 {
+        self.status[list]
             .as_array()
             .and_then(|a| a.iter().find(|p| p[0] == name))
             .and_then(|p| p[1].as_f64())
