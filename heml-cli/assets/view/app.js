@@ -247,6 +247,9 @@ function resize() {
   if (canvas.width !== Math.floor(w * renderer.getPixelRatio()) || canvas.height !== Math.floor(h * renderer.getPixelRatio())) {
     renderer.setSize(w, h, false);
     camera.aspect = w / h;
+    // centre the body in the part of the window the panel leaves free
+    const shift = Math.min($('panel').offsetWidth + 20, 0.4 * w) / 2;
+    camera.setViewOffset(w, h, -shift, 0, w, h);
     camera.updateProjectionMatrix();
   }
 }
