@@ -1,7 +1,8 @@
 //! `heml view` in a real browser: Debian's headless Chromium driven by chromedriver
 //! (WebDriver, the fantoccini crate). The page must draw the organ (WebGL through
 //! SwiftShader), its pause and step buttons must stop and step the simulation, and
-//! its E field must change the server's material. A screenshot is saved to
+//! its E field must change the server's material, and a drag on the tissue must send
+//! a grasp (refused in this build, and shown so). A screenshot is saved to
 //! `target/view-e2e/screenshot.png`.
 //!
 //! Needs `chromium` and `chromedriver` on PATH (`.ci/run` installs them); without
@@ -14,6 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
 use fantoccini::{ClientBuilder, Locator};
 use serde_json::json;
 use view::{Client, ViewServer};
@@ -196,6 +198,57 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
     // the panel shows the status
     let shown = browser.find(Locator::Id("time")).await.unwrap().text().await.unwrap();
     assert!(shown.ends_with(" s"), "panel time {shown:?}");
+
+    // a drag on the tissue: the page picks the surface node under the cursor and
+    // sends grasp_start / grasp_move / grasp_end; this build answers "not available",
+    // the page shows it, and the simulation is untouched
+    let probe = browser.execute("return window.hemlView.probe()", vec![]).await.unwrap();
+    let r: Vec<f64> = probe["rect"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let (cx, cy) = ((r[0] + r[2]) / 2.0, (r[1] + r[3]) / 2.0);
+    let steps1 = ws.steps();
+    let drag = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveTo {
+            duration: None,
+            x: cx,
+            y: cy,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::MoveTo {
+            duration: Some(Duration::from_millis(300)),
+            x: cx + 60.0,
+            y: cy,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    browser.perform_actions(drag).await.unwrap();
+    let start = Instant::now();
+    let shown = loop {
+        let m = browser
+            .find(Locator::Id("message"))
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        if m.contains("not available") || start.elapsed() > Duration::from_secs(10) {
+            break m;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert!(
+        shown.starts_with("grasp_") && shown.contains("not available"),
+        "page message {shown:?}"
+    );
+    ws.drain(Duration::from_millis(300)).await;
+    assert_eq!(ws.steps(), steps1, "the refused grasp moved the simulation");
 
     browser.close().await.unwrap();
     let _ = std::fs::remove_dir_all(&profile);

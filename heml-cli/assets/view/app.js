@@ -33,11 +33,17 @@ ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
     if (msg.type === 'mesh') onMesh(msg);
     else if (msg.type === 'status') onStatus(msg);
-    else if (msg.type === 'reply') { if (!msg.ok || msg.message) message(`${msg.command}: ${msg.message}`, !msg.ok); }
+    else if (msg.type === 'reply') onReply(msg);
   } else {
     onFrame(ev.data);
   }
 };
+
+function onReply(r) {
+  // a refused grasp_start already said why: its moves and release add nothing
+  if (!r.ok && /^grasp_(move|end)$/.test(r.command) && r.message.includes('no grasp in progress')) return;
+  if (!r.ok || r.message) message(`${r.command}: ${r.message}`, !r.ok);
+}
 
 function message(text, bad) {
   const m = $('message');

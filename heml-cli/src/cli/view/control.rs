@@ -7,7 +7,42 @@
 //! rigid tools, cutting) is not in this build: [`Unavailable`] answers every such
 //! command with [`NOT_AVAILABLE`], which the page shows. Wiring the real API is one
 //! `impl Controls` whose methods call `System::grasp`, `move_grasp`,
-//! `release_grasp`, `set_tool_pose`, `tool_wrench` and `cut`.
+//! `release_grasp`, `set_tool_pose`, `tool_wrench` and `cut`, and one line in
+//! `run::controls()` returning it. A sketch, names as announced for that API:
+//!
+//! ```text
+//! #[derive(Default)]
+//! pub struct Runtime { grasp: Option<GraspId>, tool: Option<ToolId> }
+//!
+//! impl Controls for Runtime {
+//!     fn grasp(&mut self, sys: &mut System, nodes: &[usize], target: Pose, k: f64, c: f64) -> Result<(), String> {
+//!         self.grasp = Some(sys.grasp(nodes, target, k, c).map_err(|e| e.to_string())?);
+//!         Ok(())
+//!     }
+//!     fn move_grasp(&mut self, sys: &mut System, target: Pose) -> Result<(), String> {
+//!         sys.move_grasp(self.grasp.ok_or("no grasp")?, target).map_err(|e| e.to_string())
+//!     }
+//!     fn release_grasp(&mut self, sys: &mut System) -> Result<(), String> {
+//!         sys.release_grasp(self.grasp.take().ok_or("no grasp")?).map_err(|e| e.to_string())
+//!     }
+//!     fn move_tool(&mut self, sys: &mut System, pose: Pose) -> Result<(), String> {
+//!         // first use: a capsule (e.g. 5 mm radius, 10 cm long) along the pose's z axis
+//!         let id = match self.tool { Some(id) => id, None => *self.tool.insert(sys.add_tool(Tool::capsule(..))) };
+//!         sys.set_tool_pose(id, pose).map_err(|e| e.to_string())
+//!     }
+//!     fn cut(&mut self, sys: &mut System, blade: [Vec3; 3]) -> Result<bool, String> {
+//!         sys.cut(Blade::triangle(blade)).map(|removed| removed > 0).map_err(|e| e.to_string())
+//!     }
+//!     fn tool_force(&self, sys: &System) -> Option<Vec3> {
+//!         self.tool.map(|id| sys.tool_wrench(id).force)
+//!     }
+//!     fn forget(&mut self) { *self = Runtime::default(); }
+//! }
+//! ```
+//!
+//! After a cut that returns `true`, the live loop rebuilds its surface data from
+//! `System::surface()` and re-sends the mesh (its min J runs over `sys.mesh().tets()`:
+//! if a cut keeps removed tets in the mesh, skip them there).
 
 use heml::mesh::surface::BoundarySurface;
 use heml::system::control::Pose;

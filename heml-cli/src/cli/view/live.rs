@@ -253,7 +253,8 @@ impl Live {
         match result {
             Ok(msg) => env.answer(Reply::json(name, true, msg)),
             Err(msg) => {
-                log::warn!("view: {name}: {msg}");
+                // answered to the page; a drag repeats it 60 times a second, so not a warning
+                log::info!("view: {name}: {msg}");
                 env.answer(Reply::json(name, false, msg));
             }
         }

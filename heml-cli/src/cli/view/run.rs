@@ -7,7 +7,7 @@ use std::sync::Arc;
 use heml::scene::Scene;
 use heml::{HemlError, Result};
 
-use super::control::Unavailable;
+use super::control::{Controls, Unavailable};
 use super::hub::Hub;
 use super::playback::Recording;
 use super::{live, playback, server};
@@ -63,11 +63,11 @@ pub fn run(args: ViewArgs) -> Result<()> {
     let producer = match (&args.input, args.demo) {
         (_, true) => {
             let scene = Scene::from_toml_str_named(DEMO_SCENE, ".", "demo.toml (embedded)")?;
-            live::spawn(scene, args.threads, hub.clone(), commands, Box::new(Unavailable))?
+            live::spawn(scene, args.threads, hub.clone(), commands, controls())?
         }
         (Some(p), false) if p.extension().is_some_and(|x| x == "toml") => {
             let scene = Scene::from_file(p)?;
-            live::spawn(scene, args.threads, hub.clone(), commands, Box::new(Unavailable))?
+            live::spawn(scene, args.threads, hub.clone(), commands, controls())?
         }
         (Some(p), false) => {
             let rec = Recording::read(p)?;
@@ -90,6 +90,12 @@ pub fn run(args: ViewArgs) -> Result<()> {
     }));
     drop(producer);
     served.map_err(|e| HemlError::Invalid(format!("cannot serve on {}:{}: {e}", args.host, args.port)))
+}
+
+/// The grasp, tool and cut controls of this build (see [`super::control`]): the
+/// one line to change when the library's runtime-control API is wired in.
+fn controls() -> Box<dyn Controls> {
+    Box::new(Unavailable)
 }
 
 /// Asks the desktop to open `url` (failure is not an error: the URL is printed).
