@@ -107,6 +107,17 @@ async fn bad_messages_are_ignored_and_change_nothing() {
         c.law_param("mu")
     );
     assert_eq!(c.steps(), steps0 + 1, "the rebuild reset the clock");
+
+    // the colour field: J near 1 (the demo sags a few percent), energy density ≥ 0
+    c.send(json!({"type": "field", "field": "j"})).await;
+    assert!(c.until(WAIT, |c| c.frame_field().0 == 1).await);
+    let (_, j) = c.frame_field();
+    assert_eq!(j.len(), n);
+    assert!(j.iter().all(|&j| j > 0.5 && j < 1.5), "J out of range");
+    assert!(j.iter().any(|&j| j != 1.0), "J is exactly 1 everywhere: not computed");
+    c.send(json!({"type": "field", "field": "energy"})).await;
+    assert!(c.until(WAIT, |c| c.frame_field().0 == 2).await);
+    assert!(c.frame_field().1.iter().all(|&w| w >= 0.0 && w.is_finite()));
     assert!(server.alive());
 }
 

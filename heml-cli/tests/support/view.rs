@@ -76,6 +76,8 @@ pub struct Client {
     /// Binary frames received and the size of the last one.
     pub frames: u64,
     pub frame_bytes: usize,
+    /// The last binary frame.
+    pub last_frame: Vec<u8>,
     /// The connection was closed by the server.
     pub closed: bool,
 }
@@ -92,6 +94,7 @@ impl Client {
             replies: Vec::new(),
             frames: 0,
             frame_bytes: 0,
+            last_frame: Vec::new(),
             closed: false,
         }
     }
@@ -135,6 +138,7 @@ impl Client {
                 Ok(Some(Ok(Message::Binary(b)))) => {
                     self.frames += 1;
                     self.frame_bytes = b.len();
+                    self.last_frame = b.to_vec();
                 }
                 Ok(Some(Ok(_))) => {}
             }
@@ -145,6 +149,18 @@ impl Client {
     /// Reads for `d`, keeping the newest status.
     pub async fn drain(&mut self, d: Duration) {
         self.until(d, |_| false).await;
+    }
+
+    /// The colour field id and values of the last frame.
+    pub fn frame_field(&self) -> (u32, Vec<f32>) {
+        let b = &self.last_frame;
+        if b.len() < 32 {
+            return (u32::MAX, Vec::new());
+        }
+        let word = |o: usize| [b[o], b[o + 1], b[o + 2], b[o + 3]];
+        let n = u32::from_le_bytes(word(4)) as usize;
+        let values = (0..n).map(|k| f32::from_le_bytes(word(32 + 12 * n + 4 * k))).collect();
+        (u32::from_le_bytes(word(24)), values)
     }
 
     pub fn time(&self) -> f64 {
