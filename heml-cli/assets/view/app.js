@@ -137,6 +137,7 @@ function onStatus(s) {
   $('integrator').textContent = `${s.integrator}, ${fmt(s.dt, ' s')}`;
   $('minj').textContent = fmt(s.min_j, '', 4);
   $('force').textContent = s.tool_force ? `${Math.hypot(...s.tool_force).toPrecision(3)} N` : '–';
+  drawTool(s.tool, s.tool_force);
   $('law').textContent = s.law ? `${s.law} ${s.law_params.map(([k, v]) => `${k}=${v.toPrecision(3)}`).join(' ')}` : '–';
   $('pause').textContent = s.paused ? 'resume' : 'pause';
   if (s.error) message(`stopped: ${s.error}`, true);
@@ -144,6 +145,34 @@ function onStatus(s) {
   // the field follows the server's E when it changes, never while the person types
   if (E && state.E0 === null) state.E0 = E[1];
   if (E && E[1] !== state.Eshown) { state.Eshown = E[1]; $('E').value = E[1]; }
+}
+
+// the tool: a capsule from its tip along its axis, and the force on it as an arrow
+// (its length: 1 N per tenth of the body's size)
+function drawTool(tool, force) {
+  if (!tool) { if (state.tool) state.tool.visible = false; if (state.arrow) state.arrow.visible = false; return; }
+  const key = `${tool.radius}/${tool.length}`;
+  if (!state.tool || state.toolKey !== key) {
+    if (state.tool) scene.remove(state.tool);
+    const g = new THREE.CapsuleGeometry(tool.radius, tool.length, 4, 16);
+    g.translate(0, tool.length / 2 + tool.radius, 0); // tip at the origin, along +y
+    state.tool = new THREE.Mesh(g, new THREE.MeshPhongMaterial({ color: 0xb0b8c8, shininess: 80 }));
+    state.toolKey = key;
+    scene.add(state.tool);
+  }
+  const axis = new THREE.Vector3(...tool.axis).normalize();
+  state.tool.position.set(...tool.tip);
+  state.tool.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), axis);
+  state.tool.visible = true;
+  if (!state.arrow) { state.arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0xffd166); scene.add(state.arrow); }
+  const f = force ? new THREE.Vector3(...force) : new THREE.Vector3();
+  const size = state.mesh ? new THREE.Vector3(...state.mesh.bbox[1]).sub(new THREE.Vector3(...state.mesh.bbox[0])).length() : 1;
+  state.arrow.visible = f.length() > 0;
+  if (state.arrow.visible) {
+    state.arrow.position.set(...tool.tip);
+    state.arrow.setDirection(f.clone().normalize());
+    state.arrow.setLength(0.1 * size * f.length(), 0.02 * size, 0.01 * size);
+  }
 }
 
 $('pause').onclick = () => send({ type: state.status && state.status.paused ? 'resume' : 'pause' });

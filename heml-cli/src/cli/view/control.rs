@@ -36,6 +36,7 @@
 //!     fn tool_force(&self, sys: &System) -> Option<Vec3> {
 //!         self.tool.map(|id| sys.tool_wrench(id).force)
 //!     }
+//!     fn tool_view(&self, sys: &System) -> Option<ToolView> { /* tip, axis, radius, length of the tool */ }
 //!     fn forget(&mut self) { *self = Runtime::default(); }
 //! }
 //! ```
@@ -49,7 +50,7 @@ use heml::system::control::Pose;
 use heml::system::System;
 use heml::Vec3;
 
-use super::protocol::Ray;
+use super::protocol::{Ray, ToolView};
 
 /// The reply to grasp, tool and cut commands in this build.
 pub const NOT_AVAILABLE: &str =
@@ -87,6 +88,10 @@ pub trait Controls: Send {
     fn cut(&mut self, sys: &mut System, blade: [Vec3; 3]) -> Result<bool, String>;
     /// The force the tissue applies to the tool (N), when there is a tool.
     fn tool_force(&self, sys: &System) -> Option<Vec3>;
+    /// The tool's placement and size for drawing, when there is a tool.
+    fn tool_view(&self, _sys: &System) -> Option<ToolView> {
+        None
+    }
     /// Forgets grasp and tool ids after the system was rebuilt (reset, new parameter).
     fn forget(&mut self) {}
 }
@@ -223,6 +228,11 @@ impl Adapter {
     /// The tool force for the status (N).
     pub fn tool_force(&self, sys: &System) -> Option<Vec3> {
         self.controls.tool_force(sys)
+    }
+
+    /// The tool for the status.
+    pub fn tool_view(&self, sys: &System) -> Option<ToolView> {
+        self.controls.tool_view(sys)
     }
 
     /// After a rebuild of the system: no grasp or tool survives.

@@ -279,6 +279,8 @@ pub struct Status {
     pub min_j: f64,
     /// Force on the tool (N), when a tool exists.
     pub tool_force: Option<[f64; 3]>,
+    /// Where the tool is, to draw it, when a tool exists.
+    pub tool: Option<ToolView>,
     /// The law of the first material and its parameters as the law holds them.
     pub law: String,
     /// The first material's law parameters (name, value), e.g. mu and lambda.
@@ -289,6 +291,19 @@ pub struct Status {
     pub field: Option<FieldKind>,
     /// Last error of the simulation (a blow-up), if it stopped on one.
     pub error: Option<String>,
+}
+
+/// A capsule tool as the page draws it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ToolView {
+    /// Tip (m).
+    pub tip: [f64; 3],
+    /// Unit axis, from the tip towards the handle.
+    pub axis: [f64; 3],
+    /// Radius (m).
+    pub radius: f64,
+    /// Shaft length (m).
+    pub length: f64,
 }
 
 /// The JSON `reply` to a command the simulation refused or could not carry out.
