@@ -133,6 +133,19 @@ impl PronyState {
         Ok(())
     }
 
+    /// Zeroes the history γ of `nodes` (any order, duplicates and nodes outside the
+    /// region allowed): a cut changed the tets around them, and the per-node history
+    /// cannot tell the removed tets' share from the others', so it restarts there.
+    pub(crate) fn reset_nodes(&mut self, nodes: &[usize]) {
+        for i in nodes {
+            if let Ok(j) = self.nodes.binary_search(i) {
+                for g in self.base.iter_mut().chain(self.cur.iter_mut()) {
+                    g[j] = Vec3::zeros();
+                }
+            }
+        }
+    }
+
     /// Copies this state into `dst` (reusing its allocations).
     pub(crate) fn save_into(&self, dst: &mut PronyState) {
         dst.terms.clone_from(&self.terms);
