@@ -398,3 +398,102 @@ fn bad_surface_loads_are_errors_and_change_nothing() {
     sys.cut(&blade()).unwrap();
     assert!(sys.surface_load(id).unwrap().n_faces() < faces);
 }
+
+/// A scene: a 4 × 1 × 1 cm bar clamped at x = 0 under gravity, cut through at
+/// x = 2.1 cm at t = 5 ms, with 100 Pa on its top face; `extra` is appended.
+fn scene(dir: &std::path::Path, extra: &str) -> heml::scene::Scene {
+    let text = format!(
+        r#"
+[mesh]
+generate = {{ kind = "box", size = [0.04, 0.01, 0.01], cells = [8, 2, 2] }}
+[[material]]
+law = "neo_hookean"
+params = {{ E = 5e4, nu = 0.4 }}
+[[fix]]
+plane = {{ point = [0, 0, 0], normal = [1, 0, 0] }}
+[loads]
+gravity = [0, 0, -9.81]
+[solver]
+integrator = "velocity_verlet"
+duration = 0.01
+[output]
+dir = "{}"
+every = 10000
+{extra}
+"#,
+        dir.display()
+    );
+    heml::scene::Scene::from_toml_str(&text, ".").unwrap()
+}
+
+const CUT: &str = r#"
+[[cut]]
+time = 0.005
+from = [[0.021, -0.01, -0.01], [0.021, -0.01, 0.02]]
+to = [[0.021, 0.02, -0.01], [0.021, 0.02, 0.02]]
+[[surface_load]]
+pressure = 100.0
+plane = { point = [0, 0, 0.01], normal = [0, 0, 1], max_angle = 10.0 }
+"#;
+
+#[test]
+fn a_scene_cuts_at_its_time_and_frames_show_the_cut_mesh() {
+    link();
+    let dir = std::env::temp_dir().join(format!("heml-cutting-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut sim = scene(&dir, CUT).build().unwrap();
+    let n = sim.system.mesh().n_tets();
+    // the pressure acts from the start on the 32 top triangles: 100 Pa × 4 cm²
+    assert_eq!(sim.system.surface_loads().iter().count(), 1);
+    let (_, top) = sim.system.surface_loads().iter().next().unwrap();
+    assert_eq!(top.n_faces(), 32);
+    assert!((top.rest_area() - 4e-4).abs() < 1e-18);
+    let summary = sim.run(|_| {}).unwrap();
+    assert_eq!(sim.surgery.reports.len(), 1);
+    assert_eq!(sim.surgery.reports[0].removed_tets.len(), 24);
+    assert_eq!(sim.system.n_tets_alive(), n - 24);
+    // frame 0 (t = 0) holds every tet, the last one (after the cut) the remaining ones
+    let cells = |k: usize| {
+        heml::io::read_mesh(&dir.join(format!("frame_{k:05}.vtu")))
+            .unwrap()
+            .0
+            .n_tets()
+    };
+    assert_eq!(cells(0), n);
+    assert_eq!(cells(summary.frames - 1), n - 24);
+    // the load lost the top faces of the removed layer (4 of 32)
+    let (_, top) = sim.system.surface_loads().iter().next().unwrap();
+    assert_eq!(top.n_faces(), 28);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_scene_cuts_and_loads_name_their_entry_and_key() {
+    link();
+    let dir = std::env::temp_dir().join(format!("heml-cutting-bad-{}", std::process::id()));
+    let build_err = |extra: &str| scene(&dir, extra).build().unwrap_err().to_string();
+    let e =
+        build_err("[[cut]]\ntime = 0.005\ntriangle = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\nfrom = [[0, 0, 0], [1, 0, 0]]");
+    assert!(e.contains("[[cut]] #1") && e.contains("`from` and `to`"), "{e}");
+    let e = build_err("[[cut]]\ntime = -1.0\ntriangle = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]");
+    assert!(e.contains("[[cut]] #1") && e.contains("time = -1"), "{e}");
+    let e = build_err("[[cut]]\ntime = 0.0\ntriangle = [[0, 0, 0], [1, 0, 0], [2, 0, 0]]");
+    assert!(e.contains("[[cut]] #1") && e.contains("no area"), "{e}");
+    let e = build_err("[[surface_load]]\npressure = 1.0\nbbox = { min = [1, 1, 1], max = [2, 2, 2] }");
+    assert!(
+        e.contains("[[surface_load]] #1") && e.contains("no boundary face"),
+        "{e}"
+    );
+    let e = build_err("[[surface_load]]\npressure = 1.0\ntraction = [0, 0, 1]\ntag = 0");
+    assert!(e.contains("[[surface_load]] #1") && e.contains("`pressure`"), "{e}");
+    // a blade that misses the body stops the run, naming the entry
+    let mut sim = scene(
+        &dir,
+        "[[cut]]\ntime = 0.002\ntriangle = [[1, 0, 0], [2, 0, 0], [1, 1, 0]]",
+    )
+    .build()
+    .unwrap();
+    let e = sim.run(|_| {}).unwrap_err().to_string();
+    assert!(e.contains("[[cut]] #1") && e.contains("meets no tet"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

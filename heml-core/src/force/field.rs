@@ -173,11 +173,13 @@ impl<K: Formulation> ElasticForces for TetField<K> {
             .collect())
     }
 
-    /// Masks the lanes of the removed tets (see [`Layout::remove`]): O(1) per tet
-    /// after the first call, which sorts the field's ids once; the batches, blocks
+    /// Masks the lanes of the removed tets (see [`Layout::remove`]): O(log n) per
+    /// tet after the first call (even with no tet), which sorts the field's ids once; the batches, blocks
     /// and merge lists stay, so the forces of the remaining tets are those of a
     /// field built on them, summed in another order (equal to round-off).
     fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
+        // (an empty list builds the id index, so that a later cut need not)
+        let _ = self.layout.position(0);
         let mut pos = Vec::with_capacity(tets.len());
         for &t in tets {
             match self.layout.position(t) {

@@ -6,6 +6,7 @@ use super::topology::Topology;
 use crate::error::{HemlError, Result};
 use crate::system::{Prescribed, Ramp, System};
 use crate::Vec3;
+use rayon::prelude::*;
 
 /// What a cut did.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -36,6 +37,11 @@ impl System {
             }
         }
         let topo = Topology::new(self.mesh.tets(), self.mesh.n_nodes(), region_of, &self.surface);
+        for r in &mut self.regions {
+            // builds the field's id index (a field that cannot remove tets says so
+            // when a cut reaches it)
+            let _ = r.field.remove_tets(&[]);
+        }
         self.cut.topo = Some(Box::new(topo));
     }
 
@@ -74,32 +80,37 @@ impl System {
     }
 
     /// Removes the tets crossed by `blade` at the current positions (see
-    /// [`System::remove_tets`]). The search tests each tet's bounding box against
-    /// the blade's (O(n) comparisons, cheap next to one force evaluation), then the
-    /// exact triangle–tet test on the few left. A blade meeting no tet is an error.
+    /// [`System::remove_tets`]). The search tests each tet's bounding box at the
+    /// current positions against the blade's, in parallel (O(n) comparisons, less
+    /// than a force evaluation: the positions change every step, so no spatial index
+    /// would stay valid), then the exact triangle–tet test on the few left. A blade
+    /// meeting no tet is an error.
     pub fn cut(&mut self, blade: &Blade) -> Result<CutReport> {
         self.check_between_steps("cut")?;
         blade.check()?;
         let tris = blade.triangles();
         let (lo, hi) = bounds(tris.iter().flatten());
-        let x = &self.x;
-        let hit: Vec<usize> = self
-            .mesh
-            .tets()
-            .iter()
-            .enumerate()
-            .filter(|&(t, tet)| {
-                if !self.tet_alive(t) {
+        self.prepare_cutting();
+        let alive: &[bool] = self.cut.topo.as_ref().map_or(&[], |t| &t.alive);
+        let (x, tets) = (&self.x, self.mesh.tets());
+        let hit: Vec<usize> = (0..tets.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .filter(|&t| {
+                if !alive.get(t).copied().unwrap_or(false) {
                     return false;
                 }
-                let p = tet.map(|i| x[i as usize]);
-                let (a, b) = bounds(&p);
-                if (0..3).any(|d| a[d] > hi[d] || b[d] < lo[d]) {
-                    return false;
+                let p = tets[t].map(|i| x[i as usize]);
+                for d in 0..3 {
+                    let (a, b) = p.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), q| {
+                        (a.min(q[d]), b.max(q[d]))
+                    });
+                    if a > hi[d] || b < lo[d] {
+                        return false;
+                    }
                 }
                 tris.iter().any(|tri| triangle_meets_tet(tri, &p))
             })
-            .map(|(t, _)| t)
             .collect();
         if hit.is_empty() {
             return Err(HemlError::Invalid(

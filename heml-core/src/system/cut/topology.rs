@@ -5,7 +5,7 @@
 //! O(removed tets) here.
 
 use crate::mesh::surface::{BoundarySurface, OUTWARD_FACES};
-use std::collections::HashMap;
+use rayon::slice::ParallelSliceMut;
 
 /// No neighbour (a boundary face of the mesh).
 pub(crate) const NONE: u32 = u32::MAX;
@@ -30,8 +30,8 @@ pub(crate) struct Topology {
     pub(crate) region_of: Vec<u32>,
     /// Alive tets per node.
     pub(crate) tet_count: Vec<u32>,
-    /// Boundary face `4 t + k` → its index in the surface.
-    slot: HashMap<u64, u32>,
+    /// Boundary face `4 t + k` → its index in the surface, or [`NONE`].
+    slot: Vec<u32>,
     /// Surface triangles per node.
     surf_count: Vec<u32>,
 }
@@ -52,7 +52,7 @@ impl Topology {
                 faces.push((key, t as u32, k as u8));
             }
         }
-        faces.sort_unstable();
+        faces.par_sort_unstable();
         let mut neighbors = vec![[NONE; 4]; tets.len()];
         for w in faces.windows(2) {
             if w[0].0 == w[1].0 {
@@ -60,10 +60,10 @@ impl Topology {
                 neighbors[w[1].1 as usize][w[1].2 as usize] = w[0].1;
             }
         }
-        let mut slot = HashMap::with_capacity(surface.n_triangles());
+        let mut slot = vec![NONE; 4 * tets.len()];
         let mut surf_count = vec![0u32; n_nodes];
         for (i, (tri, &owner)) in surface.triangles().iter().zip(surface.owners()).enumerate() {
-            slot.insert(face_key(owner, local_face(&tets[owner as usize], tri)), i as u32);
+            slot[face_key(owner, local_face(&tets[owner as usize], tri))] = i as u32;
             for &n in tri {
                 surf_count[n as usize] += 1;
             }
@@ -87,13 +87,14 @@ impl Topology {
         let mut touched: Vec<u32> = Vec::new();
         for &t in removed {
             for k in 0..4 {
-                if let Some(i) = self.slot.remove(&face_key(t as u32, k)) {
+                let i = std::mem::replace(&mut self.slot[face_key(t as u32, k)], NONE);
+                if i != NONE {
                     let (tris, owners, _) = surface.parts_mut();
                     let gone = tris.swap_remove(i as usize);
                     owners.swap_remove(i as usize);
                     if let (Some(tri), Some(&owner)) = (tris.get(i as usize), owners.get(i as usize)) {
                         let moved = face_key(owner, local_face(&tets[owner as usize], tri));
-                        self.slot.insert(moved, i);
+                        self.slot[moved] = i;
                     }
                     for n in gone {
                         self.surf_count[n as usize] -= 1;
@@ -108,7 +109,7 @@ impl Topology {
                         .unwrap_or(0);
                     let tri = OUTWARD_FACES[ku].map(|a| tets[u as usize][a]);
                     let (tris, owners, _) = surface.parts_mut();
-                    self.slot.insert(face_key(u, ku), tris.len() as u32);
+                    self.slot[face_key(u, ku)] = tris.len() as u32;
                     tris.push(tri);
                     owners.push(u);
                     for n in tri {
@@ -159,8 +160,8 @@ impl Topology {
     }
 }
 
-fn face_key(t: u32, k: usize) -> u64 {
-    4 * u64::from(t) + k as u64
+fn face_key(t: u32, k: usize) -> usize {
+    4 * t as usize + k
 }
 
 /// The local vertex of `tet` that triangle `tri` (one of its faces) is opposite.
