@@ -52,6 +52,16 @@ pub trait ElasticForces: Send + Sync {
         ))
     }
 
+    /// The nodal forces of one tet (global id `t`, live or removed) at positions `x`,
+    /// corner by corner (a cut hands the removed tets' share of the viscous history
+    /// back with them). Fields that cannot tell say so (the default).
+    fn tet_forces(&self, t: usize, x: &[Vec3]) -> Result<[Vec3; 4]> {
+        let _ = (t, x);
+        Err(crate::error::HemlError::Invalid(
+            "this force field does not evaluate single tets".into(),
+        ))
+    }
+
     /// Energy and forces in one freshly allocated buffer.
     fn forces(&self, x: &[Vec3]) -> Result<(f64, Vec<Vec3>)> {
         let mut f = vec![Vec3::zeros(); self.n_nodes()];

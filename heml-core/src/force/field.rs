@@ -173,6 +173,18 @@ impl<K: Formulation> ElasticForces for TetField<K> {
             .collect())
     }
 
+    fn tet_forces(&self, t: usize, x: &[Vec3]) -> Result<[Vec3; 4]> {
+        check_sizes(self.n_nodes, x, None)?;
+        let k = self
+            .layout
+            .position(t)
+            .ok_or_else(|| HemlError::Invalid(format!("tet {t} is not in this force field")))?;
+        let (rest, lane, p) = self.tet_at(k, x);
+        let mut f = [Vec3::zeros(); 4];
+        self.kernel.tet(rest, lane, &p, |a, fa| f[a] += fa);
+        Ok(f)
+    }
+
     /// Masks the lanes of the removed tets (see [`Layout::remove`]): O(log n) per
     /// tet after the first call (even with no tet), which sorts the field's ids once; the batches, blocks
     /// and merge lists stay, so the forces of the remaining tets are those of a

@@ -133,14 +133,18 @@ impl PronyState {
         Ok(())
     }
 
-    /// Zeroes the history γ of `nodes` (any order, duplicates and nodes outside the
-    /// region allowed): a cut changed the tets around them, and the per-node history
-    /// cannot tell the removed tets' share from the others', so it restarts there.
-    pub(crate) fn reset_nodes(&mut self, nodes: &[usize]) {
-        for i in nodes {
+    /// Takes a removed tet's share out of the history: its nodal forces `f` (at the
+    /// current positions) on `nodes`, weighted by each term's α — the share γ_i
+    /// holds once the force has been steady for a few τ_i (the per-node history
+    /// cannot tell the tet's exact share, so faster loading leaves an error that
+    /// relaxes in τ_i). Each tet's forces sum to zero, so the history's sum over
+    /// the body is kept.
+    pub(crate) fn remove_share(&mut self, nodes: &[usize; 4], f: &[Vec3; 4]) {
+        for (i, fi) in nodes.iter().zip(f) {
             if let Ok(j) = self.nodes.binary_search(i) {
-                for g in self.base.iter_mut().chain(self.cur.iter_mut()) {
-                    g[j] = Vec3::zeros();
+                for (k, term) in self.terms.iter().enumerate() {
+                    self.base[k][j] -= fi * term.alpha;
+                    self.cur[k][j] -= fi * term.alpha;
                 }
             }
         }

@@ -124,8 +124,9 @@ impl System {
     /// force fields are masked, their lumped mass ρVol/4 leaves each corner, their
     /// faces leave the [boundary surface](System::surface) and the faces they shared
     /// with remaining tets join it, surface loads drop their faces, the Prony
-    /// history of the nodes they touched restarts (it is kept per node, and the
-    /// removed tets' share of it cannot be told apart), and nodes left with no tet
+    /// history at their nodes loses their share (estimated as α_i × their current
+    /// forces, exact once the forces have been steady for a few τ_i: the history is
+    /// kept per node), and nodes left with no tet
     /// are dropped from the dynamics: zero mass, held where they are (no 1/m, no
     /// drift, no reaction, no nodal force). The cached forces are invalidated; an
     /// implicit solver rebuilds its tangents at its next step (it notices the new
@@ -172,10 +173,23 @@ impl System {
             return Err(HemlError::Invalid("remove_tets: no cut topology".into()));
         };
         // the force fields first: the only step that can fail (it does not, as the
-        // regions' tets are those the topology was built from), before any change
+        // regions' tets are those the topology was built from), before any change;
+        // the viscous regions' removed tets' forces first of all, for their history
         let mut per_region: Vec<Vec<usize>> = vec![Vec::new(); self.regions.len()];
         for &t in &removed {
             per_region[topo.region_of[t] as usize].push(t);
+        }
+        let mut shares: Vec<(usize, [usize; 4], [Vec3; 4])> = Vec::new();
+        for (r, region) in self.regions.iter().enumerate().filter(|(_, r)| r.prony.is_some()) {
+            for &t in &per_region[r] {
+                match region.field.tet_forces(t, &self.x) {
+                    Ok(f) => shares.push((r, self.mesh.tets()[t].map(|i| i as usize), f)),
+                    Err(e) => {
+                        self.cut.topo = Some(topo);
+                        return Err(e);
+                    }
+                }
+            }
         }
         for (r, ids) in self.regions.iter_mut().zip(&per_region) {
             if !ids.is_empty() {
@@ -221,13 +235,9 @@ impl System {
             self.constrained_ids.retain(|i| orphaned.binary_search(i).is_err());
             self.nodal.retain(|(i, _)| orphaned.binary_search(i).is_err());
         }
-        for (r, ids) in self.regions.iter_mut().zip(&per_region) {
-            if let (Some(p), false) = (&mut r.prony, ids.is_empty()) {
-                let nodes: Vec<usize> = ids
-                    .iter()
-                    .flat_map(|&t| self.mesh.tets()[t].map(|i| i as usize))
-                    .collect();
-                p.reset_nodes(&nodes);
+        for (r, nodes, f) in &shares {
+            if let Some(p) = &mut self.regions[*r].prony {
+                p.remove_share(nodes, f);
             }
         }
         self.surface_loads.drop_tets(|t| topo.alive[t]);
