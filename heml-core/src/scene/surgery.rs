@@ -141,6 +141,11 @@ impl Scene {
             });
         }
         s.cuts.sort_by(|a, b| a.time.total_cmp(&b.time));
+        if !s.cuts.is_empty() {
+            // the one-time O(n log n) part of cutting, before the run rather than at
+            // its first cut
+            sys.prepare_cutting();
+        }
         let diag = {
             let (lo, hi) = sys.mesh().bounding_box();
             (hi - lo).norm()
