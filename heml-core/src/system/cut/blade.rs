@@ -59,7 +59,7 @@ impl Blade {
             }
         }
         let area: f64 = tris.iter().map(|[a, b, c]| 0.5 * (b - a).cross(&(c - a)).norm()).sum();
-        if !(area > 0.0) {
+        if area.is_nan() || area <= 0.0 {
             return Err(HemlError::Invalid(
                 "blade has no area (its points are collinear or equal): it would cut nothing".into(),
             ));
