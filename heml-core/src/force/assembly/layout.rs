@@ -378,6 +378,8 @@ impl Layout {
             // scratch: local positions and forces of every block, once allocated
             + nodes * 2 * std::mem::size_of::<Node4>()
             + blocks.len() * 8
+            // the removed-lane masks
+            + self.dead.len()
     }
 }
 

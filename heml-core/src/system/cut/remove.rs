@@ -73,7 +73,8 @@ impl System {
 
     /// The connected components of the remaining tets (tets sharing a face are
     /// connected): the component of each tet of the mesh (`usize::MAX` for removed
-    /// ones) and their number. O(n).
+    /// ones) and their number. O(n) (it builds the cut topology first if no cut
+    /// has, hence `&mut self`).
     pub fn tet_components(&mut self) -> (Vec<usize>, usize) {
         self.prepare_cutting();
         self.cut.topo.as_ref().map_or((Vec::new(), 0), |t| t.components())
