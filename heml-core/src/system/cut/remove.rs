@@ -180,6 +180,14 @@ impl System {
         for &t in &removed {
             per_region[topo.region_of[t] as usize].push(t);
         }
+        // every field concerned must support removal (an empty removal asks), so
+        // that no field is cut when a later one would refuse
+        for (r, ids) in self.regions.iter_mut().zip(&per_region) {
+            if let (false, Err(e)) = (ids.is_empty(), r.field.remove_tets(&[])) {
+                self.cut.topo = Some(topo);
+                return Err(e);
+            }
+        }
         let mut shares: Vec<(usize, [usize; 4], [Vec3; 4])> = Vec::new();
         for (r, region) in self.regions.iter().enumerate().filter(|(_, r)| r.prony.is_some()) {
             for &t in &per_region[r] {
