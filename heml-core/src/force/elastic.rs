@@ -41,6 +41,27 @@ pub trait ElasticForces: Send + Sync {
         None
     }
 
+    /// Removes the tets with global ids `tets` from the field (a cut): they no longer
+    /// contribute forces or energy, nor appear in [`Self::tet_ids`]. Returns how many
+    /// were live; an id the field does not cover is an error and removes nothing.
+    /// Fields that cannot remove tets say so (the default).
+    fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
+        let _ = tets;
+        Err(crate::error::HemlError::Invalid(
+            "this force field does not support removing tets".into(),
+        ))
+    }
+
+    /// The nodal forces of one tet (global id `t`, live or removed) at positions `x`,
+    /// corner by corner (a cut hands the removed tets' share of the viscous history
+    /// back with them). Fields that cannot tell say so (the default).
+    fn tet_forces(&self, t: usize, x: &[Vec3]) -> Result<[Vec3; 4]> {
+        let _ = (t, x);
+        Err(crate::error::HemlError::Invalid(
+            "this force field does not evaluate single tets".into(),
+        ))
+    }
+
     /// Energy and forces in one freshly allocated buffer.
     fn forces(&self, x: &[Vec3]) -> Result<(f64, Vec<Vec3>)> {
         let mut f = vec![Vec3::zeros(); self.n_nodes()];

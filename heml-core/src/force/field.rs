@@ -125,16 +125,18 @@ impl<K: Formulation> ElasticForces for TetField<K> {
         self.n_nodes
     }
     fn n_tets(&self) -> usize {
-        self.layout.n_tets()
+        self.layout.n_live()
     }
     fn tet_ids(&self) -> &[usize] {
-        &self.layout.ids
+        self.layout.live_ids()
     }
 
     fn energy(&self, x: &[Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes, x, None)?;
         if K::PLAIN_ENERGY || self.assembly == Assembly::Reference {
-            Ok((0..self.layout.n_tets())
+            Ok(self
+                .layout
+                .live_positions()
                 .map(|k| {
                     let (rest, lane, p) = self.tet_at(k, x);
                     self.kernel.tet_energy(rest, lane, &p)
@@ -161,12 +163,48 @@ impl<K: Formulation> ElasticForces for TetField<K> {
 
     fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>> {
         check_sizes(self.n_nodes, x, None)?;
-        Ok((0..self.layout.n_tets())
+        Ok(self
+            .layout
+            .live_positions()
             .map(|k| {
                 let (rest, lane, p) = self.tet_at(k, x);
                 self.kernel.tet_state(rest, lane, k, &p)
             })
             .collect())
+    }
+
+    fn tet_forces(&self, t: usize, x: &[Vec3]) -> Result<[Vec3; 4]> {
+        check_sizes(self.n_nodes, x, None)?;
+        let k = self
+            .layout
+            .position(t)
+            .ok_or_else(|| HemlError::Invalid(format!("tet {t} is not in this force field")))?;
+        let (rest, lane, p) = self.tet_at(k, x);
+        let mut f = [Vec3::zeros(); 4];
+        self.kernel.tet(rest, lane, &p, |a, fa| f[a] += fa);
+        Ok(f)
+    }
+
+    /// Masks the lanes of the removed tets (see [`Layout::remove`]): O(log n) per
+    /// tet after the first call (even with no tet), which sorts the field's ids once; the batches, blocks
+    /// and merge lists stay, so the forces of the remaining tets are those of a
+    /// field built on them, summed in another order (equal to round-off).
+    fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
+        // (an empty list builds the id index, so that a later cut need not)
+        let _ = self.layout.position(0);
+        let mut pos = Vec::with_capacity(tets.len());
+        for &t in tets {
+            match self.layout.position(t) {
+                Some(k) => pos.push(k),
+                None => {
+                    return Err(HemlError::Invalid(format!(
+                        "tet {t} is not in this force field (it covers {} tets)",
+                        self.layout.n_live()
+                    )))
+                }
+            }
+        }
+        Ok(pos.into_iter().filter(|&k| self.layout.remove(k)).count())
     }
 }
 

@@ -140,6 +140,15 @@ impl BoundarySurface {
     }
 }
 
+impl BoundarySurface {
+    /// Triangles, owners and nodes, for a cut to update in place
+    /// (`system::cut`): the caller keeps them parallel, the nodes sorted and
+    /// distinct, and the triangles outward.
+    pub(crate) fn parts_mut(&mut self) -> (&mut Vec<[u32; 3]>, &mut Vec<u32>, &mut Vec<u32>) {
+        (&mut self.triangles, &mut self.owners, &mut self.nodes)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

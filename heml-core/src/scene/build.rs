@@ -68,6 +68,9 @@ pub struct Simulation {
     /// file ids. `None` when the system keeps the file order (`renumber = false`,
     /// or a mesh already in Morton order).
     pub node_order: Option<Permutation>,
+    /// The `[[cut]]` events and ramped `[[surface_load]]`s, applied by the runner
+    /// before each step; its `reports` say what each cut did.
+    pub surgery: super::Surgery,
 }
 
 impl std::fmt::Debug for Simulation {
@@ -332,9 +335,11 @@ impl Scene {
             ));
         }
         b = b.rayleigh(d.mass, d.stiffness);
-        let system = b
+        let mut system = b
             .build()
             .map_err(|e| HemlError::Invalid(format!("{}: {e}", self.origin.display())))?;
+        // [[cut]] and [[surface_load]] (surgery.rs)
+        let (surgery, surgery_warnings) = self.surgery(&mut system, s.duration)?;
 
         // time step and cadence
         let stable = system.stable_dt();
@@ -373,7 +378,7 @@ impl Scene {
         }
         let steps = steps as u64;
         let dt = s.duration / steps as f64;
-        let mut warnings = Vec::new();
+        let mut warnings = surgery_warnings;
         if dt > stable && dt_policy != TimeStepPolicy::Adapt && !implicit {
             let msg = format!(
                 "{solver_what}: dt = {dt:e} s exceeds the stable estimate {stable:e} s; \
@@ -444,6 +449,7 @@ impl Scene {
             plan,
             warnings,
             node_order,
+            surgery,
         })
     }
 }

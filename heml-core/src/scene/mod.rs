@@ -47,6 +47,7 @@ mod plan;
 mod runner;
 mod schema;
 mod select;
+mod surgery;
 
 pub use build::Simulation;
 pub use output::CSV_HEADER;
@@ -60,6 +61,7 @@ pub use schema::{
     NodalLoadSpec, OutputSpec, PlaneSpec, PrescribeSpec, SolverSpec, Units,
 };
 pub use select::Selection;
+pub use surgery::{CutSpec, FacePlaneSpec, SurfaceLoadSpec, Surgery};
 
 use std::path::{Path, PathBuf};
 
@@ -92,6 +94,12 @@ pub struct Scene {
     /// `[output]`.
     #[serde(default)]
     pub output: OutputSpec,
+    /// `[[cut]]` entries: blades applied when the run reaches their time.
+    #[serde(default)]
+    pub cut: Vec<CutSpec>,
+    /// `[[surface_load]]` entries: pressure or traction on boundary faces.
+    #[serde(default)]
+    pub surface_load: Vec<SurfaceLoadSpec>,
     /// Directory that relative input paths (`[mesh] file`) are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,

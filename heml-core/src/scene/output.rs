@@ -146,14 +146,16 @@ impl Output {
             Some((p, tets)) => (Some(p), tets.as_slice()),
             None => (None, sys.mesh().tets()),
         };
+        // after a cut: only the remaining tets (and their cell fields)
+        let (tets, tags, j, w) = cut_cells(sys, tets, j, w);
         let displacement = sys.displacements();
         let points = in_file_order(order, sys.positions());
         let displacement = in_file_order(order, &displacement);
         let velocity = in_file_order(order, sys.velocities());
         let (force, reaction) = (in_file_order(order, &force), in_file_order(order, &reaction));
         let path = self.dir.join(format!("frame_{:05}.vtu", self.frames));
-        let frame = VtuFrame::new(&points, tets)
-            .tags(sys.mesh().tags())
+        let frame = VtuFrame::new(&points, &tets)
+            .tags(&tags)
             .point_vectors("displacement", &displacement)
             .point_vectors("velocity", &velocity)
             .point_vectors("force", &force)
@@ -225,6 +227,28 @@ impl Output {
 
 /// A point array of the system brought back to the mesh file's node order (as it is
 /// when the nodes were not renumbered).
+/// The cells a frame shows: every tet, or after a cut only the remaining ones, with
+/// their tags and cell values `j`, `w` (per mesh tet).
+#[allow(clippy::type_complexity)]
+fn cut_cells<'a>(
+    sys: &'a System,
+    tets: &'a [[u32; 4]],
+    j: Vec<f64>,
+    w: Vec<f64>,
+) -> (Cow<'a, [[u32; 4]]>, Cow<'a, [i32]>, Vec<f64>, Vec<f64>) {
+    if sys.n_tets_alive() == tets.len() {
+        return (Cow::Borrowed(tets), Cow::Borrowed(sys.mesh().tags()), j, w);
+    }
+    let kept = sys.alive_tets();
+    let tags = sys.mesh().tags();
+    (
+        Cow::Owned(kept.iter().map(|&t| tets[t]).collect()),
+        Cow::Owned(kept.iter().map(|&t| tags[t]).collect()),
+        kept.iter().map(|&t| j[t]).collect(),
+        kept.iter().map(|&t| w[t]).collect(),
+    )
+}
+
 fn in_file_order<'a>(order: Option<&Permutation>, a: &'a [Vec3]) -> Cow<'a, [Vec3]> {
     match order {
         Some(p) => Cow::Owned(p.unapply(a)),

@@ -118,6 +118,10 @@ impl Simulation {
             self.node_order.as_ref(),
         )?;
         let sys = &mut self.system;
+        let event_tol = 1e-9 * self.dt;
+        if let Err(e) = self.surgery.before_step(sys, event_tol) {
+            return Err(fail(&mut out, sys, e));
+        }
         if let Err(e) = sys.compute_forces() {
             return Err(fail(&mut out, sys, e));
         }
@@ -178,6 +182,9 @@ impl Simulation {
                     (step, dt, reason)
                 }
             };
+            if let Err(e) = self.surgery.before_step(sys, event_tol) {
+                return Err(fail(&mut out, sys, e));
+            }
             let stats = match self.integrator.step(sys, dt) {
                 Ok(stats) => stats,
                 Err(e) => return Err(fail(&mut out, sys, e)),

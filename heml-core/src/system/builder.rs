@@ -516,6 +516,8 @@ impl SystemBuilder {
             elastic: vec![Vec3::zeros(); n],
             input_ids: self.input_ids,
             surface: BoundarySurface::of_mesh(mesh.tets()),
+            cut: Default::default(),
+            surface_loads: Default::default(),
             mesh,
         };
         sys.apply_constraints(0.0);

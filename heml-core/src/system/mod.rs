@@ -68,12 +68,14 @@ mod builder;
 mod clock;
 mod constraints;
 pub mod control;
+pub mod cut;
 mod energy;
 pub mod implicit;
 mod integrator;
 mod prony;
 mod stability;
 pub mod statics;
+pub mod surface_load;
 
 #[cfg(test)]
 mod tests;
@@ -209,6 +211,11 @@ pub struct System {
     force_options: ForceOptions,
     /// The outward boundary triangles of the tets in the dynamics.
     surface: BoundarySurface,
+    // ----- cutting and surface loads (`cut/`, `surface_load.rs`) -----
+    /// Which tets cuts removed, and the topology that keeps cuts local.
+    cut: cut::CutState,
+    /// Pressure and traction on boundary faces.
+    surface_loads: surface_load::SurfaceLoads,
 }
 
 impl System {
@@ -507,6 +514,7 @@ impl System {
         for &(i, fi) in &self.nodal {
             self.force[i] += fi;
         }
+        self.surface_loads.add_forces(&self.x, &mut self.force);
         if self.damping.alpha > 0.0 {
             for ((f, m), v) in self.force.iter_mut().zip(&self.mass).zip(&self.v) {
                 *f -= v * (self.damping.alpha * m);
@@ -703,7 +711,8 @@ impl System {
             .nodal
             .iter()
             .map(|(i, f)| f.dot(&(self.x[*i] - rest[*i])))
-            .sum::<f64>();
+            .sum::<f64>()
+            + self.surface_loads.energy(&self.x, rest);
         Ok(Energies::new(kinetic, self.elastic_energy()?, gravity, loads))
     }
 

@@ -133,6 +133,23 @@ impl PronyState {
         Ok(())
     }
 
+    /// Takes a removed tet's share out of the history: its nodal forces `f` (at the
+    /// current positions) on `nodes`, weighted by each term's α — the share γ_i
+    /// holds once the force has been steady for a few τ_i (the per-node history
+    /// cannot tell the tet's exact share, so faster loading leaves an error that
+    /// relaxes in τ_i). Each tet's forces sum to zero, so the history's sum over
+    /// the body is kept.
+    pub(crate) fn remove_share(&mut self, nodes: &[usize; 4], f: &[Vec3; 4]) {
+        for (i, fi) in nodes.iter().zip(f) {
+            if let Ok(j) = self.nodes.binary_search(i) {
+                for (k, term) in self.terms.iter().enumerate() {
+                    self.base[k][j] -= fi * term.alpha;
+                    self.cur[k][j] -= fi * term.alpha;
+                }
+            }
+        }
+    }
+
     /// Copies this state into `dst` (reusing its allocations).
     pub(crate) fn save_into(&self, dst: &mut PronyState) {
         dst.terms.clone_from(&self.terms);

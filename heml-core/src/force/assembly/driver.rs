@@ -64,7 +64,7 @@ impl Layout {
     pub(crate) fn add_plain<K: PlainKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes, x, Some(f))?;
         let mut energy = 0.0;
-        for t in 0..self.n_tets() {
+        for t in self.live_positions() {
             let idx = self.global_tet(t);
             let p = idx.map(|i| x[i as usize]);
             energy += k.tet(t, &p, |a, fa| f[idx[a] as usize] += fa);
@@ -96,7 +96,8 @@ impl Layout {
                 *xi = Node4::from_vec(&x[g as usize]);
             }
             bufs.f_mut().fill(Node4::default());
-            *e = run_block(isa, k, blk.batch_start, n_tets, bufs);
+            let dead = &self.dead[blk.batch_start..blk.batch_end];
+            *e = run_block(isa, k, blk.batch_start, n_tets, dead, bufs);
         };
         if parallel {
             tasks.into_par_iter().with_max_len(1).for_each(one);
@@ -123,7 +124,7 @@ impl Layout {
 }
 
 /// Runs the batches of one block with the driver compiled for `isa`.
-fn run_block<K: BatchKernel>(isa: Isa, k: &K, batch0: usize, n_tets: usize, blk: BlockBuffers) -> f64 {
+fn run_block<K: BatchKernel>(isa: Isa, k: &K, batch0: usize, n_tets: usize, dead: &[u8], blk: BlockBuffers) -> f64 {
     // separate references, so that the driver knows the buffers do not alias
     let (tets, x, f) = blk.into_parts();
     match isa {
@@ -131,13 +132,13 @@ fn run_block<K: BatchKernel>(isa: Isa, k: &K, batch0: usize, n_tets: usize, blk:
         // SAFETY: the token proves the CPU has avx512f, avx512dq, avx512vl, avx2 and
         // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
         // of one `BlockBuffers`, so every index is below both buffers' length.
-        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, tets, x, f) },
+        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, dead, tets, x, f) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the token proves the CPU has avx2 and fma, the features
         // `block_avx2` enables; the indices as above.
-        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, tets, x, f) },
+        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, dead, tets, x, f) },
         // SAFETY: the indices as above (and the portable I/O checks them anyway).
-        _ => unsafe { block_body(Portable, k, batch0, n_tets, tets, x, f) },
+        _ => unsafe { block_body(Portable, k, batch0, n_tets, dead, tets, x, f) },
     }
 }
 
@@ -150,17 +151,19 @@ macro_rules! block_with_features {
     ($name:ident, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
+        #[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
         unsafe fn $name<K: BatchKernel>(
             io: Avx2,
             k: &K,
             batch0: usize,
             n_tets: usize,
+            dead: &[u8],
             tets: &[LocalBatch],
             x: &[Node4],
             f: &mut [Node4],
         ) -> f64 {
             // SAFETY: the caller's preconditions.
-            unsafe { block_body(io, k, batch0, n_tets, tets, x, f) }
+            unsafe { block_body(io, k, batch0, n_tets, dead, tets, x, f) }
         }
     };
 }
@@ -168,17 +171,20 @@ block_with_features!(block_avx512, "avx512f,avx512dq,avx512vl,avx2,fma");
 block_with_features!(block_avx2, "avx2,fma");
 
 /// The batches of one block: gather, kernel, scatter (all lanes at once for full
-/// batches, lane by lane for the padded last one).
+/// batches, lane by lane for the padded last one and for batches with removed tets,
+/// whose lanes `dead` masks, one byte per batch of the block).
 ///
 /// # Safety
 /// Every index of `tets` is below `x.len()` and `f.len()` (the parts of one
 /// [`BlockBuffers`]), as `IO` requires.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
 unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
     io: IO,
     k: &K,
     batch0: usize,
     n_tets: usize,
+    dead: &[u8],
     tets: &[LocalBatch],
     x: &[Node4],
     f: &mut [Node4],
@@ -193,14 +199,15 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
         unsafe { io.gather(idx, x, &mut p) };
         k.batch(b, &p, &mut fl, &mut el);
         let count = (n_tets - b * LANES).min(LANES);
-        if count == LANES {
+        let mask = dead[bo];
+        if count == LANES && mask == 0 {
             // SAFETY: as for the gather, below `f.len()`
             unsafe { io.scatter(idx, &fl, f) };
             for l in 0..LANES {
                 energy += el[l];
             }
         } else {
-            for l in 0..count {
+            for l in (0..count).filter(|l| mask & (1 << l) == 0) {
                 energy += el[l];
                 scatter_lane(idx, &fl, f, l);
             }

@@ -11,7 +11,7 @@ use super::driver::Scratch;
 use super::lane_io::Node4;
 use crate::mesh::reorder::morton_tet_order;
 use crate::mesh::TetMesh;
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
 /// Tets per batch (SIMD lanes of the batch kernels).
 pub const LANES: usize = 4;
@@ -154,6 +154,15 @@ pub(crate) struct Layout {
     /// Local nodes of all blocks (scratch slots).
     pub(super) n_slots: usize,
     pub(super) scratch: Mutex<Scratch>,
+    /// Removed tets (see [`Layout::remove`]): bit `l` of `dead[b]` marks lane `l` of
+    /// batch `b`; one byte per batch.
+    pub(super) dead: Vec<u8>,
+    n_dead: usize,
+    /// The global ids of the live tets in field order, made on first use after a
+    /// removal (`ids` itself when nothing was removed).
+    live_ids: OnceLock<Vec<usize>>,
+    /// (global id, field position) sorted by id, made on the first removal.
+    position_of: OnceLock<Vec<(usize, u32)>>,
 }
 
 impl Clone for Layout {
@@ -167,6 +176,10 @@ impl Clone for Layout {
             merge: self.merge.clone(),
             n_slots: self.n_slots,
             scratch: Mutex::new(Scratch::default()),
+            dead: self.dead.clone(),
+            n_dead: self.n_dead,
+            live_ids: self.live_ids.clone(),
+            position_of: self.position_of.clone(),
         }
     }
 }
@@ -262,7 +275,65 @@ impl Layout {
             merge,
             n_slots,
             scratch: Mutex::new(Scratch::default()),
+            dead: vec![0; n_batches],
+            n_dead: 0,
+            live_ids: OnceLock::new(),
+            position_of: OnceLock::new(),
         }
+    }
+
+    /// Whether field position `k` holds a live (not removed) tet.
+    #[inline]
+    pub(crate) fn is_live(&self, k: usize) -> bool {
+        self.dead[k / LANES] & (1 << (k % LANES)) == 0
+    }
+
+    /// Number of live tets.
+    pub(crate) fn n_live(&self) -> usize {
+        self.n_tets - self.n_dead
+    }
+
+    /// The field positions of the live tets, in field order.
+    pub(crate) fn live_positions(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.n_tets).filter(|&k| self.is_live(k))
+    }
+
+    /// The global ids of the live tets, in field order.
+    pub(crate) fn live_ids(&self) -> &[usize] {
+        if self.n_dead == 0 {
+            return &self.ids;
+        }
+        self.live_ids
+            .get_or_init(|| self.live_positions().map(|k| self.ids[k]).collect())
+    }
+
+    /// The field position of global tet `t`, if this layout holds it (live or not).
+    /// The first call sorts the ids once (O(n log n)); later calls are binary
+    /// searches.
+    pub(crate) fn position(&self, t: usize) -> Option<usize> {
+        let map = self.position_of.get_or_init(|| {
+            let mut m: Vec<(usize, u32)> = self.ids.iter().enumerate().map(|(k, &g)| (g, k as u32)).collect();
+            m.sort_unstable();
+            m
+        });
+        map.binary_search_by_key(&t, |&(g, _)| g)
+            .ok()
+            .map(|i| map[i].1 as usize)
+    }
+
+    /// Removes the tet at field position `k` by masking its lane: the block driver
+    /// and the plain path skip it from now on (its lane is still computed with the
+    /// rest of its batch and its result dropped, so the SIMD batches, the blocks'
+    /// node lists and the merge lists stay as they are). O(1), plus the reset of the
+    /// cached live-id list. Returns `false` when it was removed already.
+    pub(crate) fn remove(&mut self, k: usize) -> bool {
+        if !self.is_live(k) {
+            return false;
+        }
+        self.dead[k / LANES] |= 1 << (k % LANES);
+        self.n_dead += 1;
+        self.live_ids = OnceLock::new();
+        true
     }
 
     /// Number of tets.
@@ -307,6 +378,8 @@ impl Layout {
             // scratch: local positions and forces of every block, once allocated
             + nodes * 2 * std::mem::size_of::<Node4>()
             + blocks.len() * 8
+            // the removed-lane masks
+            + self.dead.len()
     }
 }
 

@@ -1,0 +1,290 @@
+//! [`System::remove_tets`] and [`System::cut`]: the tet set shrinks between steps,
+//! and everything built on it follows, locally.
+
+use super::blade::{bounds, triangle_meets_tet, Blade};
+use super::topology::Topology;
+use crate::error::{HemlError, Result};
+use crate::system::{Prescribed, Ramp, System};
+use crate::Vec3;
+use rayon::prelude::*;
+
+/// What a cut did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CutReport {
+    /// The tets removed (global ids, ascending).
+    pub removed_tets: Vec<usize>,
+    /// The mass they carried, Σ ρ Vol (kg): the system's total mass fell by this.
+    pub removed_mass: f64,
+    /// Nodes left with no tet, ascending: dropped from the dynamics (zero mass, held
+    /// where they are, no reaction).
+    pub orphaned_nodes: Vec<usize>,
+    /// Tets left in the system.
+    pub remaining_tets: usize,
+}
+
+impl System {
+    /// Builds what cuts need (tet neighbours, regions per tet, the surface's face
+    /// index): O(n log n) once. The first cut calls it; a simulator that must not
+    /// stall on its first cut calls it up front.
+    pub fn prepare_cutting(&mut self) {
+        if self.cut.topo.is_some() {
+            return;
+        }
+        let mut region_of = vec![0u32; self.mesh.n_tets()];
+        for (r, region) in self.regions.iter().enumerate() {
+            for &t in region.field.tet_ids() {
+                region_of[t] = r as u32;
+            }
+        }
+        let topo = Topology::new(self.mesh.tets(), self.mesh.n_nodes(), region_of, &self.surface);
+        for r in &mut self.regions {
+            // builds the field's id index (a field that cannot remove tets says so
+            // when a cut reaches it)
+            let _ = r.field.remove_tets(&[]);
+        }
+        self.cut.topo = Some(Box::new(topo));
+    }
+
+    /// Whether tet `t` is still in the system (not removed by a cut).
+    pub fn tet_alive(&self, t: usize) -> bool {
+        match &self.cut.topo {
+            Some(topo) => topo.alive.get(t).copied().unwrap_or(false),
+            None => t < self.mesh.n_tets(),
+        }
+    }
+
+    /// Number of tets still in the system.
+    pub fn n_tets_alive(&self) -> usize {
+        self.cut.topo.as_ref().map_or(self.mesh.n_tets(), |t| t.n_alive)
+    }
+
+    /// The ids of the tets still in the system, ascending (all of the mesh's until a
+    /// cut).
+    pub fn alive_tets(&self) -> Vec<usize> {
+        (0..self.mesh.n_tets()).filter(|&t| self.tet_alive(t)).collect()
+    }
+
+    /// How many cuts changed the tet set: caches built on it (an
+    /// [`AdaptiveStep`](crate::system::AdaptiveStep)'s geometry, a viewer's mesh)
+    /// compare it to know when to refresh.
+    pub fn topology_version(&self) -> u64 {
+        self.cut.version
+    }
+
+    /// The connected components of the remaining tets (tets sharing a face are
+    /// connected): the component of each tet of the mesh (`usize::MAX` for removed
+    /// ones) and their number. O(n) (it builds the cut topology first if no cut
+    /// has, hence `&mut self`).
+    pub fn tet_components(&mut self) -> (Vec<usize>, usize) {
+        self.prepare_cutting();
+        self.cut.topo.as_ref().map_or((Vec::new(), 0), |t| t.components())
+    }
+
+    /// Removes the tets crossed by `blade` at the current positions (see
+    /// [`System::remove_tets`]). The search tests each tet's bounding box at the
+    /// current positions against the blade's, in parallel (O(n) comparisons, less
+    /// than a force evaluation: the positions change every step, so no spatial index
+    /// would stay valid), then the exact triangle–tet test on the few left. A blade
+    /// meeting no tet is an error.
+    pub fn cut(&mut self, blade: &Blade) -> Result<CutReport> {
+        self.check_between_steps("cut")?;
+        blade.check()?;
+        let tris = blade.triangles();
+        let (lo, hi) = bounds(tris.iter().flatten());
+        self.prepare_cutting();
+        let alive: &[bool] = self.cut.topo.as_ref().map_or(&[], |t| &t.alive);
+        let (x, tets) = (&self.x, self.mesh.tets());
+        let hit: Vec<usize> = (0..tets.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .filter(|&t| {
+                if !alive.get(t).copied().unwrap_or(false) {
+                    return false;
+                }
+                let p = tets[t].map(|i| x[i as usize]);
+                for d in 0..3 {
+                    let (a, b) = p.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), q| {
+                        (a.min(q[d]), b.max(q[d]))
+                    });
+                    if a > hi[d] || b < lo[d] {
+                        return false;
+                    }
+                }
+                tris.iter().any(|tri| triangle_meets_tet(tri, &p))
+            })
+            .collect();
+        if hit.is_empty() {
+            return Err(HemlError::Invalid(
+                "the blade meets no tet of the body: nothing to cut".into(),
+            ));
+        }
+        self.remove_tets(&hit)
+    }
+
+    /// Removes tets (global ids) between steps, as a cut does: their lanes in the
+    /// force fields are masked, their lumped mass ρVol/4 leaves each corner, their
+    /// faces leave the [boundary surface](System::surface) and the faces they shared
+    /// with remaining tets join it, surface loads drop their faces, the Prony
+    /// history at their nodes loses their share (estimated as α_i × their current
+    /// forces, exact once the forces have been steady for a few τ_i: the history is
+    /// kept per node), and nodes left with no tet
+    /// are dropped from the dynamics: zero mass, held where they are (no 1/m, no
+    /// drift, no reaction, no nodal force). The cached forces are invalidated; an
+    /// implicit solver rebuilds its tangents at its next step (it notices the new
+    /// tet set), an [`AdaptiveStep`](crate::system::AdaptiveStep) should be renewed
+    /// (see [`System::topology_version`]). The stable step estimate is kept: removing
+    /// tets cannot lower it (each remaining tet keeps its mass share and stiffness,
+    /// and the largest frequency is bounded by the tets' own).
+    ///
+    /// Cost: O(removed tets × their neighbours) after the first cut, which also
+    /// builds the topology ([`System::prepare_cutting`], O(n log n)).
+    ///
+    /// Errors, with the system unchanged: inside a step, an empty list, an id out of
+    /// range or already removed, or a list that would remove every remaining tet.
+    /// Duplicates are removed once.
+    pub fn remove_tets(&mut self, tets: &[usize]) -> Result<CutReport> {
+        self.check_between_steps("remove_tets")?;
+        if tets.is_empty() {
+            return Err(HemlError::Invalid("remove_tets: the list of tets is empty".into()));
+        }
+        let n = self.mesh.n_tets();
+        if let Some(&bad) = tets.iter().find(|&&t| t >= n) {
+            return Err(HemlError::Invalid(format!(
+                "remove_tets: tet id {bad} is out of range (the mesh has {n} tets, ids 0..{})",
+                n.saturating_sub(1)
+            )));
+        }
+        if let Some(&gone) = tets.iter().find(|&&t| !self.tet_alive(t)) {
+            return Err(HemlError::Invalid(format!(
+                "remove_tets: tet {gone} was removed by an earlier cut"
+            )));
+        }
+        let mut removed = tets.to_vec();
+        removed.sort_unstable();
+        removed.dedup();
+        if removed.len() >= self.n_tets_alive() {
+            return Err(HemlError::Invalid(format!(
+                "remove_tets: removing {} tet(s) would leave no tet (the body has {} left)",
+                removed.len(),
+                self.n_tets_alive()
+            )));
+        }
+        self.prepare_cutting();
+        let Some(mut topo) = self.cut.topo.take() else {
+            return Err(HemlError::Invalid("remove_tets: no cut topology".into()));
+        };
+        // the force fields first: the only step that can fail (it does not, as the
+        // regions' tets are those the topology was built from), before any change;
+        // the viscous regions' removed tets' forces first of all, for their history
+        let mut per_region: Vec<Vec<usize>> = vec![Vec::new(); self.regions.len()];
+        for &t in &removed {
+            per_region[topo.region_of[t] as usize].push(t);
+        }
+        // every field concerned must support removal (an empty removal asks), so
+        // that no field is cut when a later one would refuse
+        for (r, ids) in self.regions.iter_mut().zip(&per_region) {
+            if let (false, Err(e)) = (ids.is_empty(), r.field.remove_tets(&[])) {
+                self.cut.topo = Some(topo);
+                return Err(e);
+            }
+        }
+        let mut shares: Vec<(usize, [usize; 4], [Vec3; 4])> = Vec::new();
+        for (r, region) in self.regions.iter().enumerate().filter(|(_, r)| r.prony.is_some()) {
+            for &t in &per_region[r] {
+                match region.field.tet_forces(t, &self.x) {
+                    Ok(f) => shares.push((r, self.mesh.tets()[t].map(|i| i as usize), f)),
+                    Err(e) => {
+                        self.cut.topo = Some(topo);
+                        return Err(e);
+                    }
+                }
+            }
+        }
+        for (r, ids) in self.regions.iter_mut().zip(&per_region) {
+            if !ids.is_empty() {
+                if let Err(e) = r.field.remove_tets(ids) {
+                    self.cut.topo = Some(topo);
+                    return Err(e);
+                }
+            }
+        }
+        let mut removed_mass = 0.0;
+        let mut touched: Vec<usize> = Vec::with_capacity(4 * removed.len());
+        for &t in &removed {
+            topo.alive[t] = false;
+            let density = self.regions[topo.region_of[t] as usize].density;
+            let share = density * self.mesh.tet_volume(t) / 4.0;
+            removed_mass += 4.0 * share;
+            for &i in &self.mesh.tets()[t] {
+                let i = i as usize;
+                self.mass[i] -= share;
+                topo.tet_count[i] -= 1;
+                touched.push(i);
+            }
+        }
+        topo.n_alive -= removed.len();
+        touched.sort_unstable();
+        touched.dedup();
+        topo.update_surface(self.mesh.tets(), &removed, &mut self.surface);
+        let orphaned: Vec<usize> = touched.iter().copied().filter(|&i| topo.tet_count[i] == 0).collect();
+        for &i in &touched {
+            if topo.tet_count[i] == 0 {
+                self.mass[i] = 0.0;
+            }
+            self.inv_mass[i] = if self.constraints.is_constrained(i) || self.mass[i] == 0.0 {
+                0.0
+            } else {
+                1.0 / self.mass[i]
+            };
+        }
+        for &i in &orphaned {
+            self.drop_node(i);
+        }
+        if !orphaned.is_empty() {
+            self.constrained_ids.retain(|i| orphaned.binary_search(i).is_err());
+            self.nodal.retain(|(i, _)| orphaned.binary_search(i).is_err());
+        }
+        for (r, nodes, f) in &shares {
+            if let Some(p) = &mut self.regions[*r].prony {
+                p.remove_share(nodes, f);
+            }
+        }
+        self.surface_loads.drop_tets(|t| topo.alive[t]);
+        self.cut.topo = Some(topo);
+        self.cut.version += 1;
+        self.invalidate();
+        Ok(CutReport {
+            removed_tets: removed,
+            removed_mass,
+            orphaned_nodes: orphaned,
+            remaining_tets: self.n_tets_alive(),
+        })
+    }
+
+    /// Drops node `i`, which no tet holds any more, from the dynamics: held where it
+    /// is (a free node becomes prescribed at its current displacement), at rest,
+    /// with no reaction.
+    fn drop_node(&mut self, i: usize) {
+        self.v[i] = Vec3::zeros();
+        self.reaction[i] = Vec3::zeros();
+        self.force[i] = Vec3::zeros();
+        if !self.constraints.is_constrained(i) {
+            self.constraints.prescribed.push(Prescribed {
+                node: i,
+                displacement: self.x[i] - self.mesh.nodes()[i],
+                ramp: Ramp::Step,
+            });
+            self.constraints.mask[i] = true;
+        }
+    }
+
+    /// An error when called inside a step (runtime changes happen between steps).
+    pub(crate) fn check_between_steps(&self, what: &str) -> Result<()> {
+        if self.in_step.is_some() {
+            return Err(HemlError::Invalid(format!(
+                "{what} called inside a step (between begin_step and finish_step): change the system between steps"
+            )));
+        }
+        Ok(())
+    }
+}
