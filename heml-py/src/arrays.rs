@@ -32,7 +32,7 @@ impl Points<'_> {
             // a contiguous (n, 3) float64 buffer has the layout of [Vec3; n]
             // (`Vector3<f64>` is `#[repr(C)]` over `[f64; 3]`); bytemuck checks
             // size and alignment
-            Points::View(a) => bytemuck::cast_slice(a.as_slice().expect("checked contiguous")),
+            Points::View(a) => bytemuck::cast_slice(a.as_slice().expect("checked C-contiguous")),
             Points::Owned(v) => v,
         }
     }
@@ -78,8 +78,10 @@ pub fn points<'py>(obj: &Bound<'py, PyAny>, what: &str, rows: Option<usize>) -> 
         )));
     }
     check_shape(what, a.shape(), rows, 3)?;
+    // `as_slice` also accepts Fortran order, whose rows are not contiguous triples
+    let c_order = a.is_c_contiguous();
     let a = a.cast::<PyArray2<f64>>()?.readonly();
-    if a.as_slice().is_ok() {
+    if c_order {
         return Ok(Points::View(a));
     }
     let v = a.as_array();
