@@ -17,6 +17,33 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyAny;
 
+// `Vec3` (nalgebra's `Vector3<f64>`) is a `#[repr(C)]` `Matrix` over an
+// `ArrayStorage`, `#[repr(transparent)]` over `[[f64; 3]; 1]`: three f64 in a row,
+// no padding, every bit pattern valid. Checked here at compile time.
+const _: () = assert!(std::mem::size_of::<Vec3>() == 24 && std::mem::align_of::<Vec3>() == 8);
+
+/// A flat `[x0, y0, z0, x1, …]` buffer as vectors, without a copy.
+fn as_vec3s(flat: &[f64]) -> &[Vec3] {
+    assert!(flat.len().is_multiple_of(3));
+    // SAFETY: `Vec3` has the layout of `[f64; 3]` (asserted above): the pointer is
+    // aligned for f64, hence for `Vec3`, and covers `len / 3` whole vectors; the
+    // borrow of `flat` bounds the lifetime.
+    unsafe { std::slice::from_raw_parts(flat.as_ptr().cast::<Vec3>(), flat.len() / 3) }
+}
+
+/// [`as_vec3s`] for a buffer the library writes into.
+fn as_vec3s_mut(flat: &mut [f64]) -> &mut [Vec3] {
+    assert!(flat.len().is_multiple_of(3));
+    // SAFETY: as in `as_vec3s`; the exclusive borrow of `flat` passes to the result.
+    unsafe { std::slice::from_raw_parts_mut(flat.as_mut_ptr().cast::<Vec3>(), flat.len() / 3) }
+}
+
+/// Vectors as their flat coordinates, without a copy.
+fn as_f64s(v: &[Vec3]) -> &[f64] {
+    // SAFETY: `Vec3` has the layout of `[f64; 3]` (asserted above).
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<f64>(), 3 * v.len()) }
+}
+
 /// An (n, 3) float64 input, borrowed from NumPy (zero-copy) or copied.
 pub enum Points<'py> {
     /// A C-contiguous float64 array, read in place.
@@ -29,10 +56,7 @@ impl Points<'_> {
     /// The points as the library's vectors.
     pub fn as_slice(&self) -> &[Vec3] {
         match self {
-            // a contiguous (n, 3) float64 buffer has the layout of [Vec3; n]
-            // (`Vector3<f64>` is `#[repr(C)]` over `[f64; 3]`); bytemuck checks
-            // size and alignment
-            Points::View(a) => bytemuck::cast_slice(a.as_slice().expect("checked C-contiguous")),
+            Points::View(a) => as_vec3s(a.as_slice().expect("checked C-contiguous")),
             Points::Owned(v) => v,
         }
     }
@@ -172,7 +196,7 @@ pub fn vec3(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec3> {
 
 /// A fresh (n, 3) float64 array holding a copy of `v`.
 pub fn vec3s_to_py<'py>(py: Python<'py>, v: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    PyArray1::from_slice(py, bytemuck::cast_slice::<Vec3, f64>(v)).reshape([v.len(), 3])
+    PyArray1::from_slice(py, as_f64s(v)).reshape([v.len(), 3])
 }
 
 /// A fresh zeroed (n, 3) float64 array, and `fill` run on it as `&mut [Vec3]`: the
@@ -186,7 +210,7 @@ pub fn fill_vec3s<'py, T>(
     let t = {
         let mut rw = out.readwrite();
         let flat = rw.as_slice_mut().expect("a fresh C-order array is contiguous");
-        fill(bytemuck::cast_slice_mut(flat))
+        fill(as_vec3s_mut(flat))
     };
     (out, t)
 }

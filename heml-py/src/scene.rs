@@ -86,15 +86,25 @@ impl Scene {
     /// every `every` steps (and after the last step) with a dict: `step`, `steps`,
     /// `time`, `duration`, `frames`, `cg_iterations`; the GIL is taken only for
     /// that call. The run cannot be stopped midway: an exception raised by the
-    /// callback stops further calls and is raised when the run ends. Returns the
+    /// callback stops further calls and is raised when the run ends. `out_dir`
+    /// overrides the scene's `[output] dir` (as `heml run --out`). Returns the
     /// run's summary as a dict.
-    #[pyo3(signature = (progress = None, every = 1))]
-    fn run<'py>(&self, py: Python<'py>, progress: Option<Py<PyAny>>, every: u64) -> PyResult<Bound<'py, PyDict>> {
+    #[pyo3(signature = (progress = None, every = 1, out_dir = None))]
+    fn run<'py>(
+        &self,
+        py: Python<'py>,
+        progress: Option<Py<PyAny>>,
+        every: u64,
+        out_dir: Option<PathBuf>,
+    ) -> PyResult<Bound<'py, PyDict>> {
         let mut guard = self.sim.lock().unwrap_or_else(|e| e.into_inner());
         if guard.is_none() {
             *guard = Some(self.scene.build().py()?);
         }
         let sim = guard.as_mut().expect("built above");
+        if let Some(dir) = out_dir {
+            sim.out_dir = dir;
+        }
         let every = every.max(1);
         let mut callback_error: Option<PyErr> = None;
         let summary = py.detach(|| {

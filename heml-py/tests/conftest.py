@@ -1,5 +1,5 @@
-"""Shared fixtures of the Python tests: the `heml` command (for comparisons with the
-Rust run) and a small scene both sides run."""
+"""Shared fixtures of the Python tests: the Rust run of tests/data/stretch.toml that
+the bit-for-bit comparisons read, and the parameters of every built-in law."""
 
 import os
 import pathlib
@@ -8,7 +8,11 @@ import subprocess
 
 import pytest
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
+HERE = pathlib.Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+STRETCH_SCENE = HERE / "data" / "stretch.toml"
+STRETCH_STEPS = 128  # duration / dt of the scene
+STRETCH_DT = 6.103515625e-05
 
 # Parameters of every built-in law for the tests that loop over laws: soft-tissue
 # magnitudes, E/nu where the law maps them.
@@ -26,60 +30,27 @@ LAW_PARAMS = {
 }
 
 
-@pytest.fixture(scope="session")
-def heml_cli():
-    """Path of the `heml` command built from this repository: $HEML_CLI, else
-    target/release/heml, else `heml` on PATH; the comparison tests skip (saying
-    so) when there is none."""
-    candidates = [os.environ.get("HEML_CLI"), str(REPO / "target" / "release" / "heml"), shutil.which("heml")]
-    for c in candidates:
+def _heml_cli():
+    """The `heml` command of this repository: $HEML_CLI, target/release/heml, or
+    `heml` on PATH."""
+    for c in (os.environ.get("HEML_CLI"), str(REPO / "target" / "release" / "heml"), shutil.which("heml")):
         if c and os.path.isfile(c) and os.access(c, os.X_OK):
             return c
-    pytest.skip("no `heml` command found (build it: cargo build --release -p heml-cli, or set HEML_CLI)")
-
-
-# A 4 × 2 × 2 cm block clamped at x = 0 whose far face is pulled (smooth ramp),
-# no gravity or damping, so that the frames' force/reaction fields are the
-# elastic forces alone. Kept in file order (renumber = false) so that node and
-# tet order, hence every floating-point sum, is the same on both sides. Duration
-# and dt are powers of two so that duration / steps is exactly dt.
-STRETCH_SCENE = """
-[mesh]
-generate = {{ kind = "box", size = [0.04, 0.02, 0.02], cells = [4, 2, 2] }}
-renumber = false
-[[material]]
-law = "neo_hookean"
-params = {{ E = 5e3, nu = 0.45 }}
-density = 1000.0
-[[fix]]
-plane = {{ point = [0, 0, 0], normal = [1, 0, 0] }}
-[[prescribe]]
-plane = {{ point = [0.04, 0, 0], normal = [1, 0, 0] }}
-displacement = [0.008, 0.002, 0.0]
-ramp = {{ kind = "smooth", duration = 0.005 }}
-[solver]
-integrator = "velocity_verlet"
-duration = 0.0078125
-dt = 6.103515625e-05
-dt_policy = "warn"
-[output]
-dir = "{out}"
-every = 128
-csv = false
-compression = "none"
-precision = "double"
-"""
-
-STRETCH_STEPS = 128
-STRETCH_DT = 6.103515625e-05
+    return None
 
 
 @pytest.fixture(scope="session")
-def stretch_run(tmp_path_factory, heml_cli):
-    """Runs STRETCH_SCENE with the `heml` command; returns (scene path, output dir)."""
-    d = tmp_path_factory.mktemp("stretch")
-    out = d / "out"
-    scene = d / "stretch.toml"
-    scene.write_text(STRETCH_SCENE.format(out=out.as_posix()))
-    subprocess.run([heml_cli, "run", str(scene), "--quiet"], check=True, timeout=300)
-    return scene, out
+def stretch_run(tmp_path_factory):
+    """Output directory of the Rust run of STRETCH_SCENE (frame_00000.vtu at rest,
+    frame_00001.vtu after the last step): the one heml-py/tests/pytest.rs made
+    with the library ($HEML_RUST_RUN), else a `heml run` of the command."""
+    given = os.environ.get("HEML_RUST_RUN")
+    if given:
+        return pathlib.Path(given)
+    cli = _heml_cli()
+    if cli is None:
+        pytest.skip("no Rust run to compare with: set HEML_RUST_RUN, or build the `heml` command "
+                    "(cargo build --release -p heml-cli) or set HEML_CLI")
+    out = tmp_path_factory.mktemp("stretch")
+    subprocess.run([cli, "run", str(STRETCH_SCENE), "--out", str(out), "--quiet"], check=True, timeout=300)
+    return out

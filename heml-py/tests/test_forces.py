@@ -17,14 +17,14 @@ def deformed(mesh, seed=0, amplitude=0.05):
 
 
 def test_forces_equal_the_rust_run_bit_for_bit(stretch_run):
-    """The last frame of `heml run` holds the positions and the forces the Rust
+    """The last frame of the Rust run holds the positions and the forces the Rust
     system computed there (total forces on free nodes, reactions = minus the forces
     on supported ones; no gravity, damping or loads): the elastic forces are
     force - reaction exactly (one of the two is zero on each node). Python's
     forces at those positions, on the mesh read back from frame 0, must have the
     same bits."""
     meshio = pytest.importorskip("meshio")
-    _, out = stretch_run
+    out = stretch_run
     mesh = heml.read_mesh(out / "frame_00000.vtu")
     last = meshio.read(out / f"frame_{1:05d}.vtu")
     x = np.ascontiguousarray(last.points, dtype=np.float64)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import heml
-from conftest import STRETCH_DT, STRETCH_STEPS
+from conftest import STRETCH_DT, STRETCH_SCENE, STRETCH_STEPS
 
 
 def stretch_system(mesh):
@@ -28,7 +28,7 @@ def test_system_stepped_from_python_matches_the_rust_run(stretch_run):
     (velocity Verlet, same dt, same number of steps) end at the same positions,
     bit for bit: the last frame stores positions in double precision."""
     meshio = pytest.importorskip("meshio")
-    _, out = stretch_run
+    out = stretch_run
     mesh = heml.read_mesh(out / "frame_00000.vtu")
     sys = stretch_system(mesh)
     stats = sys.step("velocity_verlet", dt=STRETCH_DT, n=STRETCH_STEPS)
@@ -40,14 +40,15 @@ def test_system_stepped_from_python_matches_the_rust_run(stretch_run):
     assert np.array_equal(sys.reactions, last.point_data["reaction"])
 
 
-def test_scene_run_from_python_matches_the_rust_run(stretch_run):
-    """Scene.from_file(...).run() reaches the positions of `heml run`, and calls the
-    progress callback after each step with increasing step numbers."""
+def test_scene_run_from_python_matches_the_rust_run(stretch_run, tmp_path):
+    """Scene.from_file(...).run() reaches the positions of the Rust run, and calls
+    the progress callback after each step with increasing step numbers."""
     meshio = pytest.importorskip("meshio")
-    scene_path, out = stretch_run
+    out = stretch_run
     seen = []
-    scene = heml.Scene.from_file(scene_path)
-    summary = scene.run(progress=lambda p: seen.append((p["step"], p["steps"], p["time"])))
+    scene = heml.Scene.from_file(STRETCH_SCENE)
+    summary = scene.run(progress=lambda p: seen.append((p["step"], p["steps"], p["time"])), out_dir=tmp_path)
+    assert (tmp_path / "frame_00001.vtu").is_file()
     assert summary["steps"] == STRETCH_STEPS
     assert [s for s, _, _ in seen] == list(range(1, STRETCH_STEPS + 1))
     assert all(total == STRETCH_STEPS for _, total, _ in seen)

@@ -254,7 +254,12 @@ class Scene:
     @staticmethod
     def from_toml(text: str, base_dir: _Path = ".") -> Scene:
         """Parses scene text."""
-    def run(self, progress: Callable[[dict[str, Any]], object] | None = None, every: int = 1) -> dict[str, Any]:
+    def run(
+        self,
+        progress: Callable[[dict[str, Any]], object] | None = None,
+        every: int = 1,
+        out_dir: _Path | None = None,
+    ) -> dict[str, Any]:
         """Runs the scene, GIL released; progress(info) every `every` steps."""
     @property
     def positions(self) -> _F64:
