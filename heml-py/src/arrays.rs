@@ -206,7 +206,18 @@ pub fn fill_vec3s<'py, T>(
     n: usize,
     fill: impl FnOnce(&mut [Vec3]) -> T,
 ) -> (Bound<'py, PyArray2<f64>>, T) {
-    let out = PyArray2::<f64>::zeros(py, [n, 3], false);
+    // Not `PyArray2::zeros`: NumPy takes zeroed memory from calloc, which for
+    // arrays over glibc's mmap threshold maps fresh pages on every call and pays a
+    // page fault per 4 KiB on first touch (about 5 % of a 100k-tet evaluation).
+    // An uninitialised array comes from malloc, which reuses freed memory; it is
+    // zeroed here before anything reads it.
+    // SAFETY: `new` leaves the elements uninitialised; `write_bytes` zeroes all
+    // 3n of them (an all-zero f64 is 0.0) before the array is read or returned.
+    let out = unsafe {
+        let out = PyArray2::<f64>::new(py, [n, 3], false);
+        std::ptr::write_bytes(out.data(), 0, 3 * n);
+        out
+    };
     let t = {
         let mut rw = out.readwrite();
         let flat = rw.as_slice_mut().expect("a fresh C-order array is contiguous");

@@ -14,6 +14,9 @@ use pyo3::types::PyDict;
 use crate::arrays;
 use crate::errors::IntoPyResult;
 
+/// Two float64 arrays (per-tet J and w).
+type ArrayPair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
 /// The internal forces of one law over (a selection of tets of) a mesh, from
 /// `Material.force_field(mesh)`.
 ///
@@ -45,6 +48,11 @@ impl ForceField {
             tets,
             opts,
         })
+    }
+
+    /// The library's field (for the timing helper).
+    pub(crate) fn elastic(&self) -> &dyn ElasticForces {
+        self.field.as_ref()
     }
 
     fn tangent_at(&self, x: &[Vec3], project_psd: bool) -> PyResult<Box<dyn TangentOperator>> {
@@ -92,7 +100,7 @@ impl ForceField {
         &self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    ) -> PyResult<ArrayPair<'py>> {
         let x = arrays::points(x, "x", Some(self.field.n_nodes()))?;
         let s = self.field.tet_states(x.as_slice()).py()?;
         let (j, w): (Vec<f64>, Vec<f64>) = s.into_iter().unzip();

@@ -5,6 +5,7 @@
 //! (`heml-py/tests`).
 
 mod arrays;
+mod bench;
 mod errors;
 mod field;
 mod materials;
@@ -32,5 +33,6 @@ fn _heml(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<system::Ramp>()?;
     m.add_class::<system::System>()?;
     m.add_class::<scene::Scene>()?;
+    m.add_function(wrap_pyfunction!(bench::_time_forces, m)?)?;
     Ok(())
 }
