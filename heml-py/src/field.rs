@@ -96,11 +96,7 @@ impl ForceField {
 
     /// Per tet of the field (in its order): `(J, w)` arrays, the volume ratio and
     /// the energy per unit rest volume (Pa).
-    fn tet_states<'py>(
-        &self,
-        py: Python<'py>,
-        x: &Bound<'py, PyAny>,
-    ) -> PyResult<ArrayPair<'py>> {
+    fn tet_states<'py>(&self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<ArrayPair<'py>> {
         let x = arrays::points(x, "x", Some(self.field.n_nodes()))?;
         let s = self.field.tet_states(x.as_slice()).py()?;
         let (j, w): (Vec<f64>, Vec<f64>) = s.into_iter().unzip();

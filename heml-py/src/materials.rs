@@ -53,21 +53,25 @@ pub fn integrators() -> Vec<(&'static str, &'static str)> {
 #[pyfunction]
 #[pyo3(signature = (name, **params))]
 pub fn material(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
+    Ok(Material {
+        law: Arc::from(build_law(name, params)?),
+    })
+}
+
+/// The law `name` with the parameters of a Python dict (values: numbers).
+pub(crate) fn build_law(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Box<dyn heml::prelude::Material>> {
     let mut p = Params::new();
-    if let Some(params) = params {
-        for (k, v) in params.iter() {
-            let key: String = k.extract()?;
-            let value: f64 = v.extract().map_err(|_| {
-                pyo3::exceptions::PyTypeError::new_err(format!(
-                    "material '{name}': parameter {key} must be a number, got {}",
-                    v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
-                ))
-            })?;
-            p.set(&key, value);
-        }
+    for (k, v) in params.iter().flat_map(|d| d.iter()) {
+        let key: String = k.extract()?;
+        let value: f64 = v.extract().map_err(|_| {
+            pyo3::exceptions::PyTypeError::new_err(format!(
+                "material '{name}': parameter {key} must be a number, got {}",
+                v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+            ))
+        })?;
+        p.set(&key, value);
     }
-    let law = heml::material(name, &p).py()?;
-    Ok(Material { law: Arc::from(law) })
+    heml::material(name, &p).py()
 }
 
 /// A hyperelastic law with its parameter values (from `heml.material`).

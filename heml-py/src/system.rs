@@ -13,7 +13,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::arrays;
 use crate::errors::IntoPyResult;
-use crate::materials::Material;
+use crate::materials::{build_law, Material};
 use crate::mesh::{surface_tuple, Mesh};
 
 /// How a prescribed displacement is applied over time: x = X + r(t)·u.
@@ -84,13 +84,7 @@ fn law_of(obj: &Bound<'_, PyAny>, params: Option<&Bound<'_, PyDict>>) -> PyResul
     let name: String = obj
         .extract()
         .map_err(|_| PyTypeError::new_err("material must be a heml.Material or a law name (str)"))?;
-    let mut p = heml::Params::new();
-    if let Some(params) = params {
-        for (k, v) in params.iter() {
-            p.set(&k.extract::<String>()?, v.extract::<f64>()?);
-        }
-    }
-    heml::material(&name, &p).py()
+    build_law(&name, params)
 }
 
 fn energies_dict<'py>(py: Python<'py>, e: &Energies) -> PyResult<Bound<'py, PyDict>> {
