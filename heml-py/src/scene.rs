@@ -2,11 +2,12 @@
 //! with the GIL re-taken only for the call.
 
 use std::path::PathBuf;
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard, TryLockError};
 
 use heml::scene::{Progress, Simulation};
 use heml::Vec3;
 use numpy::PyArray2;
+use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -23,16 +24,28 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The simulation, unless a `run()` holds it: never wait for it, since the
+    /// running thread needs the GIL (held here) to call its progress callback.
+    fn simulation(&self) -> PyResult<MutexGuard<'_, Option<Simulation>>> {
+        match self.sim.try_lock() {
+            Ok(g) => Ok(g),
+            Err(TryLockError::Poisoned(e)) => Ok(e.into_inner()),
+            Err(TryLockError::WouldBlock) => Err(PyRuntimeError::new_err(
+                "the scene is running in another thread (wait for run() to return)",
+            )),
+        }
+    }
+
     /// An array over the nodes, in the mesh file's node order.
     fn in_file_order<'py>(
         &self,
         py: Python<'py>,
         pick: impl Fn(&Simulation) -> Vec<Vec3>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let guard = self.sim.lock().unwrap_or_else(|e| e.into_inner());
+        let guard = self.simulation()?;
         let sim = guard
             .as_ref()
-            .ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("the scene has not been run yet (call run())"))?;
+            .ok_or_else(|| PyRuntimeError::new_err("the scene has not been run yet (call run())"))?;
         let v = pick(sim);
         let v = match &sim.node_order {
             None => v,
@@ -97,7 +110,7 @@ impl Scene {
         every: u64,
         out_dir: Option<PathBuf>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let mut guard = self.sim.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = self.simulation()?;
         if guard.is_none() {
             *guard = Some(self.scene.build().py()?);
         }
@@ -156,8 +169,7 @@ impl Scene {
 
     /// Simulated time reached (0 before `run()`).
     #[getter]
-    fn time(&self) -> f64 {
-        let guard = self.sim.lock().unwrap_or_else(|e| e.into_inner());
-        guard.as_ref().map_or(0.0, |s| s.system.time())
+    fn time(&self) -> PyResult<f64> {
+        Ok(self.simulation()?.as_ref().map_or(0.0, |s| s.system.time()))
     }
 }

@@ -151,3 +151,40 @@ def test_initial_velocity_is_applied_per_node():
     v[:, 1] = mesh.nodes[:, 0]
     sys = heml.System(mesh, heml.material("neo_hookean", E=3e3, nu=0.45), initial_velocity=v)
     assert np.array_equal(sys.velocities, v)
+
+
+def test_scene_state_is_refused_not_waited_for_while_it_runs():
+    """Reading a scene's state from another thread while it runs raises (the run
+    holds the simulation and needs the GIL for its callback: waiting would
+    deadlock). The callback pauses the run at step 1 until the check is done."""
+    scene = heml.Scene.from_toml("""
+[mesh]
+generate = { kind = "box", size = [0.02, 0.01, 0.01], cells = [2, 1, 1] }
+[[material]]
+law = "neo_hookean"
+params = { E = 5e3, nu = 0.3 }
+[loads]
+gravity = [0, 0, -9.81]
+[solver]
+duration = 0.001
+[output]
+vtu = false
+csv = false
+""")
+    started, checked = threading.Event(), threading.Event()
+
+    def cb(p):
+        if p["step"] == 1:
+            started.set()
+            assert checked.wait(30)
+
+    t = threading.Thread(target=scene.run, kwargs=dict(progress=cb))
+    t.start()
+    assert started.wait(30)
+    try:
+        with pytest.raises(RuntimeError, match="running in another thread"):
+            scene.time
+    finally:
+        checked.set()
+        t.join()
+    assert scene.time > 0
