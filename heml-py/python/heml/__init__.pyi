@@ -1,0 +1,272 @@
+"""Type stubs of the `heml` package (the extension module `heml._heml`)."""
+
+from os import PathLike
+from typing import Any, Callable, Literal, Sequence, TypedDict
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_F64 = npt.NDArray[np.float64]
+_ArrayLike = npt.ArrayLike
+_Path = str | PathLike[str]
+
+class HemlError(Exception):
+    """An error reported by the library (bad mesh, unknown law, malformed file, NaN step…)."""
+
+class MaterialInfo(TypedDict):
+    name: str
+    parameters: list[str]
+    parameter_docs: list[str]
+    energy: str
+    kind: Literal["invariant", "link"]
+    young_poisson: bool
+    doc: str
+
+def materials() -> list[MaterialInfo]:
+    """Every registered law, sorted by name."""
+
+def integrators() -> list[tuple[str, str]]:
+    """Every registered integrator as (name, doc), sorted by name."""
+
+def material(name: str, **params: float) -> Material:
+    """The law `name` with keyword parameters (E/nu accepted where the law maps them)."""
+
+def read_mesh(path: _Path) -> Mesh:
+    """Reads a .msh/.vtk/.vtu/.node/.ele/.mesh file and validates it."""
+
+def write_mesh(path: _Path, mesh: Mesh) -> None:
+    """Writes `mesh` in the format of the extension, atomically."""
+
+def box_mesh(
+    size: Sequence[float], cells: Sequence[int], split: Literal["five", "six", "twentyfour"] = "six"
+) -> Mesh:
+    """A box of `size` (m) cut into `cells` hexahedra, each split into tets."""
+
+class Material:
+    """A law with its parameter values."""
+
+    @property
+    def name(self) -> str:
+        """Registry name."""
+    @property
+    def kind(self) -> Literal["invariant", "link"]:
+        """Invariant or link law."""
+    @property
+    def params(self) -> dict[str, float]:
+        """Resolved parameter values by name."""
+    def force_field(
+        self, mesh: Mesh, tets: Sequence[int] | None = None, *, j0: float = 0.4, inversion_fix: bool = True
+    ) -> ForceField:
+        """The HEML force field of this law over `mesh` (or over the tets `tets`)."""
+
+class Mesh:
+    """A validated, immutable linear tetrahedral mesh."""
+
+    def __init__(self, nodes: _ArrayLike, tets: _ArrayLike, tags: Sequence[int] | None = None) -> None:
+        """nodes (n, 3) float64, tets (m, 4) integers, tags (m,) optional."""
+    @property
+    def nodes(self) -> _F64:
+        """Rest positions (n, 3), a copy."""
+    @property
+    def tets(self) -> npt.NDArray[np.int64]:
+        """Tets (m, 4), positively oriented, a copy."""
+    @property
+    def tags(self) -> npt.NDArray[np.int32]:
+        """Region tag per tet (m,), a copy."""
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes."""
+    @property
+    def n_tets(self) -> int:
+        """Number of tets."""
+    @property
+    def reoriented_count(self) -> int:
+        """Tets reoriented at construction."""
+    @property
+    def volume(self) -> float:
+        """Total rest volume (m³)."""
+    def lumped_masses(self, density: float) -> _F64:
+        """Lumped nodal masses (n,) for `density`."""
+    def surface(self, padded: bool = False) -> tuple[_F64, npt.NDArray[np.int64]]:
+        """(points, faces) of the outward boundary; padded=True gives PyVista's flat faces."""
+    def to_meshio(self) -> Any:
+        """A meshio.Mesh (needs meshio)."""
+    @staticmethod
+    def from_meshio(m: Any) -> Mesh:
+        """A mesh from a meshio.Mesh's points and tetra cells."""
+
+class ForceField:
+    """Energy and internal forces of one law over a mesh."""
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes positions must have."""
+    @property
+    def n_tets(self) -> int:
+        """Number of tets summed over."""
+    def energy(self, x: _ArrayLike) -> float:
+        """Total elastic energy (J) at positions x (n, 3)."""
+    def forces(self, x: _ArrayLike) -> tuple[float, _F64]:
+        """(energy, internal forces (n, 3)) at positions x."""
+    def tet_states(self, x: _ArrayLike) -> tuple[_F64, _F64]:
+        """(J, w) per tet at positions x."""
+    def tangent(self, x: _ArrayLike, project_psd: bool = False) -> Tangent:
+        """The stiffness K = d²W/dx² at x."""
+    def hessian_product(self, x: _ArrayLike, dx: _ArrayLike, project_psd: bool = False) -> _F64:
+        """K(x)·dx, (n, 3)."""
+    def stiffness(self, x: _ArrayLike, project_psd: bool = False, format: str = "csr") -> Any:
+        """K(x) as a scipy.sparse matrix (3n, 3n) (needs scipy)."""
+
+class Tangent:
+    """The stiffness of a force field at one configuration."""
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(3n, 3n)."""
+    @property
+    def projected(self) -> bool:
+        """Whether tet matrices were projected to positive semi-definite."""
+    @property
+    def tet_ids(self) -> npt.NDArray[np.uintp]:
+        """Global tet ids in the order of tet_matrices()."""
+    def dot(self, dx: _ArrayLike) -> _F64:
+        """K·dx, (n, 3)."""
+    def __matmul__(self, dx: _ArrayLike) -> _F64:
+        """K @ dx."""
+    def tet_matrices(self) -> _F64:
+        """(m, 12, 12) tet stiffness matrices."""
+    def to_scipy(self, format: str = "csr") -> Any:
+        """K as a scipy.sparse matrix (needs scipy)."""
+
+class Ramp:
+    """Time profile r(t) of a prescribed displacement."""
+
+    @staticmethod
+    def step() -> Ramp:
+        """r = 1 from t = 0."""
+    @staticmethod
+    def linear(duration: float) -> Ramp:
+        """r = t / duration, then 1."""
+    @staticmethod
+    def smooth(duration: float) -> Ramp:
+        """Smoothstep over duration."""
+    @staticmethod
+    def keyframes(points: Sequence[Sequence[float]]) -> Ramp:
+        """Piecewise linear through [[t, r], …]."""
+    def value(self, t: float) -> float:
+        """r(t)."""
+
+class StepStats(TypedDict):
+    step: int
+    time: float
+    dt: float
+    max_speed: float
+    reaction: list[float]
+    energies: dict[str, float] | None
+    newton_iterations: int
+    cg_iterations: int
+
+class System:
+    """A simulated body (the Rust SystemBuilder's options as keywords)."""
+
+    def __init__(
+        self,
+        mesh: Mesh,
+        material: Material | str,
+        params: dict[str, float] | None = None,
+        *,
+        regions: dict[int, Material] | None = None,
+        density: float = 1000.0,
+        gravity: Sequence[float] | None = None,
+        fixed: _ArrayLike | None = None,
+        prescribed: list[tuple[_ArrayLike, Sequence[float]] | tuple[_ArrayLike, Sequence[float], Ramp]] | None = None,
+        nodal_forces: list[tuple[int, Sequence[float]]] | None = None,
+        rayleigh: tuple[float, float] | None = None,
+        prony: list[tuple[float, float]] | None = None,
+        initial_velocity: _ArrayLike | None = None,
+        j0: float = 0.4,
+        inversion_fix: bool = True,
+        dt_policy: Literal["warn", "refuse", "ignore"] = "warn",
+        safety: float | None = None,
+        energy_every: int = 1,
+        pin_unreferenced: bool = False,
+    ) -> None:
+        """Builds and checks the system."""
+    def step(self, integrator: str = "velocity_verlet", dt: float | None = None, n: int = 1) -> StepStats:
+        """n steps of dt with the named integrator, GIL released."""
+    def solve_static(self, tol: float = 1e-6, abs_tol: float = 0.0, max_iterations: int = 500_000) -> dict[str, Any]:
+        """Static equilibrium, GIL released."""
+    def compute_forces(self) -> None:
+        """Evaluates forces and reactions at the current state."""
+    positions: _F64
+    """Current positions (n, 3) (copy; assignable)."""
+    velocities: _F64
+    """Current velocities (n, 3) (copy; assignable)."""
+    @property
+    def displacements(self) -> _F64:
+        """x − X (n, 3)."""
+    @property
+    def rest_positions(self) -> _F64:
+        """X (n, 3)."""
+    @property
+    def forces(self) -> _F64:
+        """Total nodal forces of the last evaluation (n, 3)."""
+    @property
+    def reactions(self) -> _F64:
+        """Support reactions (n, 3)."""
+    @property
+    def total_reaction(self) -> list[float]:
+        """Sum of the reactions."""
+    @property
+    def masses(self) -> _F64:
+        """Lumped masses (n,)."""
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+    @property
+    def step_count(self) -> int:
+        """Completed steps."""
+    @property
+    def stable_dt(self) -> float:
+        """Stable explicit step at rest (s)."""
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes."""
+    @property
+    def mesh(self) -> Mesh:
+        """The rest mesh."""
+    @property
+    def warnings(self) -> list[str]:
+        """Warnings collected so far."""
+    def energies(self) -> dict[str, float]:
+        """kinetic, elastic, gravity, loads, total (J)."""
+    def surface(self, padded: bool = False) -> tuple[_F64, npt.NDArray[np.int64]]:
+        """(current points, boundary faces)."""
+
+class Scene:
+    """A scene file, run to its duration."""
+
+    @staticmethod
+    def from_file(path: _Path) -> Scene:
+        """Parses a scene file."""
+    @staticmethod
+    def from_toml(text: str, base_dir: _Path = ".") -> Scene:
+        """Parses scene text."""
+    def run(
+        self,
+        progress: Callable[[dict[str, Any]], object] | None = None,
+        every: int = 1,
+        out_dir: _Path | None = None,
+    ) -> dict[str, Any]:
+        """Runs the scene, GIL released; progress(info) every `every` steps."""
+    @property
+    def positions(self) -> _F64:
+        """Positions after run(), file node order."""
+    @property
+    def displacements(self) -> _F64:
+        """Displacements after run(), file node order."""
+    @property
+    def time(self) -> float:
+        """Simulated time reached."""

@@ -1,0 +1,126 @@
+//! The registry from Python: `heml.materials()`, `heml.material(name, **params)`,
+//! `heml.integrators()`, and the `Material` class (a law with its parameters).
+
+use std::sync::Arc;
+
+use heml::law::LawKind;
+use heml::prelude::{ForceOptions, Params};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::errors::IntoPyResult;
+use crate::field::ForceField;
+use crate::mesh::Mesh;
+
+fn kind_name(kind: LawKind) -> &'static str {
+    match kind {
+        LawKind::Invariant => "invariant",
+        LawKind::Link => "link",
+    }
+}
+
+/// Every registered law, sorted by name, as a list of dicts with keys `name`,
+/// `parameters` (list of names, in declaration order), `parameter_docs`,
+/// `energy` (the expression as declared), `kind` (`"invariant"` or `"link"`),
+/// `young_poisson` (whether `E` and `nu` are accepted) and `doc`.
+#[pyfunction]
+pub fn materials(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    let out = PyList::empty(py);
+    for e in heml::materials_list() {
+        let d = PyDict::new(py);
+        d.set_item("name", e.name)?;
+        d.set_item("parameters", e.params.iter().map(|p| p.name).collect::<Vec<_>>())?;
+        d.set_item("parameter_docs", e.params.iter().map(|p| p.doc).collect::<Vec<_>>())?;
+        d.set_item("energy", e.energy)?;
+        d.set_item("kind", kind_name(e.kind))?;
+        d.set_item("young_poisson", e.small_strain.is_some())?;
+        d.set_item("doc", e.doc)?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+/// Every registered integrator as `(name, doc)` pairs, sorted by name.
+#[pyfunction]
+pub fn integrators() -> Vec<(&'static str, &'static str)> {
+    heml::integrators_list().iter().map(|e| (e.name, e.doc)).collect()
+}
+
+/// Builds the law `name` from keyword parameters, checked exactly as in Rust and in
+/// scene files: unknown, missing, NaN or negative values raise `HemlError` listing
+/// the expected parameters; laws with a small-strain mapping also take `E` and `nu`
+/// (e.g. `heml.material("neo_hookean", E=3e3, nu=0.45)`).
+#[pyfunction]
+#[pyo3(signature = (name, **params))]
+pub fn material(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
+    Ok(Material {
+        law: Arc::from(build_law(name, params)?),
+    })
+}
+
+/// The law `name` with the parameters of a Python dict (values: numbers).
+pub(crate) fn build_law(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Box<dyn heml::prelude::Material>> {
+    let mut p = Params::new();
+    for (k, v) in params.iter().flat_map(|d| d.iter()) {
+        let key: String = k.extract()?;
+        let value: f64 = v.extract().map_err(|_| {
+            pyo3::exceptions::PyTypeError::new_err(format!(
+                "material '{name}': parameter {key} must be a number, got {}",
+                v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+            ))
+        })?;
+        p.set(&key, value);
+    }
+    heml::material(name, &p).py()
+}
+
+/// A hyperelastic law with its parameter values (from `heml.material`).
+#[pyclass(frozen, module = "heml")]
+pub struct Material {
+    pub(crate) law: Arc<dyn heml::prelude::Material>,
+}
+
+#[pymethods]
+impl Material {
+    /// Registry name of the law.
+    #[getter]
+    fn name(&self) -> &'static str {
+        self.law.name()
+    }
+
+    /// `"invariant"` (w(I1, I2, J)) or `"link"` (per-edge energy).
+    #[getter]
+    fn kind(&self) -> &'static str {
+        kind_name(self.law.kind())
+    }
+
+    /// The resolved parameter values by name (E/ν already converted).
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (info, v) in self.law.param_info().iter().zip(self.law.param_values()) {
+            d.set_item(info.name, v)?;
+        }
+        Ok(d)
+    }
+
+    /// The HEML force field of this law over `mesh` (over the tets `tets` only when
+    /// given). `j0` and `inversion_fix` are the inversion extension's options
+    /// (DESIGN §1): below J = j0 the law is replaced by its Taylor extension.
+    #[pyo3(signature = (mesh, tets = None, *, j0 = 0.4, inversion_fix = true))]
+    fn force_field(&self, mesh: &Mesh, tets: Option<Vec<usize>>, j0: f64, inversion_fix: bool) -> PyResult<ForceField> {
+        let opts = ForceOptions { j0, inversion_fix };
+        ForceField::new(self.law.clone(), mesh.inner.clone(), tets, opts)
+    }
+
+    fn __repr__(&self) -> String {
+        let params: Vec<String> = self
+            .law
+            .param_info()
+            .iter()
+            .zip(self.law.param_values())
+            .map(|(i, v)| format!("{}={v}", i.name))
+            .collect();
+        format!("heml.material({:?}, {})", self.law.name(), params.join(", "))
+    }
+}

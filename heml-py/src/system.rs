@@ -1,0 +1,457 @@
+//! `heml.System`: a simulated body built with the Rust builder's options, stepped
+//! by a registered integrator or solved statically with the GIL released.
+
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use heml::prelude::{ForceOptions, Integrator, PronyTerm, Ramp as RustRamp, StaticOptions, StepStats, TimeStepPolicy};
+use heml::system::Energies;
+use numpy::{PyArray1, PyArray2};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::arrays;
+use crate::errors::IntoPyResult;
+use crate::materials::{build_law, Material};
+use crate::mesh::{surface_tuple, Mesh};
+
+/// How a prescribed displacement is applied over time: x = X + r(t)·u.
+#[pyclass(frozen, module = "heml")]
+#[derive(Clone)]
+pub struct Ramp {
+    inner: RustRamp,
+}
+
+#[pymethods]
+impl Ramp {
+    /// r = 1 from t = 0 on (applied at once).
+    #[staticmethod]
+    fn step() -> Ramp {
+        Ramp { inner: RustRamp::Step }
+    }
+
+    /// r = t / duration until `duration` (s), then 1.
+    #[staticmethod]
+    fn linear(duration: f64) -> Ramp {
+        Ramp {
+            inner: RustRamp::Linear { duration },
+        }
+    }
+
+    /// Smoothstep r = 3s² − 2s³, s = t / duration: zero velocity at both ends.
+    #[staticmethod]
+    fn smooth(duration: f64) -> Ramp {
+        Ramp {
+            inner: RustRamp::Smooth { duration },
+        }
+    }
+
+    /// Piecewise linear through `[[t, r], …]` (times increasing), held after.
+    #[staticmethod]
+    fn keyframes(points: Vec<[f64; 2]>) -> Ramp {
+        Ramp {
+            inner: RustRamp::Keyframes { points },
+        }
+    }
+
+    /// r(t).
+    fn value(&self, t: f64) -> f64 {
+        self.inner.value(t)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("heml.Ramp({:?})", self.inner)
+    }
+}
+
+/// The law of a region: a `Material`, or a law name with `params`.
+fn law_of(obj: &Bound<'_, PyAny>, params: Option<&Bound<'_, PyDict>>) -> PyResult<Box<dyn heml::prelude::Material>> {
+    if let Ok(m) = obj.cast::<Material>() {
+        if params.is_some() {
+            return Err(PyValueError::new_err(
+                "params are given with a Material object: pass either heml.material(name, **params) or a law name with params",
+            ));
+        }
+        // the law's resolved values, rebuilt through the registry (laws are not Clone)
+        let law = &m.get().law;
+        let mut p = heml::Params::new();
+        for (info, v) in law.param_info().iter().zip(law.param_values()) {
+            p.set(info.name, v);
+        }
+        return heml::material(law.name(), &p).py();
+    }
+    let name: String = obj
+        .extract()
+        .map_err(|_| PyTypeError::new_err("material must be a heml.Material or a law name (str)"))?;
+    build_law(&name, params)
+}
+
+fn energies_dict<'py>(py: Python<'py>, e: &Energies) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("kinetic", e.kinetic)?;
+    d.set_item("elastic", e.elastic)?;
+    d.set_item("gravity", e.gravity)?;
+    d.set_item("loads", e.loads)?;
+    d.set_item("total", e.total)?;
+    Ok(d)
+}
+
+fn stats_dict<'py>(py: Python<'py>, s: &StepStats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("step", s.step)?;
+    d.set_item("time", s.time)?;
+    d.set_item("dt", s.dt)?;
+    d.set_item("max_speed", s.max_speed)?;
+    d.set_item("reaction", s.reaction.as_slice().to_vec())?;
+    match &s.energies {
+        Some(e) => d.set_item("energies", energies_dict(py, e)?)?,
+        None => d.set_item("energies", py.None())?,
+    }
+    d.set_item("newton_iterations", s.newton_iterations)?;
+    d.set_item("cg_iterations", s.cg_iterations)?;
+    Ok(d)
+}
+
+/// A simulated body: mesh, law(s), lumped masses, supports, loads, damping, and its
+/// state (positions, velocities, time). Mirrors the Rust `SystemBuilder`:
+///
+/// * `material`: a `heml.Material`, or a law name with `params` (dict), for every
+///   tet no region claims; `regions`: `{tag: Material}` for tagged tets;
+/// * `density` (kg/m³, default 1000), `gravity` (3 numbers, m/s²);
+/// * `fixed`: nodes held at rest, a boolean mask (n,) or node ids;
+/// * `prescribed`: list of `(nodes, displacement, ramp)` — nodes as for `fixed`,
+///   displacement 3 numbers (m), ramp a `heml.Ramp` (default step);
+/// * `nodal_forces`: list of `(node id, force)` constant forces (N);
+/// * `rayleigh`: `(alpha, beta)` damping; `prony`: list of `(alpha, tau)` terms of
+///   the default material; `initial_velocity`: (n, 3) array;
+/// * `j0`, `inversion_fix`: the inversion extension; `dt_policy`: `"warn"`
+///   (default), `"refuse"` or `"ignore"` for a step above the stable estimate;
+///   `safety`, `energy_every`, `pin_unreferenced` as in Rust.
+///
+/// Errors of the description (bad ids, unknown law, missing material…) raise
+/// `HemlError` with the library's message.
+#[pyclass(module = "heml")]
+pub struct System {
+    sys: heml::prelude::System,
+    /// The integrator of the last `step` call, kept so that its state (e.g. an
+    /// implicit solver's buffers) carries over between calls with the same name.
+    integrator: Mutex<Option<Box<dyn Integrator>>>,
+}
+
+#[pymethods]
+impl System {
+    #[new]
+    #[pyo3(signature = (
+        mesh, material, params = None, *, regions = None, density = 1000.0, gravity = None,
+        fixed = None, prescribed = None, nodal_forces = None, rayleigh = None, prony = None,
+        initial_velocity = None, j0 = 0.4, inversion_fix = true, dt_policy = "warn",
+        safety = None, energy_every = 1, pin_unreferenced = false
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        mesh: &Mesh,
+        material: &Bound<'_, PyAny>,
+        params: Option<&Bound<'_, PyDict>>,
+        regions: Option<&Bound<'_, PyDict>>,
+        density: f64,
+        gravity: Option<&Bound<'_, PyAny>>,
+        fixed: Option<&Bound<'_, PyAny>>,
+        prescribed: Option<&Bound<'_, PyList>>,
+        nodal_forces: Option<&Bound<'_, PyList>>,
+        rayleigh: Option<(f64, f64)>,
+        prony: Option<Vec<(f64, f64)>>,
+        initial_velocity: Option<&Bound<'_, PyAny>>,
+        j0: f64,
+        inversion_fix: bool,
+        dt_policy: &str,
+        safety: Option<f64>,
+        energy_every: u64,
+        pin_unreferenced: bool,
+    ) -> PyResult<System> {
+        let n = mesh.inner.n_nodes();
+        let mut b = heml::system((*mesh.inner).clone()).material_law(law_of(material, params)?);
+        if let Some(terms) = prony {
+            let terms: Vec<PronyTerm> = terms.into_iter().map(|(alpha, tau)| PronyTerm { alpha, tau }).collect();
+            b = b.prony(&terms);
+        }
+        if let Some(regions) = regions {
+            for (tag, law) in regions.iter() {
+                b = b.region_law(tag.extract()?, law_of(&law, None)?);
+            }
+        }
+        b = b.density(density);
+        if let Some(g) = gravity {
+            b = b.gravity(arrays::vec3(g, "gravity")?);
+        }
+        if let Some(f) = fixed {
+            b = b.fix_nodes(arrays::selection(f, "fixed", n)?);
+        }
+        for item in prescribed.iter().flat_map(|l| l.iter()) {
+            let (nodes, u, ramp): (Bound<'_, PyAny>, Bound<'_, PyAny>, Option<Ramp>) = match item.extract() {
+                Ok(t) => t,
+                Err(_) => {
+                    let (nodes, u) = item.extract().map_err(|_| {
+                        PyTypeError::new_err("prescribed entries must be (nodes, displacement[, ramp]) tuples")
+                    })?;
+                    (nodes, u, None)
+                }
+            };
+            let ramp = ramp.map_or(RustRamp::Step, |r| r.inner);
+            b = b.prescribe(
+                arrays::selection(&nodes, "prescribed nodes", n)?,
+                arrays::vec3(&u, "prescribed displacement")?,
+                ramp,
+            );
+        }
+        for item in nodal_forces.iter().flat_map(|l| l.iter()) {
+            let (id, f): (usize, Bound<'_, PyAny>) = item
+                .extract()
+                .map_err(|_| PyTypeError::new_err("nodal_forces entries must be (node id, force) pairs"))?;
+            b = b.nodal_force(id, arrays::vec3(&f, "nodal force")?);
+        }
+        if let Some((alpha, beta)) = rayleigh {
+            b = b.rayleigh(alpha, beta);
+        }
+        if let Some(v) = initial_velocity {
+            let v = arrays::points(v, "initial_velocity", Some(n))?.as_slice().to_vec();
+            // the builder evaluates its function of the rest position once per
+            // node, in node order: hand out the rows in that order
+            let next = std::cell::Cell::new(0);
+            b = b.initial_velocity(move |_| {
+                let i = next.get();
+                next.set(i + 1);
+                v.get(i).copied().unwrap_or_default()
+            });
+        }
+        b = b.force_options(ForceOptions { j0, inversion_fix });
+        b = b.time_step_policy(match dt_policy {
+            "warn" => TimeStepPolicy::Warn,
+            "refuse" => TimeStepPolicy::Refuse,
+            "ignore" => TimeStepPolicy::Ignore,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "dt_policy must be 'warn', 'refuse' or 'ignore', got {other:?}"
+                )))
+            }
+        });
+        if let Some(s) = safety {
+            b = b.safety(s);
+        }
+        b = b.energy_every(energy_every);
+        if pin_unreferenced {
+            b = b.pin_unreferenced();
+        }
+        Ok(System {
+            sys: b.build().py()?,
+            integrator: Mutex::new(None),
+        })
+    }
+
+    /// Advances the system by `n` steps of `dt` (s; default the stable estimate
+    /// `stable_dt`) with the integrator registered as `integrator`
+    /// (`heml.integrators()`). The GIL is released while stepping (re-taken every
+    /// ~0.1 s to let Ctrl-C through). Returns the last step's statistics as a dict.
+    /// A step that produces NaN/∞ raises `HemlError` naming the step and node; the
+    /// system keeps its last good state.
+    #[pyo3(signature = (integrator = "velocity_verlet", dt = None, n = 1))]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        integrator: &str,
+        dt: Option<f64>,
+        n: u64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let dt = dt.unwrap_or_else(|| self.sys.stable_dt());
+        let slot = self.integrator.get_mut().unwrap_or_else(|e| e.into_inner());
+        if slot.as_ref().is_none_or(|i| i.name() != integrator) {
+            *slot = Some(heml::integrator(integrator).py()?);
+        }
+        let stepper = slot.as_mut().expect("set above");
+        let sys = &mut self.sys;
+        let mut last: Option<StepStats> = None;
+        let mut done = 0;
+        while done < n {
+            let (k, r) = py.detach(|| {
+                let start = Instant::now();
+                let mut k = 0;
+                while done + k < n {
+                    match stepper.step(sys, dt) {
+                        Ok(s) => last = Some(s),
+                        Err(e) => return (k, Err(e)),
+                    }
+                    k += 1;
+                    if start.elapsed() > Duration::from_millis(100) {
+                        break;
+                    }
+                }
+                (k, Ok(()))
+            });
+            done += k;
+            r.py()?;
+            py.check_signals()?;
+        }
+        match last {
+            Some(s) => stats_dict(py, &s),
+            None => Ok(PyDict::new(py)),
+        }
+    }
+
+    /// Solves for static equilibrium under the loads and supports (the Newton core
+    /// of the implicit integrators), GIL released. Returns a dict: `converged`,
+    /// `iterations`, `residual`, `load_scale`, `tol`, `criterion`.
+    #[pyo3(signature = (tol = 1e-6, abs_tol = 0.0, max_iterations = 500_000))]
+    fn solve_static<'py>(
+        &mut self,
+        py: Python<'py>,
+        tol: f64,
+        abs_tol: f64,
+        max_iterations: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let opts = StaticOptions {
+            tol,
+            abs_tol,
+            max_iterations,
+            ..StaticOptions::default()
+        };
+        let sys = &mut self.sys;
+        let r = py.detach(|| sys.solve_static(&opts)).py()?;
+        let d = PyDict::new(py);
+        d.set_item("converged", r.converged)?;
+        d.set_item("iterations", r.iterations)?;
+        d.set_item("residual", r.residual)?;
+        d.set_item("load_scale", r.load_scale)?;
+        d.set_item("tol", r.tol)?;
+        d.set_item("criterion", r.criterion())?;
+        Ok(d)
+    }
+
+    /// Evaluates the forces at the current state (`forces`, `reactions`).
+    fn compute_forces(&mut self) -> PyResult<()> {
+        self.sys.compute_forces().py()
+    }
+
+    /// Current positions, (n, 3) float64 (a copy). Assignable: setting positions
+    /// moves the free nodes (constrained nodes are put back by the next step).
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        arrays::vec3s_to_py(py, self.sys.positions())
+    }
+
+    #[setter]
+    fn set_positions(&mut self, x: &Bound<'_, PyAny>) -> PyResult<()> {
+        let x = arrays::points(x, "positions", Some(self.sys.mesh().n_nodes()))?;
+        self.sys.positions_mut().copy_from_slice(x.as_slice());
+        Ok(())
+    }
+
+    /// Current velocities, (n, 3) float64 (a copy). Assignable.
+    #[getter]
+    fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        arrays::vec3s_to_py(py, self.sys.velocities())
+    }
+
+    #[setter]
+    fn set_velocities(&mut self, v: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = arrays::points(v, "velocities", Some(self.sys.mesh().n_nodes()))?;
+        self.sys.velocities_mut().copy_from_slice(v.as_slice());
+        Ok(())
+    }
+
+    /// Displacements x − X, (n, 3) float64.
+    #[getter]
+    fn displacements<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        arrays::vec3s_to_py(py, &self.sys.displacements())
+    }
+
+    /// Rest positions X, (n, 3) float64 (a copy).
+    #[getter]
+    fn rest_positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        arrays::vec3s_to_py(py, self.sys.rest_positions())
+    }
+
+    /// Total nodal forces of the last force evaluation (zero on constrained
+    /// nodes), (n, 3) float64.
+    #[getter]
+    fn forces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        arrays::vec3s_to_py(py, self.sys.forces())
+    }
+
+    /// Support reactions of the last force evaluation (zero on free nodes), (n, 3).
+    #[getter]
+    fn reactions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        arrays::vec3s_to_py(py, self.sys.reactions())
+    }
+
+    /// Sum of the reactions (N), 3 floats.
+    #[getter]
+    fn total_reaction(&self) -> [f64; 3] {
+        let r = self.sys.total_reaction();
+        [r.x, r.y, r.z]
+    }
+
+    /// Lumped nodal masses (kg), (n,) float64.
+    #[getter]
+    fn masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.sys.masses())
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.sys.time()
+    }
+
+    /// Completed steps.
+    #[getter]
+    fn step_count(&self) -> u64 {
+        self.sys.step_count()
+    }
+
+    /// The stable explicit time step estimated at rest (s).
+    #[getter]
+    fn stable_dt(&self) -> f64 {
+        self.sys.stable_dt()
+    }
+
+    /// Number of nodes.
+    #[getter]
+    fn n_nodes(&self) -> usize {
+        self.sys.mesh().n_nodes()
+    }
+
+    /// The system's mesh (rest configuration).
+    #[getter]
+    fn mesh(&self) -> Mesh {
+        Mesh::wrap(self.sys.mesh().clone())
+    }
+
+    /// Warnings collected so far (e.g. a step above the stable estimate).
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.sys.warnings().to_vec()
+    }
+
+    /// Energies (J) at the current state: dict with `kinetic`, `elastic`,
+    /// `gravity`, `loads`, `total`.
+    fn energies<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        energies_dict(py, &self.sys.energies().py()?)
+    }
+
+    /// The boundary surface at the current positions, `(points, faces)` as
+    /// `Mesh.surface` (points are the current positions of all nodes).
+    #[pyo3(signature = (padded = false))]
+    fn surface<'py>(&self, py: Python<'py>, padded: bool) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyAny>)> {
+        surface_tuple(py, self.sys.surface(), self.sys.positions(), padded)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "heml.System({} nodes, {} tets, t = {} s, {} steps)",
+            self.sys.mesh().n_nodes(),
+            self.sys.mesh().n_tets(),
+            self.sys.time(),
+            self.sys.step_count()
+        )
+    }
+}

@@ -1,0 +1,190 @@
+"""A System stepped from Python: the Rust run's bits, the GIL released while it
+steps, static solves, and the state arrays."""
+
+import threading
+
+import numpy as np
+import pytest
+
+import heml
+from conftest import STRETCH_DT, STRETCH_SCENE, STRETCH_STEPS
+
+
+def stretch_system(mesh):
+    """The System of conftest.STRETCH_SCENE, described through the Python API."""
+    x = mesh.nodes[:, 0]
+    return heml.System(
+        mesh,
+        "neo_hookean",
+        {"E": 5e3, "nu": 0.45},
+        density=1000.0,
+        fixed=x == 0.0,
+        prescribed=[(np.isclose(x, 0.04, rtol=0, atol=1e-9), [0.008, 0.002, 0.0], heml.Ramp.smooth(0.005))],
+    )
+
+
+def test_system_stepped_from_python_matches_the_rust_run(stretch_run):
+    """`heml run` on the stretch scene and the same system stepped from Python
+    (velocity Verlet, same dt, same number of steps) end at the same positions,
+    bit for bit: the last frame stores positions in double precision."""
+    meshio = pytest.importorskip("meshio")
+    out = stretch_run
+    mesh = heml.read_mesh(out / "frame_00000.vtu")
+    sys = stretch_system(mesh)
+    stats = sys.step("velocity_verlet", dt=STRETCH_DT, n=STRETCH_STEPS)
+    assert stats["step"] == STRETCH_STEPS and sys.step_count == STRETCH_STEPS
+    assert sys.time == pytest.approx(STRETCH_STEPS * STRETCH_DT, rel=1e-12)
+    last = meshio.read(out / "frame_00001.vtu")
+    assert np.array_equal(sys.positions, last.points)
+    assert np.array_equal(sys.velocities, last.point_data["velocity"])
+    assert np.array_equal(sys.reactions, last.point_data["reaction"])
+
+
+def test_scene_run_from_python_matches_the_rust_run(stretch_run, tmp_path):
+    """Scene.from_file(...).run() reaches the positions of the Rust run, and calls
+    the progress callback after each step with increasing step numbers."""
+    meshio = pytest.importorskip("meshio")
+    out = stretch_run
+    seen = []
+    scene = heml.Scene.from_file(STRETCH_SCENE)
+    summary = scene.run(progress=lambda p: seen.append((p["step"], p["steps"], p["time"])), out_dir=tmp_path)
+    assert (tmp_path / "frame_00001.vtu").is_file()
+    assert summary["steps"] == STRETCH_STEPS
+    assert [s for s, _, _ in seen] == list(range(1, STRETCH_STEPS + 1))
+    assert all(total == STRETCH_STEPS for _, total, _ in seen)
+    assert seen[-1][2] == pytest.approx(scene.time, rel=0, abs=0)
+    last = meshio.read(out / "frame_00001.vtu")
+    assert np.array_equal(scene.positions, last.points)
+
+
+def test_progress_callback_error_is_raised():
+    """An exception in the progress callback reaches the caller (after the run),
+    and the callback is not called again after it."""
+    calls = []
+
+    def cb(p):
+        calls.append(p["step"])
+        raise KeyError("stop")
+
+    text = """
+[mesh]
+generate = { kind = "box", size = [0.02, 0.01, 0.01], cells = [2, 1, 1] }
+[[material]]
+law = "neo_hookean"
+params = { E = 5e3, nu = 0.3 }
+[[fix]]
+plane = { point = [0, 0, 0], normal = [1, 0, 0] }
+[loads]
+gravity = [0, 0, -9.81]
+[solver]
+duration = 0.002
+[output]
+vtu = false
+csv = false
+"""
+    with pytest.raises(KeyError):
+        heml.Scene.from_toml(text).run(progress=cb, every=2)
+    assert calls == [2]
+
+
+def test_gil_is_released_while_stepping():
+    """A Python thread keeps counting while `step` runs. If `step` held the GIL the
+    whole time the counter could not move at all (the thread runs Python code and
+    `step` runs none); it must advance by well over a few increments."""
+    mesh = heml.box_mesh([0.1, 0.05, 0.05], [16, 8, 8])
+    sys = heml.System(mesh, heml.material("neo_hookean", E=3e3, nu=0.45), fixed=mesh.nodes[:, 0] == 0)
+    count = [0]
+    stop = threading.Event()
+    started = threading.Event()
+
+    def counter():
+        started.set()
+        while not stop.is_set():
+            count[0] += 1
+
+    t = threading.Thread(target=counter)
+    t.start()
+    started.wait()
+    before = count[0]
+    sys.step("symplectic_euler", n=400)
+    during = count[0] - before
+    stop.set()
+    t.join()
+    assert sys.step_count == 400
+    assert during > 1000, during
+
+
+def test_static_solve_under_gravity_balances_the_weight():
+    """After solve_static the supports carry the whole weight: the total reaction is
+    −m g to the solver's tolerance (1e-6 of the load scale, the weight here)."""
+    mesh = heml.box_mesh([0.1, 0.02, 0.02], [10, 2, 2])
+    sys = heml.System(
+        mesh, heml.material("neo_hookean", E=30e3, nu=0.45), density=1000.0, gravity=[0, 0, -9.81],
+        fixed=mesh.nodes[:, 0] == 0,
+    )
+    report = sys.solve_static(tol=1e-8)
+    assert report["converged"]
+    weight = sys.masses.sum() * 9.81
+    assert sys.total_reaction[2] == pytest.approx(weight, rel=1e-6)
+    assert sys.displacements[:, 2].min() < 0
+    assert np.array_equal(sys.positions - sys.rest_positions, sys.displacements)
+
+
+def test_fixed_by_ids_equals_fixed_by_mask():
+    """A boolean mask and the equivalent id list fix the same nodes: same motion."""
+    mesh = heml.box_mesh([0.04, 0.02, 0.02], [4, 2, 2])
+    mask = mesh.nodes[:, 0] == 0
+    law = heml.material("neo_hookean", E=3e3, nu=0.45)
+    a = heml.System(mesh, law, gravity=[0, 0, -9.81], fixed=mask)
+    b = heml.System(mesh, law, gravity=[0, 0, -9.81], fixed=np.flatnonzero(mask).tolist())
+    a.step("symplectic_euler", n=20)
+    b.step("symplectic_euler", n=20)
+    assert np.array_equal(a.positions, b.positions)
+    assert np.all(a.displacements[mask] == 0)
+    assert np.all(a.reactions[~mask] == 0)
+
+
+def test_initial_velocity_is_applied_per_node():
+    """initial_velocity's rows go to their nodes (checked on a free body)."""
+    mesh = heml.box_mesh([0.02, 0.02, 0.02], [2, 2, 2])
+    v = np.zeros((mesh.n_nodes, 3))
+    v[:, 1] = mesh.nodes[:, 0]
+    sys = heml.System(mesh, heml.material("neo_hookean", E=3e3, nu=0.45), initial_velocity=v)
+    assert np.array_equal(sys.velocities, v)
+
+
+def test_scene_state_is_refused_not_waited_for_while_it_runs():
+    """Reading a scene's state from another thread while it runs raises (the run
+    holds the simulation and needs the GIL for its callback: waiting would
+    deadlock). The callback pauses the run at step 1 until the check is done."""
+    scene = heml.Scene.from_toml("""
+[mesh]
+generate = { kind = "box", size = [0.02, 0.01, 0.01], cells = [2, 1, 1] }
+[[material]]
+law = "neo_hookean"
+params = { E = 5e3, nu = 0.3 }
+[loads]
+gravity = [0, 0, -9.81]
+[solver]
+duration = 0.001
+[output]
+vtu = false
+csv = false
+""")
+    started, checked = threading.Event(), threading.Event()
+
+    def cb(p):
+        if p["step"] == 1:
+            started.set()
+            assert checked.wait(30)
+
+    t = threading.Thread(target=scene.run, kwargs=dict(progress=cb))
+    t.start()
+    assert started.wait(30)
+    try:
+        with pytest.raises(RuntimeError, match="running in another thread"):
+            scene.time
+    finally:
+        checked.set()
+        t.join()
+    assert scene.time > 0
