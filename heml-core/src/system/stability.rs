@@ -166,7 +166,7 @@ fn power_iteration(sys: &System, keep: impl Fn(&Region) -> bool + Copy, max_iter
         u.iter_mut().for_each(|v| *v /= norm);
         // w = M^(-1/2) u, y = M^(-1/2) K w with K w ≈ −(f(x + εw) − f(x − εw)) / 2ε
         let wmax = u.iter().zip(&s).map(|(v, si)| v.norm() * si).fold(0.0, f64::max);
-        let eps = 1e-6 * sys.length_scale / wmax;
+        let eps = 1e-6 * sys.model.length_scale / wmax;
         for i in 0..n {
             xp[i] = x[i] + u[i] * (s[i] * eps);
             xm[i] = x[i] - u[i] * (s[i] * eps);

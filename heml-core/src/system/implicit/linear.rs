@@ -68,15 +68,15 @@ impl TangentSolve {
         rhs: &mut [f64],
     ) -> Result<CgReport> {
         for t in tangents.iter_mut() {
-            t.update(&sys.x)?;
+            t.update(&sys.state.x)?;
         }
-        let n = sys.x.len();
+        let n = sys.state.x.len();
         let (ck, cm) = (self.ck, self.cm);
         let mut blocks = vec![Matrix3::zeros(); n];
         for t in tangents.iter() {
             t.add_diagonal_blocks(&mut blocks)?;
         }
-        for (b, m) in blocks.iter_mut().zip(&sys.mass) {
+        for (b, m) in blocks.iter_mut().zip(&sys.model.mass) {
             *b = *b * ck + Matrix3::identity() * (cm * m);
         }
         preconditioner(&mut blocks, |i, a| dofs.get(i, a).is_some());
@@ -92,7 +92,7 @@ impl TangentSolve {
                     failure = Some(e);
                 }
             }
-            for ((k, p), m) in kp.iter_mut().zip(&px).zip(&sys.mass) {
+            for ((k, p), m) in kp.iter_mut().zip(&px).zip(&sys.model.mass) {
                 *k = *k * ck + p * (cm * m);
             }
             out.copy_from_slice(&dofs.gather(&kp));

@@ -53,25 +53,25 @@ pub(super) struct ImplicitStep<'a> {
 impl ImplicitStep<'_> {
     /// d_i = x_i − x0_i − h v0_i on a free node.
     fn d(&self, sys: &System, i: usize) -> Vec3 {
-        sys.x[i] - self.x0[i] - self.v0[i] * self.h
+        sys.state.x[i] - self.x0[i] - self.v0[i] * self.h
     }
 
     /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
     /// velocity).
     pub fn set_velocities(&self, sys: &mut System) {
-        for i in 0..sys.x.len() {
-            if sys.inv_mass[i] > 0.0 {
-                sys.v[i] = self.v0[i] + self.d(sys, i) * self.cv;
+        for i in 0..sys.state.x.len() {
+            if sys.model.inv_mass[i] > 0.0 {
+                sys.state.v[i] = self.v0[i] + self.d(sys, i) * self.cv;
             }
         }
-        sys.forces_current = false;
+        sys.eval.forces_current = false;
     }
 
     /// a⁺ = c_a d − â on the free nodes, zero on the constrained ones.
     pub fn accelerations(&self, sys: &System) -> Vec<Vec3> {
-        (0..sys.x.len())
+        (0..sys.state.x.len())
             .map(|i| {
-                if sys.inv_mass[i] > 0.0 {
+                if sys.model.inv_mass[i] > 0.0 {
                     self.d(sys, i) * self.ca - self.a0[i]
                 } else {
                     Vec3::zeros()
@@ -82,7 +82,10 @@ impl ImplicitStep<'_> {
 
     /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.
     fn coefficients(&self, sys: &System) -> (f64, f64) {
-        (self.ca + sys.damping.alpha * self.cv, 1.0 + sys.damping.beta * self.cv)
+        (
+            self.ca + sys.model.damping.alpha * self.cv,
+            1.0 + sys.model.damping.beta * self.cv,
+        )
     }
 }
 
@@ -100,8 +103,8 @@ impl NewtonProblem for ImplicitStep<'_> {
         sys.compute_forces_inner()?;
         let a = self.accelerations(sys);
         for (i, r) in self.r.iter_mut().enumerate() {
-            *r = sys.force[i] - a[i] * sys.mass[i];
-            if sys.inv_mass[i] == 0.0 {
+            *r = sys.eval.force[i] - a[i] * sys.model.mass[i];
+            if sys.model.inv_mass[i] == 0.0 {
                 *r = Vec3::zeros();
             }
         }
@@ -163,11 +166,11 @@ impl NewtonProblem for ImplicitStep<'_> {
 
     fn merit(&self, sys: &System) -> Result<f64> {
         let e = sys.energies()?;
-        let inertia: f64 = (0..sys.x.len())
-            .filter(|&i| sys.inv_mass[i] > 0.0)
+        let inertia: f64 = (0..sys.state.x.len())
+            .filter(|&i| sys.model.inv_mass[i] > 0.0)
             .map(|i| {
                 let a = self.d(sys, i) * self.ca - self.a0[i];
-                0.5 * sys.mass[i] * a.norm_squared() / self.ca
+                0.5 * sys.model.mass[i] * a.norm_squared() / self.ca
             })
             .sum();
         Ok(e.elastic + e.gravity + e.loads + inertia)

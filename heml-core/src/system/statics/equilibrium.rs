@@ -49,7 +49,7 @@ impl NewtonProblem for Equilibrium<'_> {
     }
 
     fn residual<'s>(&'s self, sys: &'s System) -> &'s [Vec3] {
-        &sys.force
+        &sys.eval.force
     }
 
     fn converged(&self, sys: &System, it: usize, step: f64) -> Option<StaticReport> {
@@ -106,18 +106,18 @@ impl System {
     /// without stress, nothing free) or stalled (then dynamic relaxation goes on from the
     /// current iterate).
     pub(super) fn static_newton(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<Option<StaticReport>> {
-        let t = self.t;
-        let n = self.x.len();
+        let t = self.state.t;
+        let n = self.state.x.len();
         let mut held = vec![[false; 3]; n];
         for (i, h) in held.iter_mut().enumerate() {
-            if self.constraints.is_constrained(i) {
+            if self.model.constraints.is_constrained(i) {
                 *h = [true; 3];
             }
         }
         for s in sliders {
             held[s.node][s.axis] = true;
         }
-        let dofs = DofMap::new(&held, self.mesh.tets());
+        let dofs = DofMap::new(&held, self.model.mesh.tets());
         if dofs.len() == 0 {
             return Ok(None);
         }
@@ -128,12 +128,14 @@ impl System {
         let linear = match stiffness {
             stiffness if BandLdl::fits(dofs.len(), dofs.band()) => Linear::Banded(stiffness),
             _ => {
-                let mut tangents = Vec::with_capacity(self.regions.len());
-                for r in &self.regions {
-                    match r
-                        .material
-                        .tangent(&self.mesh, Some(r.field.tet_ids()), &self.force_options, true)?
-                    {
+                let mut tangents = Vec::with_capacity(self.model.regions.len());
+                for r in &self.model.regions {
+                    match r.material.tangent(
+                        &self.model.mesh,
+                        Some(r.field.tet_ids()),
+                        &self.model.force_options,
+                        true,
+                    )? {
                         Some(t) => tangents.push(t),
                         None => return Ok(None),
                     }
@@ -141,7 +143,7 @@ impl System {
                 Linear::Cg(tangents)
             }
         };
-        self.v.fill(Vec3::zeros());
+        self.state.v.fill(Vec3::zeros());
         self.apply_constraints(t);
         self.apply_sliders(sliders);
         let mut problem = Equilibrium {
