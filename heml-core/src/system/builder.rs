@@ -2,9 +2,10 @@
 //! at [`SystemBuilder::build`] (errors, never panics).
 
 use super::constraints::{Constraints, Prescribed, Ramp};
+use super::control::Grasps;
 use super::parts::{Diagnostics, Evaluation, Model, Scratch, Snapshot, State, Stepping};
 use super::prony::{validate_prony, PronyState, PronyTerm};
-use super::stability::{stable_time_step, TimeStepPolicy, DEFAULT_SAFETY};
+use super::stability::{critical_time_step, damped_safe, TimeStepPolicy, DEFAULT_SAFETY};
 use super::{Rayleigh, Region, System};
 use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
@@ -499,6 +500,8 @@ impl SystemBuilder {
                 input_ids: self.input_ids,
                 surface: BoundarySurface::of_mesh(mesh.tets()),
                 mesh,
+                grasps: Grasps::default(),
+                revision: 0,
             },
             state: State {
                 x,
@@ -521,6 +524,7 @@ impl SystemBuilder {
                 elastic: vec![Vec3::zeros(); n],
             },
             stepping: Stepping {
+                critical_dt: f64::INFINITY,
                 stable_dt: f64::INFINITY,
                 safety: self.safety,
                 policy: self.policy,
@@ -532,7 +536,8 @@ impl SystemBuilder {
             },
         };
         sys.apply_constraints(0.0);
-        sys.stepping.stable_dt = stable_time_step(&sys);
+        sys.stepping.critical_dt = critical_time_step(&sys);
+        sys.stepping.stable_dt = damped_safe(&sys, sys.stepping.critical_dt);
         Ok(sys)
     }
 }

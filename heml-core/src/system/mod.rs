@@ -472,6 +472,7 @@ impl System {
         for &(i, fi) in &self.model.nodal {
             self.eval.force[i] += fi;
         }
+        self.add_control_forces();
         if self.model.damping.alpha > 0.0 {
             for ((f, m), v) in self.eval.force.iter_mut().zip(&self.model.mass).zip(&self.state.v) {
                 *f -= v * (self.model.damping.alpha * m);
@@ -688,6 +689,7 @@ impl System {
             .iter()
             .map(|(i, f)| f.dot(&(self.state.x[*i] - rest[*i])))
             .sum::<f64>();
+        let loads = loads + self.model.grasps.energy(&self.state.x);
         Ok(Energies::new(kinetic, self.elastic_energy()?, gravity, loads))
     }
 

@@ -8,6 +8,7 @@
 //! model or the state invalidates.
 
 use super::constraints::Constraints;
+use super::control::Grasps;
 use super::prony::PronyState;
 use super::stability::TimeStepPolicy;
 use super::{Rayleigh, Region};
@@ -42,6 +43,11 @@ pub(crate) struct Model {
     /// Ids that messages show for the nodes (see
     /// [`SystemBuilder::input_node_ids`](super::SystemBuilder::input_node_ids)).
     pub(crate) input_ids: Option<Vec<usize>>,
+    /// Soft grasps: node sets tied to target poses by springs.
+    pub(crate) grasps: Grasps,
+    /// Counts the runtime changes of the model (caches that outlive a step, such as
+    /// Newmark's acceleration, compare it to know they are stale).
+    pub(crate) revision: u64,
 }
 
 /// Where the body is: positions, velocities, time, step count, and the step in
@@ -96,6 +102,10 @@ pub(crate) struct Scratch {
 /// The time-step settings and the stable step estimate.
 #[derive(Debug)]
 pub(crate) struct Stepping {
+    /// The undamped critical step of the elastic regions alone, before the safety
+    /// factor (recomputed when the set of free nodes changes).
+    pub(crate) critical_dt: f64,
+    /// `critical_dt` reduced for damping and grasps, times the safety factor.
     pub(crate) stable_dt: f64,
     pub(crate) safety: f64,
     pub(crate) policy: TimeStepPolicy,

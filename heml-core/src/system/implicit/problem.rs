@@ -6,8 +6,9 @@
 //! c_a = 4/h², c_v = 2/h, â = a (the acceleration at the start of the step). The
 //! residual is r = f(x⁺, v⁺) − M a⁺ — f the system's full force: elastic (viscous-
 //! elastic), gravity, loads and Rayleigh damping −αMv − βKv — and the tangent
-//! −∂r/∂x⁺ = (1 + β c_v) K + (c_a + α c_v) M, with K the elastic stiffness of
-//! [`crate::force::tangent`]. The line-search merit is the incremental potential
+//! −∂r/∂x⁺ = (1 + β c_v) K + (c_a + α c_v) M + (k + c c_v) I on grasped nodes, with K
+//! the elastic stiffness of [`crate::force::tangent`] and k, c the grasp springs and
+//! dampers (so that a stiff grasp does not stall the Newton iteration). The line-search merit is the incremental potential
 //! W(x⁺) + gravity and load potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
 //! without damping (with damping, a decreasing residual norm is accepted too).
 
@@ -136,6 +137,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         let solve = TangentSolve {
             ck,
             cm,
+            cv: self.cv,
             tol: s.cg_tolerance,
             max_iterations: s.cg_max_iterations,
         };

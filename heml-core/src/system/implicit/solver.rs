@@ -30,9 +30,10 @@ pub struct ImplicitSolver {
     tangents: Vec<Box<dyn TangentOperator>>,
     dofs: Option<DofMap>,
     /// Newmark: the acceleration at the end of the last step, valid at `accel_at`
-    /// (step count, time).
+    /// (step count, time, model revision: a runtime change of loads, constraints or
+    /// grasps between steps makes it stale).
     accel: Vec<Vec3>,
-    accel_at: Option<(u64, f64)>,
+    accel_at: Option<(u64, f64, u64)>,
 }
 
 impl std::fmt::Debug for ImplicitSolver {
@@ -145,9 +146,9 @@ impl ImplicitSolver {
         let a0 = match self.scheme {
             ImplicitScheme::BackwardEuler => vec![Vec3::zeros(); n],
             ImplicitScheme::Newmark => {
-                if self.accel_at != Some((sys.state.step, sys.state.t)) || self.accel.len() != n {
+                if self.accel_at != Some((sys.state.step, sys.state.t, sys.model.revision)) || self.accel.len() != n {
                     // the acceleration of the current state (first step, or the state
-                    // was changed since the last Newmark step)
+                    // or the model was changed since the last Newmark step)
                     sys.compute_forces_inner()?;
                     self.accel = (0..n).map(|i| sys.eval.force[i] * sys.model.inv_mass[i]).collect();
                 }
@@ -213,7 +214,7 @@ impl ImplicitSolver {
         let mut stats = sys.finish_step()?;
         stats.newton_iterations = newton_iterations;
         stats.cg_iterations = cg_iterations;
-        self.accel_at = Some((sys.state.step, sys.state.t));
+        self.accel_at = Some((sys.state.step, sys.state.t, sys.model.revision));
         Ok(stats)
     }
 }

@@ -69,6 +69,15 @@ impl NewtonProblem for Equilibrium<'_> {
             Linear::Banded(stiffness) => {
                 let mut k = BandLdl::new(dofs.len(), dofs.band());
                 stiffness.add_to(sys, dofs, &mut k);
+                if let Some(g) = sys.model.grasps.diagonal(sys.state.x.len(), 0.0) {
+                    for (i, d) in g.iter().enumerate().filter(|(_, d)| **d != 0.0) {
+                        for a in 0..3 {
+                            if let Some(j) = dofs.get(i, a) {
+                                k.add(j, j, *d);
+                            }
+                        }
+                    }
+                }
                 if !k.factor() {
                     return Ok(false);
                 }
@@ -79,6 +88,7 @@ impl NewtonProblem for Equilibrium<'_> {
                 let solve = TangentSolve {
                     ck: 1.0,
                     cm: 0.0,
+                    cv: 0.0,
                     tol: CG_TOL,
                     max_iterations: CG_MAX_ITERATIONS,
                 };
