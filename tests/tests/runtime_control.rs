@@ -99,7 +99,7 @@ fn rebuilt(change: Change) -> System {
             b.fix_where(clamp)
                 .prescribe_with(nodes_where(&mesh, far), |x| pose.apply(*x) - x, Ramp::Step)
         }
-        Change::Refix => b.fix_where(|p| bottom(p)),
+        Change::Refix => b.fix_where(bottom),
         Change::Loads => b
             .fix_where(clamp)
             .gravity(Vec3::new(3.0, 0.0, -9.81))
@@ -155,7 +155,8 @@ fn runs(change: Change, make: &dyn Fn() -> Box<dyn Integrator>, dt: f64, steps: 
 fn runtime_changes_step_like_a_system_built_at_that_instant() {
     link();
     let explicit_dt = 0.5 * builder().fix_where(clamp).build().unwrap().stable_dt();
-    let schemes: [(&str, Box<dyn Fn() -> Box<dyn Integrator>>, f64); 3] = [
+    type Make = Box<dyn Fn() -> Box<dyn Integrator>>;
+    let schemes: [(&str, Make, f64); 3] = [
         ("symplectic_euler", Box::new(|| Box::new(SymplecticEuler)), explicit_dt),
         ("velocity_verlet", Box::new(|| Box::new(VelocityVerlet)), explicit_dt),
         (
@@ -342,7 +343,7 @@ fn a_grasp_lifts_holds_and_lets_go() {
         .material("neo_hookean", Params::from([("E", 5e3), ("nu", 0.45)]))
         .unwrap()
         .density(1000.0)
-        .fix_where(|p| bottom(p))
+        .fix_where(bottom)
         .rayleigh(20.0, 0.0)
         .energy_every(0)
         .build()
@@ -421,7 +422,7 @@ fn a_stiff_grasp_is_implicit_friendly_and_limits_the_explicit_step() {
         System::builder(cube())
             .material("neo_hookean", Params::from([("E", 5e3), ("nu", 0.45)]))
             .unwrap()
-            .fix_where(|p| bottom(p))
+            .fix_where(bottom)
             .rayleigh(20.0, 0.0)
             .energy_every(0)
             .build()
