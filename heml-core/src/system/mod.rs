@@ -71,6 +71,7 @@ mod energy;
 pub mod implicit;
 mod integrator;
 mod parts;
+mod passes;
 mod prony;
 mod stability;
 pub mod statics;
@@ -371,8 +372,8 @@ impl System {
             }
         }
         let s = &mut self.state.snapshot;
-        s.x.clone_from(&self.state.x);
-        s.v.clone_from(&self.state.v);
+        passes::copy(&mut s.x, &self.state.x);
+        passes::copy(&mut s.v, &self.state.v);
         s.t = self.state.t;
         s.step = self.state.step;
         s.prony.resize_with(self.model.regions.len(), || None);
@@ -488,7 +489,7 @@ impl System {
             self.eval.force[i] = zero;
         }
         self.eval.reaction_total = total;
-        if let Some(i) = self.eval.force.iter().position(|f| !f.iter().all(|c| c.is_finite())) {
+        if let Some(i) = passes::first_non_finite(&self.eval.force) {
             return Err(HemlError::Numerical(format!(
                 "step {}: non-finite force {:?} at node {} (t = {}); {}",
                 self.attempted_step(),
@@ -538,17 +539,13 @@ impl System {
     /// mass). Uses the forces of the last [`System::compute_forces`].
     pub fn kick(&mut self, h: f64) {
         self.eval.accepted_forces = false;
-        for ((v, f), im) in self.state.v.iter_mut().zip(&self.eval.force).zip(&self.model.inv_mass) {
-            *v += f * (h * im);
-        }
+        passes::kick(&mut self.state.v, &self.eval.force, &self.model.inv_mass, h);
     }
 
     /// x += h·v on every node (constrained nodes are reset by the next constraint
     /// application).
     pub fn drift(&mut self, h: f64) {
-        for (x, v) in self.state.x.iter_mut().zip(&self.state.v) {
-            *x += v * h;
-        }
+        passes::drift(&mut self.state.x, &self.state.v, h);
         self.invalidate();
     }
 
@@ -580,19 +577,13 @@ impl System {
     pub fn finish_step(&mut self) -> Result<StepStats> {
         self.advance_time()?;
         let (_, dt) = self.state.in_step.unwrap_or_default();
-        let bad = first_non_finite(&self.state.x)
+        let bad = passes::first_non_finite(&self.state.x)
             .map(|i| ("position", i, self.state.x[i]))
-            .or_else(|| first_non_finite(&self.state.v).map(|i| ("velocity", i, self.state.v[i])));
+            .or_else(|| passes::first_non_finite(&self.state.v).map(|i| ("velocity", i, self.state.v[i])));
         // the fastest node: a step that moves a node by more than the body's size is a
         // blow-up in progress even while every number is still finite (a physical
         // run would need speeds of ~1000 m/s at the usual steps)
-        let (fastest, max_speed) = self
-            .state
-            .v
-            .iter()
-            .enumerate()
-            .map(|(i, v)| (i, v.norm()))
-            .fold((0, 0.0_f64), |a, b| if b.1 > a.1 { b } else { a });
+        let (fastest, max_speed) = passes::fastest(&self.state.v);
         let diverging = bad.is_none() && max_speed * dt > self.model.length_scale;
         if let Some((what, i, value)) = bad {
             let msg = format!(
@@ -708,8 +699,4 @@ impl System {
         }
         Ok(())
     }
-}
-
-fn first_non_finite(a: &[Vec3]) -> Option<usize> {
-    a.iter().position(|p| !p.iter().all(|c| c.is_finite()))
 }
