@@ -15,7 +15,7 @@ use crate::error::{HemlError, Result};
 use crate::system::System;
 use crate::Vec3;
 
-/// Names a grasp of a [`System`](crate::system::System) (never reused in a system).
+/// Names a grasp of a [`System`] (never reused in a system).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct GraspId(pub(crate) u64);
 
