@@ -5,7 +5,7 @@ cd "$(dirname "$0")/.."
 
 # 1. `heml` (the library) must not pull in the command's or the validation's crates.
 tree=$(cargo tree --locked -p heml -e normal --prefix none)
-if echo "$tree" | grep -E '^(plotters|clap|indicatif|core_affinity|criterion|heml-validation|heml-cli) ' ; then
+if echo "$tree" | grep -E '^(plotters|clap|indicatif|core_affinity|criterion|heml-validation|heml-cli|axum|tokio|hyper|fantoccini) ' ; then
   echo "error: the heml library depends on an application crate (above)" >&2
   exit 1
 fi

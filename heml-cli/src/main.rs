@@ -33,6 +33,8 @@ enum Command {
     Demo(cli::run::RunOptions),
     /// Run the validation cases of the seed papers: pass/fail table and PNG plots.
     Validate(cli::validate::ValidateArgs),
+    /// The simulation live in a browser page (or a finished run played back).
+    View(cli::view::ViewArgs),
     /// Force-evaluation throughput of HEML vs the standard P1 path, and step time.
     Bench(cli::bench::BenchArgs),
 }
@@ -47,6 +49,7 @@ fn main() -> ExitCode {
         Command::Demo(opts) => cli::demo::run(opts),
         Command::Validate(args) => cli::validate::run(args),
         Command::Bench(args) => cli::bench::run(args),
+        Command::View(args) => cli::view::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,6 +1,7 @@
 //! Deterministic mutation fuzzing of every mesh reader and of the scene parser.
 //!
 //! Each target starts from small seed files in its format (`tests/data/tiny_*`,
+//! among them Gmsh 1 and meshio's binary Gmsh and lzma VTU,
 //! `tests/fuzz_seeds/*`: the reproducers of the faults found by fuzzing before,
 //! kept as regression cases; `scenes/*.toml`; the project's writers' output for a
 //! small box) and applies 1–4 mutations drawn from a fixed-seed
@@ -169,6 +170,9 @@ fn writer_seed_dir() -> PathBuf {
         std::fs::create_dir_all(&dir).unwrap();
         let m = box_mesh([1.0, 0.5, 0.5], [2, 1, 1], HexSplit::Six).unwrap();
         write_mesh_as(&dir.join("w22.msh"), &m, MeshFormat::Gmsh22).unwrap();
+        write_mesh_as(&dir.join("w1.msh"), &m, MeshFormat::Gmsh1).unwrap();
+        write_mesh_as(&dir.join("wb22.msh"), &m, MeshFormat::Gmsh22Binary).unwrap();
+        write_mesh_as(&dir.join("wb41.msh"), &m, MeshFormat::Gmsh41Binary).unwrap();
         for f in ["w41.msh", "w.vtk", "w.mesh", "w.node"] {
             write_mesh(&dir.join(f), &m).unwrap();
         }
@@ -216,8 +220,8 @@ struct Tally {
 }
 
 /// Checks what a reader returned: an error is fine; data must have in-range
-/// indices and one tag per tet, and as a mesh (when it validates) positive finite
-/// volumes and finite nodes.
+/// indices and one tag per tet and per hex, and as a mesh (hexes split, when it
+/// validates) positive finite volumes and finite nodes.
 fn check_data(r: heml_core::Result<MeshData>, tally: &mut Tally) -> Result<(), String> {
     let data = match r {
         Ok(d) => d,
@@ -226,14 +230,20 @@ fn check_data(r: heml_core::Result<MeshData>, tally: &mut Tally) -> Result<(), S
             return Ok(());
         }
     };
-    if data.tets.is_empty() {
-        return Err("a reader returned a mesh without tets".into());
+    if data.tets.is_empty() && data.hexes.is_empty() {
+        return Err("a reader returned a mesh without tets or hexes".into());
     }
     if data.tags.len() != data.tets.len() {
         return Err(format!("{} tags for {} tets", data.tags.len(), data.tets.len()));
     }
+    if data.hex_tags.len() != data.hexes.len() {
+        return Err(format!("{} tags for {} hexes", data.hex_tags.len(), data.hexes.len()));
+    }
     if let Some(t) = data.tets.iter().position(|t| t.iter().any(|&i| i >= data.nodes.len())) {
         return Err(format!("tet {t} refers to a node out of range"));
+    }
+    if let Some(h) = data.hexes.iter().position(|h| h.iter().any(|&i| i >= data.nodes.len())) {
+        return Err(format!("hex {h} refers to a node out of range"));
     }
     if let Some(i) = data.nodes.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         return Err(format!("node {i} is not finite"));
@@ -631,6 +641,60 @@ fn zlib_bomb_fails_before_inflating() {
     // the base64 text is decoded once (11 kB) and its copy without whitespace; the
     // 8 MiB block is never inflated: 1 MB leaves room for the parser's own buffers
     assert!(peak < 1 << 20, "peak {peak} bytes while reading an 11 kB file");
+}
+
+#[test]
+fn lzma_dictionary_bomb_fails_before_allocating() {
+    // meshio's lzma VTU fixture with the first block's xz header declaring a 4 GiB
+    // dictionary (LZMA2 property byte 40, header CRC32 recomputed): the decoder
+    // would allocate it before reading a byte; the reader's memory limit refuses it.
+    use base64::engine::general_purpose::STANDARD;
+    use base64::Engine;
+    let text = std::fs::read_to_string(manifest("tests/data/tiny_meshio_lzma.vtu")).unwrap();
+    let open = text.find("format=\"binary\">").unwrap() + "format=\"binary\">".len();
+    // the size header (3 + 1 UInt32 words = 16 bytes, base64 "…==") then the xz stream
+    let payload = open + text[open..].find("==").unwrap() + 2;
+    let end = payload + text[payload..].find('<').unwrap();
+    let mut xz = STANDARD.decode(text[payload..end].trim()).unwrap();
+    // stream header (12 bytes), then block header: size, flags, filter 0x21 (LZMA2),
+    // property size 1, dictionary property, padding, CRC32 of the first 8 bytes
+    assert_eq!((&xz[..6], xz[14], xz[15]), (&b"\xfd7zXZ\0"[..], 0x21, 1));
+    xz[16] = 40;
+    let mut crc = flate2::Crc::new();
+    crc.update(&xz[12..20]);
+    xz[20..24].copy_from_slice(&crc.sum().to_le_bytes());
+    let bomb = format!("{}{}{}", &text[..payload], STANDARD.encode(&xz), &text[end..]);
+    let (r, peak) = with_input(bomb.as_bytes(), || vtu::parse(Path::new("bomb.vtu"), bomb.as_bytes()));
+    let e = r.unwrap_err().to_string();
+    assert!(
+        e.contains("DataArray 'Points'") && e.contains("lzma block 0 declares a dictionary needing more than 65 MiB"),
+        "{e}"
+    );
+    // the file is 1.3 kB: 1 MB leaves room for the parser's own buffers
+    assert!(
+        peak < 1 << 20,
+        "peak {peak} bytes while reading a {}-byte file",
+        bomb.len()
+    );
+}
+
+#[test]
+fn binary_gmsh_counts_are_bounded_by_the_file_size() {
+    // binary 4.1 $Nodes announcing 2^63 nodes in one block, binary 2.2 announcing
+    // 10^18: refused from the bytes left in the file, before any reservation
+    let mut v41 = b"$MeshFormat\n4.1 1 8\n\x01\0\0\0\n$EndMeshFormat\n$Nodes\n".to_vec();
+    for w in [1u64, 1 << 63, 1, 1 << 63] {
+        v41.extend_from_slice(&w.to_le_bytes());
+    }
+    v41.extend_from_slice(&[3, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]);
+    v41.extend_from_slice(&(1u64 << 63).to_le_bytes());
+    let v22 = b"$MeshFormat\n2.2 1 8\n\x01\0\0\0\n$EndMeshFormat\n$Nodes\n1000000000000000000\n\x01\0\0\0".to_vec();
+    for bytes in [v41, v22] {
+        let (r, peak) = with_input(&bytes, || gmsh::parse(Path::new("huge.msh"), &bytes));
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("nodes need") && e.contains("bytes of binary data"), "{e}");
+        assert!(peak < 64 * 1024, "peak {peak} bytes for a {}-byte file", bytes.len());
+    }
 }
 
 #[test]

@@ -196,12 +196,12 @@ fn vtk_ascii_cell_errors_name_the_cell_line() {
     let e = read_mesh(&seed("repro_bad_cell_line.vtk")).unwrap_err();
     let (line, msg) = parse_error(&e, "repro_bad_cell_line.vtk");
     assert!(line == 10 && msg.contains("cell 1 refers to node 9"), "{e}");
-    // a bad cell type names the CELL_TYPES value's line (14), not the header (12)
+    // a bad cell type (13, a wedge) names the CELL_TYPES value's line (14), not the header (12)
     let vtk = "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n0 0 0 1 0 0 0 1 0\n\
-               0 0 1 1 1 1\nCELLS 2 10\n4 0 1 2 3\n4 1 2 3 4\nCELL_TYPES 2\n10\n12\n";
+               0 0 1 1 1 1\nCELLS 2 10\n4 0 1 2 3\n4 1 2 3 4\nCELL_TYPES 2\n10\n13\n";
     let e = read_text("cell-type", &[("t.vtk", vtk)]);
     let (line, msg) = parse_error(&e, "t.vtk");
-    assert!(line == 13 && msg.contains("cell 1 has VTK type 12"), "{e}");
+    assert!(line == 13 && msg.contains("cell 1 has VTK type 13"), "{e}");
 }
 
 #[test]

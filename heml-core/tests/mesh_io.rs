@@ -48,6 +48,15 @@ fn every_fixture_format_reads_the_tiny_mesh() {
             1,
         ),
         ("tiny_v41.msh", MeshFormat::Gmsh41, one("triangle"), 0),
+        (
+            "tiny_v1.msh",
+            MeshFormat::Gmsh1,
+            BTreeMap::from([("point".into(), 1), ("triangle".into(), 1)]),
+            1,
+        ),
+        // written by meshio 5.3.5 (make_meshio_fixtures.py): its defaults
+        ("tiny_meshio_b22.msh", MeshFormat::Gmsh22Binary, one("triangle"), 0),
+        ("tiny_meshio_lzma.vtu", MeshFormat::Vtu, one("triangle/polygon"), 0),
         ("tiny_classic.vtk", MeshFormat::VtkLegacy, one("triangle/polygon"), 0),
         ("tiny_vtk5.vtk", MeshFormat::VtkLegacy, none.clone(), 0),
         ("tiny_binary.vtk", MeshFormat::VtkLegacy, one("triangle/polygon"), 0),
@@ -225,6 +234,9 @@ fn every_writer_round_trips_nodes_tets_and_tags() {
     let cases = [
         ("m22.msh", Some(MeshFormat::Gmsh22), MeshFormat::Gmsh22),
         ("m41.msh", None, MeshFormat::Gmsh41),
+        ("m1.msh", Some(MeshFormat::Gmsh1), MeshFormat::Gmsh1),
+        ("mb22.msh", Some(MeshFormat::Gmsh22Binary), MeshFormat::Gmsh22Binary),
+        ("mb41.msh", Some(MeshFormat::Gmsh41Binary), MeshFormat::Gmsh41Binary),
         ("m.vtk", None, MeshFormat::VtkLegacy),
         ("m.vtu", None, MeshFormat::Vtu),
         ("m.node", None, MeshFormat::TetGen),
@@ -347,10 +359,8 @@ fn broken_files_give_errors_with_file_and_line() {
         ("msh_non_numeric.msh", Parse(7, "'1.0x'")),
         ("msh_bad_node.msh", Parse(13, "node 9")),
         ("msh_missing_elements.msh", Parse(0, "missing $Elements")),
-        (
-            "msh_binary.msh",
-            Parse(2, "binary .msh not supported, re-save as ASCII"),
-        ),
+        // declared binary, holds text: the endianness integer after line 2 is "$Nod"
+        ("msh_binary.msh", Parse(3, "the integer 1 written in binary")),
         ("msh_tet10.msh", Parse(13, "type 11")),
         ("msh_unclosed.msh", Parse(4, "not closed")),
         ("msh_degenerate.msh", Mesh("degenerate")),

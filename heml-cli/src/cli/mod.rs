@@ -19,3 +19,4 @@ pub mod materials;
 pub mod out;
 pub mod run;
 pub mod validate;
+pub mod view;

@@ -49,6 +49,26 @@ impl<'a> Cursor<'a> {
         self.data.len() - self.pos
     }
 
+    /// Byte offset of the current position from the start of the file (named in
+    /// errors about binary data, where a line number says little).
+    pub fn offset(&self) -> usize {
+        self.pos
+    }
+
+    /// Moves just past the next occurrence of `needle` (and the rest of its line);
+    /// `false`, with the cursor unmoved, when there is none. Skips sections whose
+    /// content may be binary, which the line readers would refuse as invalid text.
+    pub fn skip_past(&mut self, needle: &[u8]) -> bool {
+        let rest = &self.data[self.pos..];
+        let Some(at) = rest.windows(needle.len().max(1)).position(|w| w == needle) else {
+            return false;
+        };
+        self.line += rest[..at + needle.len()].iter().filter(|&&b| b == b'\n').count();
+        self.pos += at + needle.len();
+        self.skip_rest_of_line();
+        true
+    }
+
     /// A parse error at `line`.
     pub fn err_at(&self, line: usize, msg: impl Into<String>) -> HemlError {
         HemlError::Parse {

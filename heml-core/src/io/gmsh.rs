@@ -1,18 +1,23 @@
-//! Gmsh `.msh` files, ASCII versions 2.2 (any 2.x) and 4.1.
+//! Gmsh `.msh` files: versions 1 (`$NOD`/`$ELM`), 2.2 (any 2.x) and 4.1, ASCII
+//! or binary (either byte order, see `gmsh_binary`).
 //!
-//! * Nodes may carry arbitrary, non-contiguous tags (v4.1 files often do); they are
-//!   mapped to dense indices in file order.
-//! * Region tag of a tet: v2: the first element tag (the physical group; 0 when the
-//!   element has no tags). v4.1: if the `$Entities` section gives any volume a
-//!   physical group, the first physical tag of the element's volume (0 for volumes
-//!   without one); otherwise the element's volume (entity) tag, so that distinct
-//!   volumes stay distinguishable in meshes saved without physical groups.
-//! * 4-node tets (type 4) are read; points, lines and surface elements are skipped
-//!   and counted; other volume elements (hexahedra, prisms, pyramids and quadratic
-//!   tets, e.g. type 11) are an error, because dropping them would silently remove
-//!   material. Re-export such meshes with linear tets (`gmsh -3 -order 1`).
-//! * Binary `.msh` is refused with an explicit message: it is easy to re-save as
-//!   ASCII and supporting it would double the parser for little gain.
+//! * Nodes may carry arbitrary, non-contiguous tags (v4.1 and v1 files often do);
+//!   they are mapped to dense indices in file order.
+//! * Region tag of a tet: v1: its physical region; v2: the first element tag (the
+//!   physical group; 0 when the element has no tags). v4.1: if the `$Entities`
+//!   section gives any volume a physical group, the first physical tag of the
+//!   element's volume (0 for volumes without one); otherwise the element's volume
+//!   (entity) tag, so that distinct volumes stay distinguishable in meshes saved
+//!   without physical groups.
+//! * 4-node tets (type 4) are read, and 8-node hexahedra (type 5), which the load
+//!   splits into tets ([`MeshData::split_hexes`]); points, lines and surface
+//!   elements are skipped and counted; other volume elements (prisms, pyramids,
+//!   quadratic tets and hexes, e.g. type 11) are an error, because dropping them
+//!   would silently remove material. Re-export such meshes with linear elements
+//!   (`gmsh -3 -order 1`).
+//! * Binary records are checked against the bytes left in the file before they
+//!   are reserved or read (a header announcing 10¹⁸ nodes is an error, not an
+//!   allocation); errors in binary data name the line and the byte offset.
 //! * Unknown sections (`$PhysicalNames`, `$NodeData`, …) are skipped.
 
 use std::collections::{BTreeMap, HashMap};
@@ -22,14 +27,17 @@ use std::path::Path;
 
 use super::atomic::write_atomic;
 use super::cursor::{capacity, finite_point, parse_at, shorten, Cursor};
+use super::gmsh_binary::Binary;
 use super::{no_tets_message, read_bytes, MeshData, MeshFormat};
 use crate::error::{HemlError, Result};
 use crate::mesh::TetMesh;
 use crate::Vec3;
 
-/// The two supported ASCII versions.
+/// The versions the writers produce.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Version {
+    /// Version 1 (`$NOD`/`$ELM`; ASCII only), for tools as old as SOFA's loaders.
+    V1,
     /// Version 2.2 (legacy, still written by many tools).
     V22,
     /// Version 4.1 (current Gmsh default).
@@ -37,8 +45,11 @@ pub enum Version {
 }
 
 /// How the reader treats a Gmsh element type.
+#[derive(Clone, Copy)]
 enum Kind {
     Tet,
+    /// A linear hexahedron, split into tets at load.
+    Hex,
     Skip(&'static str),
     Volume(&'static str),
 }
@@ -50,12 +61,64 @@ fn kind(element_type: i64) -> Kind {
         1 | 8 | 26 | 27 | 28 => Kind::Skip("line"),
         2 | 9 | 20 | 21 | 22 | 23 | 24 | 25 => Kind::Skip("triangle"),
         3 | 10 | 16 | 36 | 37 | 38 => Kind::Skip("quadrangle"),
-        5 | 12 | 17 | 92 | 93 => Kind::Volume("hexahedron"),
+        5 => Kind::Hex,
+        12 | 17 | 92 | 93 => Kind::Volume("high-order hexahedron"),
         6 | 13 | 18 => Kind::Volume("prism"),
         7 | 14 | 19 => Kind::Volume("pyramid"),
         11 | 29 | 30 | 31 => Kind::Volume("high-order tetrahedron"),
         _ => Kind::Skip("other"),
     }
+}
+
+/// Number of nodes of a Gmsh element type (needed to step over binary records;
+/// `None` for types this reader does not know).
+fn nodes_per_element(element_type: i64) -> Option<usize> {
+    Some(match element_type {
+        15 => 1,
+        1 => 2,
+        2 | 8 => 3,
+        3 | 4 | 26 => 4,
+        7 | 27 => 5,
+        6 | 9 | 28 => 6,
+        5 | 16 => 8,
+        10 | 20 => 9,
+        11 | 21 => 10,
+        22 => 12,
+        14 => 14,
+        18 | 23 | 24 => 15,
+        13 => 18,
+        17 | 29 => 20,
+        25 => 21,
+        12 => 27,
+        36 => 16,
+        37 => 25,
+        38 => 36,
+        30 => 35,
+        31 => 56,
+        19 => 13,
+        92 => 64,
+        93 => 125,
+        _ => return None,
+    })
+}
+
+/// The layout of the file being read: version family and, for binary files,
+/// byte order and `size_t` width.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Header {
+    dialect: Dialect,
+    binary: Option<Binary>,
+}
+
+/// Version family of a file being read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Dialect {
+    /// Gmsh 1 (`$NOD`/`$ELM`, no `$MeshFormat`), as SOFA ships its meshes.
+    V1,
+    /// Version 2.x.
+    V2,
+    /// Version 4.1.
+    V41,
 }
 
 /// Reads a Gmsh file, returning the data and the detected version.
@@ -67,14 +130,13 @@ pub fn read(path: &Path) -> Result<(MeshData, MeshFormat)> {
 /// Parses the bytes of a Gmsh file (`path` is only used in error messages).
 pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
     let mut c = Cursor::new(path, bytes, None);
-    let mut version: Option<Version> = None;
+    let mut header: Option<Header> = None;
     let mut data = MeshData::default();
     let mut node_index: HashMap<u64, usize> = HashMap::new();
     let mut have_nodes = false;
     let mut have_elements = false;
     // v4.1: volume entity tag → first physical tag (if any), and tets' entity tags.
     let mut volume_physical: Option<HashMap<i32, Option<i32>>> = None;
-    let mut tet_entities: Vec<i32> = Vec::new();
 
     while let Some((line, ln)) = c.next_line()? {
         let name = line.split_ascii_whitespace().next().unwrap_or("");
@@ -84,78 +146,140 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                 format!("expected a section header such as $Nodes, found '{}'", shorten(line)),
             ));
         }
-        match (name, version) {
-            ("$MeshFormat", _) => {
-                version = Some(read_format(&mut c)?);
+        let dialect = header.map(|h| h.dialect);
+        let bin = header.and_then(|h| h.binary);
+        match (name, dialect) {
+            ("$MeshFormat", None | Some(Dialect::V2 | Dialect::V41)) => {
+                header = Some(read_format(&mut c)?);
                 expect_end(&mut c, "$EndMeshFormat")?;
+            }
+            ("$NOD", None | Some(Dialect::V1)) | ("$ELM", Some(Dialect::V1)) => {
+                header = Some(Header {
+                    dialect: Dialect::V1,
+                    binary: None,
+                });
+                if name == "$NOD" {
+                    if have_nodes {
+                        return Err(c.err_at(ln, "second $NOD section (only one is supported)"));
+                    }
+                    read_nodes_v2(&mut c, &mut data, &mut node_index)?;
+                    expect_end(&mut c, "$ENDNOD")?;
+                    have_nodes = true;
+                } else {
+                    if !have_nodes {
+                        return Err(c.err_at(ln, "$ELM before $NOD"));
+                    }
+                    if have_elements {
+                        return Err(c.err_at(ln, "second $ELM section (only one is supported)"));
+                    }
+                    read_element_lines(&mut c, &mut data, &node_index, true)?;
+                    expect_end(&mut c, "$ENDELM")?;
+                    have_elements = true;
+                }
+            }
+            ("$MeshFormat" | "$NOD" | "$ELM", Some(d)) => {
+                return Err(c.err_at(
+                    ln,
+                    format!(
+                        "section {name} does not belong in a {} file ($NOD/$ELM are Gmsh 1, $MeshFormat \
+                         starts Gmsh 2 and 4 files)",
+                        dialect_name(d)
+                    ),
+                ));
             }
             (_, None) => {
                 return Err(c.err_at(
                     ln,
-                    format!("expected $MeshFormat before {name} (is this a Gmsh .msh file?)"),
+                    format!(
+                        "expected $MeshFormat (Gmsh 2 and 4) or $NOD (Gmsh 1) before {} (is this a Gmsh .msh \
+                         file?)",
+                        shorten(name)
+                    ),
                 ));
             }
-            ("$Entities", Some(Version::V41)) => {
-                volume_physical = Some(read_entities(&mut c)?);
+            ("$Entities", Some(Dialect::V41)) => {
+                volume_physical = Some(match bin {
+                    Some(b) => read_entities_bin(&mut c, b)?,
+                    None => read_entities(&mut c)?,
+                });
                 expect_end(&mut c, "$EndEntities")?;
             }
-            ("$Nodes", Some(v)) => {
+            ("$Nodes", Some(d)) => {
                 if have_nodes {
                     return Err(c.err_at(ln, "second $Nodes section (only one is supported)"));
                 }
-                match v {
-                    Version::V22 => read_nodes_v2(&mut c, &mut data, &mut node_index)?,
-                    Version::V41 => read_nodes_v41(&mut c, &mut data, &mut node_index)?,
+                match (d, bin) {
+                    (Dialect::V41, Some(b)) => read_nodes_v41_bin(&mut c, b, &mut data, &mut node_index)?,
+                    (Dialect::V41, None) => read_nodes_v41(&mut c, &mut data, &mut node_index)?,
+                    (_, Some(b)) => read_nodes_v2_bin(&mut c, b, &mut data, &mut node_index)?,
+                    (_, None) => read_nodes_v2(&mut c, &mut data, &mut node_index)?,
                 }
                 expect_end(&mut c, "$EndNodes")?;
                 have_nodes = true;
             }
-            ("$Elements", Some(v)) => {
+            ("$Elements", Some(d)) => {
                 if !have_nodes {
                     return Err(c.err_at(ln, "$Elements before $Nodes"));
                 }
                 if have_elements {
                     return Err(c.err_at(ln, "second $Elements section (only one is supported)"));
                 }
-                match v {
-                    Version::V22 => read_elements_v2(&mut c, &mut data, &node_index)?,
-                    Version::V41 => read_elements_v41(&mut c, &mut data, &node_index, &mut tet_entities)?,
+                match (d, bin) {
+                    (Dialect::V41, Some(b)) => read_elements_v41_bin(&mut c, b, &mut data, &node_index)?,
+                    (Dialect::V41, None) => read_elements_v41(&mut c, &mut data, &node_index)?,
+                    (_, Some(b)) => read_elements_v2_bin(&mut c, b, &mut data, &node_index)?,
+                    (_, None) => read_element_lines(&mut c, &mut data, &node_index, false)?,
                 }
                 expect_end(&mut c, "$EndElements")?;
                 have_elements = true;
             }
+            (_, Some(_)) if bin.is_some() => skip_binary_section(&mut c, name, ln)?,
             _ => skip_section(&mut c, name, ln)?,
         }
     }
-    let Some(version) = version else {
-        return Err(c.err_at(1, "no $MeshFormat section (empty file or not a Gmsh .msh file)"));
+    let Some(header) = header else {
+        return Err(c.err_at(1, "no $MeshFormat or $NOD section (empty file or not a Gmsh .msh file)"));
+    };
+    let (nodes_name, elements_name) = match header.dialect {
+        Dialect::V1 => ("$NOD", "$ELM"),
+        _ => ("$Nodes", "$Elements"),
     };
     if !have_nodes {
-        return Err(c.err("missing $Nodes section"));
+        return Err(c.err(format!("missing {nodes_name} section")));
     }
     if !have_elements {
-        return Err(c.err("missing $Elements section"));
+        return Err(c.err(format!("missing {elements_name} section")));
     }
-    if data.tets.is_empty() {
+    if data.tets.is_empty() && data.hexes.is_empty() {
         return Err(c.err(no_tets_message(&data)));
     }
-    if version == Version::V41 {
-        data.tags = match &volume_physical {
-            Some(phys) if phys.values().any(Option::is_some) => tet_entities
-                .iter()
-                .map(|e| phys.get(e).copied().flatten().unwrap_or(0))
-                .collect(),
-            _ => tet_entities,
-        };
+    // v4.1 elements were tagged with their volume entity: map to physical groups
+    if let (Dialect::V41, Some(phys)) = (header.dialect, &volume_physical) {
+        if phys.values().any(Option::is_some) {
+            for t in data.tags.iter_mut().chain(data.hex_tags.iter_mut()) {
+                *t = phys.get(t).copied().flatten().unwrap_or(0);
+            }
+        }
     }
-    let format = match version {
-        Version::V22 => MeshFormat::Gmsh22,
-        Version::V41 => MeshFormat::Gmsh41,
+    let format = match (header.dialect, header.binary.is_some()) {
+        (Dialect::V1, _) => MeshFormat::Gmsh1,
+        (Dialect::V2, false) => MeshFormat::Gmsh22,
+        (Dialect::V2, true) => MeshFormat::Gmsh22Binary,
+        (Dialect::V41, false) => MeshFormat::Gmsh41,
+        (Dialect::V41, true) => MeshFormat::Gmsh41Binary,
     };
     Ok((data, format))
 }
 
-fn read_format(c: &mut Cursor<'_>) -> Result<Version> {
+fn dialect_name(d: Dialect) -> &'static str {
+    match d {
+        Dialect::V1 => "Gmsh 1 ($NOD/$ELM)",
+        Dialect::V2 => "Gmsh 2",
+        Dialect::V41 => "Gmsh 4.1",
+    }
+}
+
+fn read_format(c: &mut Cursor<'_>) -> Result<Header> {
     let (line, ln) = c.expect_line("the $MeshFormat line")?;
     let f: Vec<&str> = line.split_ascii_whitespace().collect();
     if f.len() < 3 {
@@ -164,31 +288,35 @@ fn read_format(c: &mut Cursor<'_>) -> Result<Version> {
             format!("expected 'version file-type data-size', found '{}'", shorten(line)),
         ));
     }
-    let version = match f[0] {
-        "4.1" => Version::V41,
-        v if v.starts_with("2.") || v == "2" => Version::V22,
+    let dialect = match f[0] {
+        "4.1" => Dialect::V41,
+        v if v.starts_with("2.") || v == "2" => Dialect::V2,
         v => {
             return Err(c.err_at(
                 ln,
                 format!(
-                    "unsupported .msh version {}; supported: 2.2 and 4.1 ASCII (re-save with Gmsh)",
+                    "unsupported .msh version {}; supported: 1 ($NOD/$ELM), 2.2 and 4.1, ASCII or binary \
+                     (re-save with Gmsh)",
                     shorten(v)
                 ),
             ))
         }
     };
     let file_type: i64 = parse_at(c.file(), ln, f[1], "file-type 0 (ASCII) or 1 (binary)")?;
-    if file_type != 0 {
-        return Err(c.err_at(
-            ln,
-            "binary .msh not supported, re-save as ASCII (Gmsh: File > Export, or `gmsh -save -format msh41 -bin 0`)",
-        ));
-    }
     let size: i64 = parse_at(c.file(), ln, f[2], "data-size")?;
-    if size != 8 {
-        return Err(c.err_at(ln, format!("unsupported data-size {size}, expected 8")));
+    // data-size is sizeof(double) in 2.x and sizeof(size_t) in 4.1 (4 on 32-bit writers)
+    let sizes: &[i64] = if dialect == Dialect::V41 { &[4, 8] } else { &[8] };
+    if !sizes.contains(&size) {
+        let want = if dialect == Dialect::V41 { "4 or 8" } else { "8" };
+        return Err(c.err_at(ln, format!("unsupported data-size {size}, expected {want}")));
     }
-    Ok(version)
+    let binary = match file_type {
+        0 => None,
+        // the integer 1 in binary follows the line (the cursor stands right after it)
+        1 => Some(Binary::detect(c, size as usize)?),
+        other => return Err(c.err_at(ln, format!("file-type {other}: expected 0 (ASCII) or 1 (binary)"))),
+    };
+    Ok(Header { dialect, binary })
 }
 
 fn expect_end(c: &mut Cursor<'_>, end: &str) -> Result<()> {
@@ -200,6 +328,17 @@ fn expect_end(c: &mut Cursor<'_>, end: &str) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Skips an unknown section of a binary file, whose records may hold any byte
+/// (the line reader would refuse them as text) up to its `$End` keyword.
+fn skip_binary_section(c: &mut Cursor<'_>, name: &str, start: usize) -> Result<()> {
+    let end = format!("$End{}", &name[1..]);
+    if c.skip_past(end.as_bytes()) {
+        Ok(())
+    } else {
+        Err(c.err_at(start, format!("section {name} is not closed by {end}")))
+    }
 }
 
 fn skip_section(c: &mut Cursor<'_>, name: &str, start: usize) -> Result<()> {
@@ -274,13 +413,16 @@ fn read_nodes_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64
             add_node(c, ln, tag, p, data, map)?;
         }
     }
-    if data.nodes.len() != total {
+    check_total(c, header_line, "$Nodes", total, data.nodes.len(), "nodes")
+}
+
+/// The v4.1 header count of a section (at `header_line`) against what its
+/// blocks held: a mismatch means a truncated or edited file.
+fn check_total(c: &Cursor<'_>, header_line: usize, section: &str, total: usize, held: usize, what: &str) -> Result<()> {
+    if held != total {
         return Err(c.err_at(
             header_line,
-            format!(
-                "the $Nodes header announces {total} nodes but the blocks hold {}",
-                data.nodes.len()
-            ),
+            format!("the {section} header announces {total} {what} but the blocks hold {held}"),
         ));
     }
     Ok(())
@@ -293,21 +435,37 @@ fn node_of(c: &Cursor<'_>, ln: usize, tok: &str, map: &HashMap<u64, usize>) -> R
         .ok_or_else(|| c.err_at(ln, format!("element refers to node {tag}, which is not in $Nodes")))
 }
 
-fn tet_nodes<'t>(
+/// The node indices of a tet or hex element line (the tokens after its tags).
+fn element_nodes<'t>(
     c: &Cursor<'_>,
     ln: usize,
     toks: impl Iterator<Item = &'t str>,
     map: &HashMap<u64, usize>,
-) -> Result<[usize; 4]> {
+    k: Kind,
+) -> Result<Vec<usize>> {
     let toks: Vec<&str> = toks.collect();
-    if toks.len() != 4 {
-        return Err(c.err_at(ln, format!("a 4-node tetrahedron lists {} nodes", toks.len())));
+    let (want, name) = match k {
+        Kind::Hex => (8, "an 8-node hexahedron"),
+        _ => (4, "a 4-node tetrahedron"),
+    };
+    if toks.len() != want {
+        return Err(c.err_at(ln, format!("{name} lists {} nodes", toks.len())));
     }
-    let mut t = [0; 4];
-    for (k, tok) in toks.iter().enumerate() {
-        t[k] = node_of(c, ln, tok, map)?;
+    toks.iter().map(|tok| node_of(c, ln, tok, map)).collect()
+}
+
+/// Stores a tet or hex (`nodes` of the right length, checked by the caller) with its tag.
+fn store(data: &mut MeshData, k: Kind, nodes: &[usize], tag: i32) {
+    match k {
+        Kind::Hex => {
+            data.hexes.push(std::array::from_fn(|i| nodes[i]));
+            data.hex_tags.push(tag);
+        }
+        _ => {
+            data.tets.push(std::array::from_fn(|i| nodes[i]));
+            data.tags.push(tag);
+        }
     }
-    Ok(t)
 }
 
 fn volume_error(c: &Cursor<'_>, ln: usize, ty: i64, name: &str) -> HemlError {
@@ -315,12 +473,16 @@ fn volume_error(c: &Cursor<'_>, ln: usize, ty: i64, name: &str) -> HemlError {
         ln,
         format!(
             "element type {ty} ({name}) is a volume element HEML cannot simulate; only 4-node tetrahedra \
-             (type 4) are supported: re-mesh with linear tets (gmsh -3 -order 1)"
+             (type 4) and 8-node hexahedra (type 5, split into tets at load) are supported: re-mesh with \
+             linear elements (gmsh -3 -order 1)"
         ),
     )
 }
 
-fn read_elements_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
+/// ASCII element lines, one per element: v2 `number type tag-count tags… nodes…`
+/// (the region tag is the first tag), v1 `number type physical-region
+/// elementary-region node-count nodes…` (the region tag is the physical region).
+fn read_element_lines(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>, v1: bool) -> Result<()> {
     let n = count(c, "the number of elements")?;
     for _ in 0..n {
         let (line, ln) = c.expect_line("an element line")?;
@@ -329,21 +491,34 @@ fn read_elements_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, 
             f.next()
                 .ok_or_else(|| c.err_at(ln, format!("element line ends before its {what}")))
         };
-        parse_at::<u64>(c.file(), ln, next("number")?, "an element number")?;
+        let number: u64 = parse_at(c.file(), ln, next("number")?, "an element number")?;
         let ty: i64 = parse_at(c.file(), ln, next("type")?, "an element type")?;
-        let ntags: usize = parse_at(c.file(), ln, next("number of tags")?, "the number of element tags")?;
         let mut tag = 0;
-        for k in 0..ntags {
-            let t: i32 = parse_at(c.file(), ln, next("tags")?, "an integer element tag")?;
-            if k == 0 {
-                tag = t;
+        if v1 {
+            tag = parse_at(c.file(), ln, next("physical region")?, "an integer physical region")?;
+            parse_at::<i32>(c.file(), ln, next("elementary region")?, "an integer elementary region")?;
+            let nn: usize = parse_at(c.file(), ln, next("number of nodes")?, "the number of nodes")?;
+            let listed = f.clone().count();
+            if listed != nn {
+                return Err(c.err_at(ln, format!("element {number} announces {nn} nodes and lists {listed}")));
+            }
+            if let Some(want) = nodes_per_element(ty).filter(|&w| w != nn) {
+                return Err(c.err_at(
+                    ln,
+                    format!("element {number} of type {ty} has {nn} nodes, that type has {want}"),
+                ));
+            }
+        } else {
+            let ntags: usize = parse_at(c.file(), ln, next("number of tags")?, "the number of element tags")?;
+            for k in 0..ntags {
+                let t: i32 = parse_at(c.file(), ln, next("tags")?, "an integer element tag")?;
+                if k == 0 {
+                    tag = t;
+                }
             }
         }
         match kind(ty) {
-            Kind::Tet => {
-                data.tets.push(tet_nodes(c, ln, f, map)?);
-                data.tags.push(tag);
-            }
+            k @ (Kind::Tet | Kind::Hex) => store(data, k, &element_nodes(c, ln, f, map, k)?, tag),
             Kind::Skip(name) => data.skip(name),
             Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
         }
@@ -351,12 +526,7 @@ fn read_elements_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, 
     Ok(())
 }
 
-fn read_elements_v41(
-    c: &mut Cursor<'_>,
-    data: &mut MeshData,
-    map: &HashMap<u64, usize>,
-    entities: &mut Vec<i32>,
-) -> Result<()> {
+fn read_elements_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
     let header_line = c.line_of_next_token();
     let blocks = count(c, "the number of element entity blocks")?;
     let total = count(c, "the number of elements")?;
@@ -379,23 +549,254 @@ fn read_elements_v41(
             let id = f.next().unwrap_or("");
             parse_at::<u64>(c.file(), ln, id, "an element tag")?;
             match k {
-                Kind::Tet => {
-                    data.tets.push(tet_nodes(c, ln, f, map)?);
-                    entities.push(entity);
-                }
+                Kind::Tet | Kind::Hex => store(data, k, &element_nodes(c, ln, f, map, k)?, entity),
                 Kind::Skip(name) => data.skip(name),
                 Kind::Volume(_) => {}
             }
         }
         seen = seen.saturating_add(n);
     }
-    if seen != total {
-        return Err(c.err_at(
-            header_line,
-            format!("the $Elements header announces {total} elements but the blocks hold {seen}"),
-        ));
+    check_total(c, header_line, "$Elements", total, seen, "elements")
+}
+
+/// Three binary coordinates of node `tag`, refused when not finite (as in ASCII).
+fn binary_point(c: &mut Cursor<'_>, b: Binary, tag: u64) -> Result<Vec3> {
+    let mut p = [0.0; 3];
+    for (k, v) in p.iter_mut().enumerate() {
+        let axis = ["x", "y", "z"][k];
+        let off = c.offset();
+        *v = b.float(c, &format!("the {axis} coordinate of node {tag}"))?;
+        if !v.is_finite() {
+            return Err(c.err(format!(
+                "at byte {off}: node {tag}: {axis} coordinate {v} is not a finite number"
+            )));
+        }
+    }
+    Ok(Vec3::new(p[0], p[1], p[2]))
+}
+
+fn node_of_tag(c: &Cursor<'_>, off: usize, tag: u64, element: u64, map: &HashMap<u64, usize>) -> Result<usize> {
+    map.get(&tag).copied().ok_or_else(|| {
+        c.err(format!(
+            "at byte {off}: element {element} refers to node {tag}, which is not in $Nodes"
+        ))
+    })
+}
+
+/// What one binary element record holds, read by the version's own layout.
+struct Record {
+    number: u64,
+    tag: i32,
+    nodes: Vec<(u64, usize)>,
+}
+
+/// Stores one binary element of type `ty` (node tags with their byte offsets;
+/// their number is the type's, as read).
+fn store_binary_element(
+    c: &Cursor<'_>,
+    ln: usize,
+    ty: i64,
+    r: &Record,
+    data: &mut MeshData,
+    map: &HashMap<u64, usize>,
+) -> Result<()> {
+    match kind(ty) {
+        k @ (Kind::Tet | Kind::Hex) => {
+            let nodes = r
+                .nodes
+                .iter()
+                .map(|&(tag, off)| node_of_tag(c, off, tag, r.number, map))
+                .collect::<Result<Vec<usize>>>()?;
+            store(data, k, &nodes, r.tag);
+        }
+        Kind::Skip(name) => data.skip(name),
+        Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
     }
     Ok(())
+}
+
+/// The node count of a binary element type, which is needed to find the next record.
+fn binary_nodes_per_element(c: &Cursor<'_>, off: usize, ty: i64) -> Result<usize> {
+    nodes_per_element(ty).ok_or_else(|| {
+        c.err(format!(
+            "at byte {off}: unknown element type {ty}; its node count is needed to read the binary records"
+        ))
+    })
+}
+
+/// Binary 2.2 `$Nodes`: an ASCII count line, then `int number, 3 doubles` per node.
+fn read_nodes_v2_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &mut HashMap<u64, usize>) -> Result<()> {
+    let n = count(c, "the number of nodes")?;
+    c.skip_rest_of_line();
+    b.check_room(c, n, 4 + 24, "nodes")?;
+    data.nodes.reserve(n);
+    for _ in 0..n {
+        let ln = c.line();
+        let tag = b.uint(c, "a node number")?;
+        let p = binary_point(c, b, tag)?;
+        add_node(c, ln, tag, p, data, map)?;
+    }
+    Ok(())
+}
+
+/// Binary 2.2 `$Elements`: an ASCII count line, then blocks `int type, int count,
+/// int tag-count` followed by `count` records `int number, tags, nodes`.
+fn read_elements_v2_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
+    let n = count(c, "the number of elements")?;
+    c.skip_rest_of_line();
+    let mut read = 0usize;
+    while read < n {
+        let off = c.offset();
+        let ty = i64::from(b.int(c, "an element type")?);
+        let follow = b.uint(c, "the number of elements of a block")?;
+        let ntags = b.uint(c, "the number of element tags")? as usize;
+        let left = n - read;
+        if follow == 0 || follow > left as u64 {
+            return Err(c.err(format!(
+                "at byte {off}: an element block announces {follow} elements of type {ty}, {left} of the {n} \
+                 elements announced by the count line remain"
+            )));
+        }
+        let follow = follow as usize;
+        let nn = binary_nodes_per_element(c, off, ty)?;
+        let each = ntags
+            .checked_add(1 + nn)
+            .and_then(|k| k.checked_mul(4))
+            .unwrap_or(usize::MAX);
+        b.check_room(c, follow, each, "element records")?;
+        for _ in 0..follow {
+            let ln = c.line();
+            let number = b.uint(c, "an element number")?;
+            let mut tag = 0;
+            for k in 0..ntags {
+                let t = b.int(c, "an element tag")?;
+                if k == 0 {
+                    tag = t;
+                }
+            }
+            let mut nodes = Vec::with_capacity(nn);
+            for _ in 0..nn {
+                let off = c.offset();
+                nodes.push((b.uint(c, "a node number of an element")?, off));
+            }
+            store_binary_element(c, ln, ty, &Record { number, tag, nodes }, data, map)?;
+        }
+        read += follow;
+    }
+    Ok(())
+}
+
+/// Binary 4.1 `$Nodes`: `size_t blocks, total, min, max`, then per block `int dim,
+/// int entity, int parametric, size_t count`, the node tags, then the coordinates.
+fn read_nodes_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &mut HashMap<u64, usize>) -> Result<()> {
+    let header_line = c.line();
+    let blocks = b.count(c, "the number of node entity blocks")?;
+    let total = b.count(c, "the number of nodes")?;
+    b.size(c, "the minimum node tag")?;
+    b.size(c, "the maximum node tag")?;
+    b.check_room(c, total, b.size_t + 24, "nodes")?;
+    b.check_room(c, blocks, 12 + b.size_t, "node entity blocks")?;
+    data.nodes.reserve(total);
+    for _ in 0..blocks {
+        let dim = b.int(c, "the entity dimension of a node block")?;
+        b.int(c, "the entity tag of a node block")?;
+        let parametric = b.int(c, "the parametric flag of a node block")?;
+        let n = b.count(c, "the number of nodes in a block")?;
+        let extra = if parametric == 1 { dim.clamp(0, 3) as usize } else { 0 };
+        b.check_room(c, n, b.size_t + 8 * (3 + extra), "nodes of a block")?;
+        let mut tags = Vec::with_capacity(n);
+        for _ in 0..n {
+            tags.push(b.size(c, "a node tag")?);
+        }
+        for tag in tags {
+            let ln = c.line();
+            let p = binary_point(c, b, tag)?;
+            for _ in 0..extra {
+                b.float(c, "a parametric coordinate")?;
+            }
+            add_node(c, ln, tag, p, data, map)?;
+        }
+    }
+    check_total(c, header_line, "$Nodes", total, data.nodes.len(), "nodes")
+}
+
+/// Binary 4.1 `$Elements`: `size_t blocks, total, min, max`, then per block `int
+/// dim, int entity, int type, size_t count` and `count` records of `size_t` tag
+/// and node tags.
+fn read_elements_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
+    let header_line = c.line();
+    let blocks = b.count(c, "the number of element entity blocks")?;
+    let total = b.count(c, "the number of elements")?;
+    b.size(c, "the minimum element tag")?;
+    b.size(c, "the maximum element tag")?;
+    b.check_room(c, blocks, 12 + b.size_t, "element entity blocks")?;
+    let mut seen = 0usize;
+    for _ in 0..blocks {
+        b.int(c, "the entity dimension of an element block")?;
+        let entity = b.int(c, "the entity tag of an element block")?;
+        let off = c.offset();
+        let ty = i64::from(b.int(c, "the element type of a block")?);
+        let n = b.count(c, "the number of elements in a block")?;
+        let nn = binary_nodes_per_element(c, off, ty)?;
+        b.check_room(c, n, b.size_t * (1 + nn), "element records")?;
+        for _ in 0..n {
+            let ln = c.line();
+            let number = b.size(c, "an element tag")?;
+            let mut nodes = Vec::with_capacity(nn);
+            for _ in 0..nn {
+                let off = c.offset();
+                nodes.push((b.size(c, "a node tag of an element")?, off));
+            }
+            let r = Record {
+                number,
+                tag: entity,
+                nodes,
+            };
+            store_binary_element(c, ln, ty, &r, data, map)?;
+        }
+        seen = seen.saturating_add(n);
+    }
+    check_total(c, header_line, "$Elements", total, seen, "elements")
+}
+
+/// Binary 4.1 `$Entities`: volume tag → its first physical tag.
+fn read_entities_bin(c: &mut Cursor<'_>, b: Binary) -> Result<HashMap<i32, Option<i32>>> {
+    let mut counts = [0usize; 4];
+    for (k, what) in ["points", "curves", "surfaces", "volumes"].iter().enumerate() {
+        counts[k] = b.count(c, &format!("the number of {what}"))?;
+    }
+    let mut volumes = HashMap::new();
+    for (dim, &n) in counts.iter().enumerate() {
+        // point: int tag, 3 doubles, size_t; others: int tag, 6 doubles, 2 size_t
+        let (coords, min) = if dim == 0 {
+            (3, 4 + 24 + b.size_t)
+        } else {
+            (6, 4 + 48 + 2 * b.size_t)
+        };
+        b.check_room(c, n, min, "entities")?;
+        for _ in 0..n {
+            let tag = b.int(c, "an entity tag")?;
+            for _ in 0..coords {
+                b.float(c, "an entity coordinate")?;
+            }
+            let nphys = b.count(c, "the number of physical tags")?;
+            b.check_room(c, nphys, 4, "physical tags")?;
+            let mut phys = None;
+            for _ in 0..nphys {
+                let p = b.int(c, "a physical tag")?;
+                phys.get_or_insert(p);
+            }
+            if dim > 0 {
+                let nb = b.count(c, "the number of bounding entities")?;
+                b.check_room(c, nb, 4, "bounding entity tags")?;
+                c.bytes(nb * 4, "bounding entity tags")?;
+            }
+            if dim == 3 {
+                volumes.insert(tag, phys);
+            }
+        }
+    }
+    Ok(volumes)
 }
 
 /// `$Entities` of v4.1: volume tag → its first physical tag.
@@ -438,9 +839,141 @@ fn read_entities(c: &mut Cursor<'_>) -> Result<HashMap<i32, Option<i32>>> {
 /// `$Entities` section); coordinates are printed in shortest round-trip form.
 pub fn write(path: &Path, mesh: &TetMesh, version: Version) -> Result<()> {
     write_atomic(path, |w| match version {
+        Version::V1 => write_v1(w, mesh),
         Version::V22 => write_v22(w, mesh),
         Version::V41 => write_v41(w, mesh),
     })
+}
+
+/// Writes `mesh` as a binary `.msh` (little-endian, as Gmsh and meshio write on
+/// x86 and ARM) of version 2.2 or 4.1, with the same tags as [`write`]; there is
+/// no binary version 1.
+pub fn write_binary(path: &Path, mesh: &TetMesh, version: Version) -> Result<()> {
+    match version {
+        Version::V1 => Err(HemlError::Invalid(format!(
+            "cannot write '{}': Gmsh version 1 has no binary form",
+            path.display()
+        ))),
+        Version::V22 => write_atomic(path, |w| write_v22_bin(w, mesh)),
+        Version::V41 => write_atomic(path, |w| write_v41_bin(w, mesh)),
+    }
+}
+
+fn write_v1(w: &mut BufWriter<File>, mesh: &TetMesh) -> std::io::Result<()> {
+    writeln!(w, "$NOD\n{}", mesh.n_nodes())?;
+    for (i, p) in mesh.nodes().iter().enumerate() {
+        writeln!(w, "{} {:e} {:e} {:e}", i + 1, p.x, p.y, p.z)?;
+    }
+    writeln!(w, "$ENDNOD\n$ELM\n{}", mesh.n_tets())?;
+    let entity = entity_of_tag(mesh);
+    for (k, (t, tag)) in mesh.tets().iter().zip(mesh.tags()).enumerate() {
+        let e = entity.get(tag).copied().unwrap_or(1);
+        let [a, b, c, d] = t.map(|i| i + 1);
+        writeln!(w, "{} 4 {tag} {e} 4 {a} {b} {c} {d}", k + 1)?;
+    }
+    writeln!(w, "$ENDELM")
+}
+
+fn write_v22_bin(w: &mut BufWriter<File>, mesh: &TetMesh) -> std::io::Result<()> {
+    let int = |w: &mut BufWriter<File>, v: usize| w.write_all(&(v as i32).to_le_bytes());
+    write!(w, "$MeshFormat\n2.2 1 8\n")?;
+    int(w, 1)?;
+    write!(w, "\n$EndMeshFormat\n$Nodes\n{}\n", mesh.n_nodes())?;
+    for (i, p) in mesh.nodes().iter().enumerate() {
+        int(w, i + 1)?;
+        for x in p.iter() {
+            w.write_all(&x.to_le_bytes())?;
+        }
+    }
+    write!(w, "\n$EndNodes\n$Elements\n{}\n", mesh.n_tets())?;
+    // one block holding every tet: type 4, count, 2 tags (physical, elementary)
+    for v in [4, mesh.n_tets(), 2] {
+        int(w, v)?;
+    }
+    let entity = entity_of_tag(mesh);
+    for (k, (t, &tag)) in mesh.tets().iter().zip(mesh.tags()).enumerate() {
+        int(w, k + 1)?;
+        w.write_all(&tag.to_le_bytes())?;
+        int(w, entity.get(&tag).copied().unwrap_or(1))?;
+        for &i in t {
+            int(w, i as usize + 1)?;
+        }
+    }
+    writeln!(w, "\n$EndElements")
+}
+
+fn write_v41_bin(w: &mut BufWriter<File>, mesh: &TetMesh) -> std::io::Result<()> {
+    let int = |w: &mut BufWriter<File>, v: i32| w.write_all(&v.to_le_bytes());
+    let size = |w: &mut BufWriter<File>, v: usize| w.write_all(&(v as u64).to_le_bytes());
+    write!(w, "$MeshFormat\n4.1 1 8\n")?;
+    int(w, 1)?;
+    write!(w, "\n$EndMeshFormat\n$Entities\n")?;
+    let entity = entity_of_tag(mesh);
+    for v in [0, 0, 0, entity.len()] {
+        size(w, v)?;
+    }
+    let mut by_entity: Vec<(usize, i32)> = entity.iter().map(|(&t, &e)| (e, t)).collect();
+    by_entity.sort_unstable();
+    for (e, tag) in by_entity {
+        // the bounding box is informative only: the reader does not use it
+        int(w, e as i32)?;
+        for _ in 0..6 {
+            w.write_all(&0f64.to_le_bytes())?;
+        }
+        size(w, 1)?;
+        int(w, tag)?;
+        size(w, 0)?;
+    }
+    write!(w, "\n$EndEntities\n$Nodes\n")?;
+    let n = mesh.n_nodes();
+    for v in [1, n, n.min(1), n] {
+        size(w, v)?;
+    }
+    for v in [3, 1, 0] {
+        int(w, v)?;
+    }
+    size(w, n)?;
+    for i in 1..=n {
+        size(w, i)?;
+    }
+    for p in mesh.nodes() {
+        for x in p.iter() {
+            w.write_all(&x.to_le_bytes())?;
+        }
+    }
+    write!(w, "\n$EndNodes\n$Elements\n")?;
+    let runs = tag_runs(mesh.tags());
+    let m = mesh.n_tets();
+    for v in [runs.len(), m, m.min(1), m] {
+        size(w, v)?;
+    }
+    for (start, len) in runs {
+        let e = entity.get(&mesh.tags()[start]).copied().unwrap_or(1);
+        for v in [3, e as i32, 4] {
+            int(w, v)?;
+        }
+        size(w, len)?;
+        for k in start..start + len {
+            size(w, k + 1)?;
+            for &i in &mesh.tets()[k] {
+                size(w, i as usize + 1)?;
+            }
+        }
+    }
+    writeln!(w, "\n$EndElements")
+}
+
+/// Runs of equal tags as (start, length): one element block each, so that tet
+/// order is preserved.
+fn tag_runs(tags: &[i32]) -> Vec<(usize, usize)> {
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for k in 0..tags.len() {
+        match runs.last_mut() {
+            Some((start, len)) if tags[*start] == tags[k] => *len += 1,
+            _ => runs.push((k, 1)),
+        }
+    }
+    runs
 }
 
 /// Distinct tags in order of appearance → 1-based entity tag.
@@ -513,15 +1046,8 @@ fn write_v41(w: &mut BufWriter<File>, mesh: &TetMesh) -> std::io::Result<()> {
         writeln!(w, "{:e} {:e} {:e}", p.x, p.y, p.z)?;
     }
     writeln!(w, "$EndNodes")?;
-    // one element block per run of equal tags, so that tet order is preserved
     let tags = mesh.tags();
-    let mut runs: Vec<(usize, usize)> = Vec::new();
-    for k in 0..tags.len() {
-        match runs.last_mut() {
-            Some((start, len)) if tags[*start] == tags[k] => *len += 1,
-            _ => runs.push((k, 1)),
-        }
-    }
+    let runs = tag_runs(tags);
     let m = mesh.n_tets();
     writeln!(w, "$Elements\n{} {m} {} {m}", runs.len(), m.min(1))?;
     for (start, len) in runs {

@@ -1,7 +1,21 @@
 //! Mesh input/output: readers for the tetrahedral mesh formats soft-tissue users
-//! actually have (Gmsh, VTK legacy and XML, TetGen, Medit), writers for the same
-//! formats (so every reader is round-trip tested), VTU frames and `.pvd` series for
-//! ParaView.
+//! actually have, writers for the same formats (so every reader is round-trip
+//! tested), VTU frames and `.pvd` series for ParaView.
+//!
+//! | extension | format | read | written by [`write_mesh`] / [`write_mesh_as`] |
+//! |---|---|---|---|
+//! | `.msh` | Gmsh 4.1, ASCII or binary (meshio's `gmsh` default) | ✓ | ASCII (default), binary |
+//! | `.msh` | Gmsh 2.2 (any 2.x), ASCII or binary (meshio's `gmsh22`) | ✓ | ASCII, binary |
+//! | `.msh` | Gmsh 1 (`$NOD`/`$ELM`: SOFA's `liver.msh`, `truthcylinder1.msh`) | ✓ | ✓ |
+//! | `.vtk` | VTK legacy UNSTRUCTURED_GRID, ASCII or binary | ✓ | ASCII |
+//! | `.vtu` | VTK XML UnstructuredGrid: ascii, base64 or appended (raw/base64); uncompressed, zlib or lzma | ✓ | base64 + zlib (default), base64, ascii |
+//! | `.node` + `.ele` | TetGen | ✓ | ✓ |
+//! | `.mesh` | Medit / INRIA, ASCII | ✓ | ✓ |
+//!
+//! Binary Gmsh files are read in either byte order (the integer 1 after
+//! `$MeshFormat` tells the writer's); binary writers write little-endian. The
+//! version is detected from the content, whatever the extension says
+//! ([`ReadReport::format`]).
 //!
 //! Design choices, and why:
 //! * **Hand-written parsers.** Every error must name the file and the line, and no
@@ -9,9 +23,13 @@
 //!   guarantee and to test (see `tests/mesh_io.rs`, which fuzzes truncations).
 //! * **Only linear tetrahedra are simulated.** Lower-dimensional elements (points,
 //!   lines, triangles, quads: typically boundary surfaces) are skipped and counted
-//!   in [`MeshData::skipped`]. Other *volume* elements (hexahedra, prisms,
-//!   pyramids, quadratic tets…) are rejected with an error: dropping them silently
-//!   would remove material from the body.
+//!   in [`MeshData::skipped`]. Linear hexahedra (Gmsh type 5, VTK hexahedron and
+//!   voxel) are split into tets at load with a chosen [`HexSplit`]
+//!   ([`ReadOptions::hex_split`], `hex_split` in a scene's `[mesh]`; see
+//!   [`crate::mesh::hex_split`] for how each split stays conforming on an
+//!   unstructured hex mesh). Other *volume* elements (prisms, pyramids, quadratic
+//!   tets…) are rejected with an error: dropping them silently would remove
+//!   material from the body.
 //! * **Every writer is atomic** ([`atomic`]): output goes to a temporary file in the
 //!   same directory that is renamed over the target, so a crash or an error never
 //!   leaves a half-written file behind.
@@ -19,6 +37,7 @@
 pub mod atomic;
 mod cursor;
 pub mod gmsh;
+mod gmsh_binary;
 pub mod medit;
 pub mod pvd;
 pub mod tetgen;
@@ -33,6 +52,8 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use crate::error::{HemlError, Result};
+use crate::mesh::generate::HexSplit;
+use crate::mesh::hex_split::split_hexes;
 use crate::mesh::TetMesh;
 use crate::Vec3;
 
@@ -50,13 +71,61 @@ pub struct MeshData {
     pub tags: Vec<i32>,
     /// Non-tetrahedral elements that were skipped: element type name → count.
     pub skipped: BTreeMap<String, usize>,
+    /// Linear hexahedra as indices into `nodes` (VTK / Gmsh corner order: bottom
+    /// face 0-1-2-3, top face 4-5-6-7 above it), to be split into tets at load
+    /// ([`MeshData::split_hexes`]).
+    pub hexes: Vec<[usize; 8]>,
+    /// One region tag per hexahedron (0 where the file has none).
+    pub hex_tags: Vec<i32>,
 }
 
 impl MeshData {
     /// Validates the data into a [`TetMesh`] (index checks, degenerate tets rejected,
-    /// negative tets reoriented).
-    pub fn into_mesh(self) -> Result<TetMesh> {
+    /// negative tets reoriented). Hexahedra not split yet are split with the
+    /// default [`HexSplit`] (six tets each).
+    pub fn into_mesh(mut self) -> Result<TetMesh> {
+        self.split_hexes(HexSplit::default())?;
         TetMesh::with_tags(self.nodes, self.tets, self.tags)
+    }
+
+    /// Replaces the hexahedra by tets cut with `split` (conforming between
+    /// neighbouring hexes, see [`crate::mesh::hex_split`]), appended after the
+    /// file's tets with their hex's tag; [`HexSplit::TwentyFour`] also appends its
+    /// face and cell centres to the nodes. Returns the number of hexes split.
+    ///
+    /// ```
+    /// use heml_core::io::MeshData;
+    /// use heml_core::mesh::generate::HexSplit;
+    /// use heml_core::Vec3;
+    ///
+    /// let mut data = MeshData {
+    ///     nodes: (0..8).map(|b| Vec3::new((b & 1) as f64, ((b >> 1) & 1) as f64, (b >> 2) as f64)).collect(),
+    ///     hexes: vec![[0, 1, 3, 2, 4, 5, 7, 6]],
+    ///     hex_tags: vec![7],
+    ///     ..MeshData::default()
+    /// };
+    /// assert_eq!(data.split_hexes(HexSplit::Five).unwrap(), 1);
+    /// assert_eq!((data.tets.len(), data.tags.as_slice()), (5, &[7; 5][..]));
+    /// assert!((data.into_mesh().unwrap().total_volume() - 1.0).abs() < 1e-15);
+    /// ```
+    pub fn split_hexes(&mut self, split: HexSplit) -> Result<usize> {
+        if self.hexes.is_empty() {
+            return Ok(0);
+        }
+        if self.hex_tags.len() != self.hexes.len() {
+            return Err(HemlError::Mesh(format!(
+                "{} hexahedron tags for {} hexahedra",
+                self.hex_tags.len(),
+                self.hexes.len()
+            )));
+        }
+        let hexes = std::mem::take(&mut self.hexes);
+        let tags = std::mem::take(&mut self.hex_tags);
+        let tets = split_hexes(&mut self.nodes, &hexes, split).map_err(HemlError::Mesh)?;
+        let per = split.tets_per_cell();
+        self.tets.extend(tets);
+        self.tags.extend(tags.iter().flat_map(|&t| std::iter::repeat_n(t, per)));
+        Ok(hexes.len())
     }
 
     /// The arrays of an existing mesh (for the writers).
@@ -65,7 +134,7 @@ impl MeshData {
             nodes: mesh.nodes().to_vec(),
             tets: mesh.tets().iter().map(|t| t.map(|i| i as usize)).collect(),
             tags: mesh.tags().to_vec(),
-            skipped: BTreeMap::new(),
+            ..MeshData::default()
         }
     }
 
@@ -82,6 +151,12 @@ pub enum MeshFormat {
     Gmsh22,
     /// Gmsh `.msh` version 4.1, ASCII.
     Gmsh41,
+    /// Gmsh `.msh` version 1 (`$NOD`/`$ELM`, no `$MeshFormat`), as SOFA ships its meshes.
+    Gmsh1,
+    /// Gmsh `.msh` version 2.2, binary (meshio's `gmsh22` default); either byte order.
+    Gmsh22Binary,
+    /// Gmsh `.msh` version 4.1, binary (meshio's `gmsh` default); either byte order.
+    Gmsh41Binary,
     /// VTK legacy `.vtk` UNSTRUCTURED_GRID.
     VtkLegacy,
     /// VTK XML `.vtu` UnstructuredGrid.
@@ -97,6 +172,9 @@ impl fmt::Display for MeshFormat {
         f.write_str(match self {
             MeshFormat::Gmsh22 => "Gmsh msh 2.2 ASCII",
             MeshFormat::Gmsh41 => "Gmsh msh 4.1 ASCII",
+            MeshFormat::Gmsh1 => "Gmsh msh 1",
+            MeshFormat::Gmsh22Binary => "Gmsh msh 2.2 binary",
+            MeshFormat::Gmsh41Binary => "Gmsh msh 4.1 binary",
             MeshFormat::VtkLegacy => "VTK legacy",
             MeshFormat::Vtu => "VTK XML (vtu)",
             MeshFormat::TetGen => "TetGen node/ele",
@@ -107,6 +185,24 @@ impl fmt::Display for MeshFormat {
 
 /// File extensions understood by [`read_mesh`] and [`write_mesh`].
 pub const SUPPORTED_EXTENSIONS: &[&str] = &["msh", "vtk", "vtu", "node", "ele", "mesh"];
+
+/// How [`read_mesh_with`] turns a file into a mesh.
+///
+/// ```
+/// use heml_core::io::ReadOptions;
+/// use heml_core::mesh::generate::HexSplit;
+/// let opts = ReadOptions { hex_split: HexSplit::TwentyFour };
+/// assert_eq!(ReadOptions::default().hex_split, HexSplit::Six);
+/// # let _ = opts;
+/// ```
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// How hexahedral cells are cut into tets (default [`HexSplit::Six`], which
+    /// works on every hex mesh; [`HexSplit::Five`] needs corners that can be
+    /// 2-coloured along the edges, as in a structured grid, and is refused with
+    /// the failing hex otherwise).
+    pub hex_split: HexSplit,
+}
 
 /// What [`read_mesh`] found, for logs and for users to check their input.
 #[derive(Debug, Clone, PartialEq)]
@@ -125,6 +221,8 @@ pub struct ReadReport {
     pub reoriented: usize,
     /// Nodes that belong to no tet (they get no mass).
     pub unreferenced_nodes: usize,
+    /// Hexahedra split into tets at load (their tets are counted in `n_tets`).
+    pub hexes_split: usize,
 }
 
 impl fmt::Display for ReadReport {
@@ -140,6 +238,9 @@ impl fmt::Display for ReadReport {
         if !self.skipped.is_empty() {
             let s: Vec<String> = self.skipped.iter().map(|(k, v)| format!("{v} {k}")).collect();
             write!(f, ", skipped {}", s.join(", "))?;
+        }
+        if self.hexes_split > 0 {
+            write!(f, " (from {} hexahedra)", self.hexes_split)?;
         }
         if self.reoriented > 0 {
             write!(f, ", {} tets reoriented", self.reoriented)?;
@@ -207,12 +308,19 @@ pub fn read_mesh_data(path: &Path) -> Result<(MeshData, MeshFormat)> {
 /// # std::fs::remove_dir_all(&dir).unwrap();
 /// ```
 pub fn read_mesh(path: &Path) -> Result<(TetMesh, ReadReport)> {
-    let (data, format) = read_mesh_data(path)?;
-    let skipped = data.skipped.clone();
-    let mesh = data.into_mesh().map_err(|e| match e {
+    read_mesh_with(path, &ReadOptions::default())
+}
+
+/// [`read_mesh`] with options (how hexahedra are split).
+pub fn read_mesh_with(path: &Path, options: &ReadOptions) -> Result<(TetMesh, ReadReport)> {
+    let (mut data, format) = read_mesh_data(path)?;
+    let in_file = |e| match e {
         HemlError::Mesh(msg) => HemlError::Mesh(format!("{}: {msg}", path.display())),
         other => other,
-    })?;
+    };
+    let hexes_split = data.split_hexes(options.hex_split).map_err(in_file)?;
+    let skipped = data.skipped.clone();
+    let mesh = data.into_mesh().map_err(in_file)?;
     let report = ReadReport {
         path: path.to_path_buf(),
         format,
@@ -221,6 +329,7 @@ pub fn read_mesh(path: &Path) -> Result<(TetMesh, ReadReport)> {
         skipped,
         reoriented: mesh.reoriented_count(),
         unreferenced_nodes: mesh.unreferenced_nodes().len(),
+        hexes_split,
     };
     Ok((mesh, report))
 }
@@ -245,6 +354,9 @@ pub fn write_mesh_as(path: &Path, mesh: &TetMesh, format: MeshFormat) -> Result<
     match format {
         MeshFormat::Gmsh22 => gmsh::write(path, mesh, gmsh::Version::V22),
         MeshFormat::Gmsh41 => gmsh::write(path, mesh, gmsh::Version::V41),
+        MeshFormat::Gmsh1 => gmsh::write(path, mesh, gmsh::Version::V1),
+        MeshFormat::Gmsh22Binary => gmsh::write_binary(path, mesh, gmsh::Version::V22),
+        MeshFormat::Gmsh41Binary => gmsh::write_binary(path, mesh, gmsh::Version::V41),
         MeshFormat::VtkLegacy => vtk_legacy::write(path, mesh),
         MeshFormat::Vtu => write_vtu(path, &VtuFrame::from_mesh(mesh)),
         MeshFormat::TetGen => tetgen::write(path, mesh),
@@ -257,7 +369,8 @@ pub fn write_mesh_as(path: &Path, mesh: &TetMesh, format: MeshFormat) -> Result<
 /// inverted bounding box and `heml run` write empty frames.
 pub(crate) fn no_tets_message(data: &MeshData) -> String {
     let mut msg = format!(
-        "no tetrahedra in the file ({} nodes, 0 tets): a mesh needs at least one linear tetrahedron",
+        "no tetrahedra in the file ({} nodes, 0 tets): a mesh needs at least one linear tetrahedron or \
+         hexahedron",
         data.nodes.len()
     );
     if !data.skipped.is_empty() {

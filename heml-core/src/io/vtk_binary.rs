@@ -1,6 +1,7 @@
 //! The binary data encoding of VTK XML files: a size header (UInt32 or UInt64)
-//! followed by the data, optionally zlib-compressed in blocks, optionally base64
-//! encoded. Shared by the `.vtu` reader and writer.
+//! followed by the data, optionally compressed in blocks (zlib, or LZMA: each
+//! block an `.xz` stream, as `vtkLZMADataCompressor` and meshio write them),
+//! optionally base64 encoded. Shared by the `.vtu` reader and writer.
 //!
 //! Uncompressed: `[nbytes] data`. Compressed: `[nblocks, block_size,
 //! last_block_size, csize_0 … csize_{n-1}]` then the compressed blocks, where a
@@ -29,12 +30,30 @@ impl HeaderType {
     }
 }
 
+/// The block compression of a file (`compressor` attribute of `<VTKFile>`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Compressor {
+    /// No compression: one size word, then the data.
+    None,
+    /// `vtkZLibDataCompressor`: zlib streams.
+    Zlib,
+    /// `vtkLZMADataCompressor`: `.xz` streams, decoded by the pure-Rust
+    /// `lzma-rust2` crate.
+    Lzma,
+}
+
+/// Most memory one LZMA block's decoder may take (KiB): a header may declare a
+/// dictionary of up to 4 GiB, which the decoder would allocate before reading
+/// a byte. 64 MiB is the dictionary of `xz -9`, the largest preset (VTK and
+/// meshio use 8 MiB), plus the decoder's own tables.
+const LZMA_MEM_LIMIT_KIB: u32 = 65 * 1024;
+
 /// How the decoder reads numbers (byte order of the file).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Layout {
     pub header: HeaderType,
     pub little_endian: bool,
-    pub compressed: bool,
+    pub compressor: Compressor,
 }
 
 impl Layout {
@@ -74,7 +93,7 @@ impl Layout {
         let mismatch = |declared: &dyn std::fmt::Display| {
             format!("the block header declares {declared} bytes of data, expected {expected}")
         };
-        if !self.compressed {
+        if self.compressor == Compressor::None {
             let n = self.word(b).ok_or_else(short)?;
             if n != expected {
                 return Err(mismatch(&n));
@@ -95,7 +114,7 @@ impl Layout {
         }
         if last > bs {
             return Err(format!(
-                "corrupt zlib header: last block of {last} bytes is larger than the block size {bs}"
+                "corrupt compression header: last block of {last} bytes is larger than the block size {bs}"
             ));
         }
         // total = (nblocks − 1)·bs + last, where last = 0 means a full last block
@@ -116,13 +135,31 @@ impl Layout {
             let before = out.len();
             // `take` bounds the output: a corrupt or hostile block cannot inflate
             // beyond the size its header declares (checked above against `expected`).
-            flate2::read::ZlibDecoder::new(block)
-                .take(want as u64 + 1)
-                .read_to_end(&mut out)
-                .map_err(|e| format!("zlib block {k} cannot be decompressed: {e}"))?;
+            let (name, r) = match self.compressor {
+                Compressor::Lzma => (
+                    "lzma",
+                    lzma_rust2::XzReader::new_mem_limit(block, false, LZMA_MEM_LIMIT_KIB)
+                        .take(want as u64 + 1)
+                        .read_to_end(&mut out),
+                ),
+                _ => (
+                    "zlib",
+                    flate2::read::ZlibDecoder::new(block)
+                        .take(want as u64 + 1)
+                        .read_to_end(&mut out),
+                ),
+            };
+            r.map_err(|e| match e.kind() {
+                std::io::ErrorKind::OutOfMemory => format!(
+                    "{name} block {k} declares a dictionary needing more than {} MiB to decompress \
+                     (corrupt header?)",
+                    LZMA_MEM_LIMIT_KIB / 1024
+                ),
+                _ => format!("{name} block {k} cannot be decompressed: {e}"),
+            })?;
             if out.len() - before != want {
                 return Err(format!(
-                    "zlib block {k} inflates to {} bytes, its header says {want}",
+                    "{name} block {k} decompresses to {} bytes, its header says {want}",
                     out.len() - before
                 ));
             }
@@ -151,7 +188,7 @@ impl Layout {
     /// Base64 with the header encoded on its own (VTK's compressed inline form).
     fn decode_separate(&self, clean: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         let h = self.header.size();
-        let header_len = if self.compressed {
+        let header_len = if self.compressor != Compressor::None {
             // the first 3 words are 3h bytes = 4h base64 characters, a whole number of groups
             let first = clean.get(..4 * h).ok_or("base64 data too short for its header")?;
             let first = STANDARD.decode(first).map_err(|e| format!("invalid base64: {e}"))?;
@@ -222,7 +259,7 @@ mod tests {
             let layout = Layout {
                 header: HeaderType::U64,
                 little_endian: true,
-                compressed: compress,
+                compressor: if compress { Compressor::Zlib } else { Compressor::None },
             };
             assert_eq!(layout.decode_base64(s.as_bytes(), data.len()).unwrap(), data);
             // any other expected size is refused from the header alone
@@ -236,7 +273,7 @@ mod tests {
         let layout = Layout {
             header: HeaderType::U32,
             little_endian: true,
-            compressed: true,
+            compressor: Compressor::Zlib,
         };
         assert!(layout.decode_base64(b"AQAAAACAAAD4EAAA+Q8AAA==eJw9", 4344).is_err());
         assert!(layout.decode_base64(b"!!!!", 8).is_err());

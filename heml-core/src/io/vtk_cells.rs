@@ -1,8 +1,6 @@
 //! What VTK legacy and VTK XML files share: cell type codes, the choice of the cell
 //! array that holds region tags, and the assembly of tets from a cell list.
 
-use std::collections::BTreeMap;
-
 use super::{float_to_tag, MeshData, TAG_ARRAY_NAMES};
 use crate::error::{HemlError, Result};
 use crate::Vec3;
@@ -12,6 +10,10 @@ pub(crate) const VTK_TETRA: u8 = 10;
 
 enum CellKind {
     Tet,
+    /// VTK_HEXAHEDRON (12): corners in the order hexes are stored.
+    Hex,
+    /// VTK_VOXEL (11): corners in (x, y, z) bit order, permuted to the hex order.
+    Voxel,
     Skip(&'static str),
     Volume(&'static str),
 }
@@ -23,7 +25,9 @@ fn cell_kind(t: i64) -> CellKind {
         3 | 4 | 21 | 35 | 68 => CellKind::Skip("line"),
         5 | 6 | 7 | 22 | 34 | 36 | 69 => CellKind::Skip("triangle/polygon"),
         8 | 9 | 23 | 28 | 30 | 70 => CellKind::Skip("quad"),
-        11 | 12 | 25 | 29 | 33 | 72 => CellKind::Volume("hexahedron/voxel"),
+        12 => CellKind::Hex,
+        11 => CellKind::Voxel,
+        25 | 29 | 33 | 72 => CellKind::Volume("quadratic/Lagrange hexahedron"),
         13 | 26 | 31 | 32 | 73 => CellKind::Volume("wedge"),
         14 | 27 | 37 | 74 => CellKind::Volume("pyramid"),
         24 | 71 => CellKind::Volume("quadratic/Lagrange tetrahedron"),
@@ -70,8 +74,9 @@ pub(crate) fn choose_tags(arrays: &[CellArray], n_cells: usize) -> Option<&CellA
 
 /// Cells given as `offsets` (n_cells + 1 entries starting at 0) into
 /// `connectivity`, with `types`; the tets are kept, lower-dimensional cells
-/// counted, other volume cells rejected. `err` builds an error at the place named
-/// by [`At`].
+/// counted, linear hexahedra and voxels kept for the split at load
+/// ([`MeshData::split_hexes`]), other volume cells rejected. `err` builds an error
+/// at the place named by [`At`].
 pub(crate) fn assemble(
     nodes: Vec<Vec3>,
     offsets: &[usize],
@@ -89,9 +94,7 @@ pub(crate) fn assemble(
     }
     let mut data = MeshData {
         nodes,
-        tets: Vec::new(),
-        tags: Vec::new(),
-        skipped: BTreeMap::new(),
+        ..MeshData::default()
     };
     for c in 0..n_cells {
         let (a, b) = (offsets[c], offsets[c + 1]);
@@ -108,45 +111,65 @@ pub(crate) fn assemble(
         if ty.fract() != 0.0 {
             return Err(err(At::Type(c), format!("cell {c}: cell type {ty} is not an integer")));
         }
-        match cell_kind(ty as i64) {
-            CellKind::Tet => {
-                if b - a != 4 {
-                    return Err(err(
-                        At::Cell(c),
-                        format!("cell {c} is a tetrahedron (type 10) with {} nodes", b - a),
-                    ));
-                }
-                let mut t = [0usize; 4];
-                for (k, &v) in connectivity[a..b].iter().enumerate() {
-                    t[k] = node_index(v, data.nodes.len()).ok_or_else(|| {
-                        err(
-                            At::Cell(c),
-                            format!("cell {c} refers to node {v}, but there are {} points", data.nodes.len()),
-                        )
-                    })?;
-                }
-                data.tets.push(t);
-                let tag = match tags {
-                    Some(arr) => {
-                        let v = arr.values[c];
-                        float_to_tag(v).ok_or_else(|| {
-                            err(
-                                At::Line(arr.line),
-                                format!("cell {c}: tag array '{}' holds {v}, not an i32 integer", arr.name),
-                            )
-                        })?
-                    }
-                    None => 0,
-                };
-                data.tags.push(tag);
+        let kind = cell_kind(ty as i64);
+        let (want, name) = match kind {
+            CellKind::Tet => (4, "a tetrahedron (type 10)"),
+            CellKind::Hex => (8, "a hexahedron (type 12)"),
+            CellKind::Voxel => (8, "a voxel (type 11)"),
+            _ => (0, ""),
+        };
+        if want > 0 {
+            if b - a != want {
+                return Err(err(At::Cell(c), format!("cell {c} is {name} with {} nodes", b - a)));
             }
+            let mut v = [0usize; 8];
+            for (k, &x) in connectivity[a..b].iter().enumerate() {
+                v[k] = node_index(x, data.nodes.len()).ok_or_else(|| {
+                    err(
+                        At::Cell(c),
+                        format!("cell {c} refers to node {x}, but there are {} points", data.nodes.len()),
+                    )
+                })?;
+            }
+            let tag = match tags {
+                Some(arr) => {
+                    let x = arr.values[c];
+                    float_to_tag(x).ok_or_else(|| {
+                        err(
+                            At::Line(arr.line),
+                            format!("cell {c}: tag array '{}' holds {x}, not an i32 integer", arr.name),
+                        )
+                    })?
+                }
+                None => 0,
+            };
+            match kind {
+                CellKind::Tet => {
+                    data.tets.push([v[0], v[1], v[2], v[3]]);
+                    data.tags.push(tag);
+                }
+                _ => {
+                    // a voxel's corners are in bit order: swap 2-3 and 6-7 for the hex order
+                    let hex = if matches!(kind, CellKind::Voxel) {
+                        [v[0], v[1], v[3], v[2], v[4], v[5], v[7], v[6]]
+                    } else {
+                        v
+                    };
+                    data.hexes.push(hex);
+                    data.hex_tags.push(tag);
+                }
+            }
+            continue;
+        }
+        match kind {
+            CellKind::Tet | CellKind::Hex | CellKind::Voxel => {}
             CellKind::Skip(name) => data.skip(name),
             CellKind::Volume(name) => {
                 return Err(err(
                     At::Type(c),
                     format!(
                         "cell {c} has VTK type {ty} ({name}), a volume cell HEML cannot simulate; only linear \
-                         tetrahedra (type 10) are supported"
+                         tetrahedra (type 10) and hexahedra (types 11, 12: split into tets at load) are supported"
                     ),
                 ))
             }

@@ -344,7 +344,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let data = assemble(points, &cells.offsets, &cells.conn, &types, tags, &|at, msg| {
         c.err_at(line_of(at), msg)
     })?;
-    if data.tets.is_empty() {
+    if data.tets.is_empty() && data.hexes.is_empty() {
         return Err(c.err_at(cells.line, no_tets_message(&data)));
     }
     Ok(data)

@@ -2,11 +2,12 @@
 //! re-exported from `vtu_write`.
 //!
 //! Read: DataArrays in `ascii`, inline `binary` (base64) and `appended` form (raw
-//! or base64 encoding), uncompressed or `vtkZLibDataCompressor`, header type UInt32
-//! or UInt64, either byte order, several Pieces (concatenated). Region tags come
-//! from a CellData array named like a tag (`tag`, `gmsh:physical`,
-//! `CellEntityIds`, `MaterialIds`, …), else the first integer cell array. Other
-//! compressors (LZ4, LZMA) are refused with a clear error.
+//! or base64 encoding), uncompressed, `vtkZLibDataCompressor` or
+//! `vtkLZMADataCompressor` (decoded in pure Rust), header type UInt32 or UInt64,
+//! either byte order, several Pieces (concatenated). Region tags come from a
+//! CellData array named like a tag (`tag`, `gmsh:physical`, `CellEntityIds`,
+//! `MaterialIds`, …), else the first integer cell array. LZ4 is refused with a
+//! clear error.
 
 use std::path::Path;
 
@@ -15,7 +16,7 @@ use quick_xml::Reader;
 
 use super::cursor::{line_of, shorten, LineCounter};
 use super::read_bytes;
-use super::vtk_binary::{HeaderType, Layout};
+use super::vtk_binary::{Compressor, HeaderType, Layout};
 use super::vtk_cells::{assemble, choose_tags, At, CellArray};
 use super::{no_tets_message, MeshData};
 use crate::error::{HemlError, Result};
@@ -142,7 +143,7 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
     let mut layout = Layout {
         header: HeaderType::U32,
         little_endian: true,
-        compressed: false,
+        compressor: Compressor::None,
     };
     let mut seen_root = false;
     let mut pieces: Vec<Piece> = Vec::new();
@@ -203,16 +204,21 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
                         Some("UInt64") => HeaderType::U64,
                         Some(other) => return Err(perr(line, format!("unsupported header_type '{}'", shorten(other)))),
                     };
-                    layout.compressed = match attr(&e, "compressor").as_deref() {
-                            None | Some("") => false,
-                            Some("vtkZLibDataCompressor") => true,
-                            Some(other) => {
-                                return Err(perr(
-                                    line,
-                                    format!("compressor '{}' is not supported (only vtkZLibDataCompressor); re-save with zlib or no compression", shorten(other)),
-                                ))
-                            }
-                        };
+                    layout.compressor = match attr(&e, "compressor").as_deref() {
+                        None | Some("") => Compressor::None,
+                        Some("vtkZLibDataCompressor") => Compressor::Zlib,
+                        Some("vtkLZMADataCompressor") => Compressor::Lzma,
+                        Some(other) => {
+                            return Err(perr(
+                                line,
+                                format!(
+                                    "compressor '{}' is not supported (only vtkZLibDataCompressor and \
+                                     vtkLZMADataCompressor); re-save with zlib, lzma or no compression",
+                                    shorten(other)
+                                ),
+                            ))
+                        }
+                    };
                 }
                 b"Piece" => {
                     let get = |k: &str| -> Result<usize> {
@@ -303,11 +309,13 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
         out.nodes.extend(data.nodes);
         out.tets.extend(data.tets.into_iter().map(|t| t.map(|i| i + base)));
         out.tags.extend(data.tags);
+        out.hexes.extend(data.hexes.into_iter().map(|h| h.map(|i| i + base)));
+        out.hex_tags.extend(data.hex_tags);
         for (k, v) in data.skipped {
             *out.skipped.entry(k).or_insert(0) += v;
         }
     }
-    if out.tets.is_empty() {
+    if out.tets.is_empty() && out.hexes.is_empty() {
         return Err(perr(pieces[0].line, no_tets_message(&out)));
     }
     Ok(out)

@@ -29,11 +29,11 @@ pub enum HexSplit {
     /// invariant under all symmetries of the cube (reflections included) and
     /// conforming, because face centres are shared by the two cells of a face.
     ///
-    /// This stands in for the "symmetric 10-tet split" mentioned in the design
-    /// notes: no 10-tet subdivision of a hexahedron with the full cube symmetry is
-    /// known to us (splits using only the 8 corners have 5 or 6 tets and always
-    /// pick diagonals), so this is the smallest fully symmetric, conforming split
-    /// we could justify.
+    /// The method's symmetric 10-tet split (both 5-tet cuttings of a cell,
+    /// overlapping, each tet at half stiffness and half mass) is not offered: it
+    /// needs a per-tet weight on the rest volume that the mesh, the rest data and
+    /// the force kernels do not carry yet. This is the smallest split with the full
+    /// cube symmetry that needs no weights.
     TwentyFour,
 }
 

@@ -2,6 +2,7 @@
 //! oriented (reordered at load) and non-degenerate.
 
 pub mod generate;
+pub mod hex_split;
 pub mod quality;
 pub mod reorder;
 pub mod surface;

@@ -112,7 +112,15 @@ impl Scene {
         let mut data = match (&m.file, &m.generate) {
             (Some(file), None) => {
                 let path = self.base_dir.join(file);
-                read_mesh_data(&path)?.0
+                let mut data = read_mesh_data(&path)?.0;
+                data.split_hexes(m.hex_split.unwrap_or_default())
+                    .map_err(|e| HemlError::Invalid(format!("{what}: {}: {e}", path.display())))?;
+                data
+            }
+            (None, Some(_)) if m.hex_split.is_some() => {
+                return invalid(format!(
+                    "{what}: hex_split applies to mesh files; a generated mesh is cut by generate.split"
+                ))
             }
             (None, Some(g)) => {
                 let size = g.size.map(|s| s * scale);

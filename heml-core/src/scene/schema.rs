@@ -36,6 +36,12 @@ pub struct MeshSpec {
     /// (e.g. to compare).
     #[serde(default = "yes")]
     pub renumber: bool,
+    /// How the hexahedra of a mesh file are cut into tets at load: `"six"`
+    /// (default, conforming on any hex mesh), `"five"` (needs corners 2-colourable
+    /// along the edges, as in a structured grid) or `"twentyfour"` (adds face and
+    /// cell centres, no preferred direction). Only for `file`: a generated mesh
+    /// has `generate.split`.
+    pub hex_split: Option<crate::mesh::generate::HexSplit>,
 }
 
 impl Default for MeshSpec {
@@ -48,6 +54,7 @@ impl Default for MeshSpec {
             translate: None,
             pin_unreferenced: false,
             renumber: true,
+            hex_split: None,
         }
     }
 }

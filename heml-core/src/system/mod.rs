@@ -65,6 +65,7 @@
 
 mod adaptive;
 mod builder;
+mod clock;
 mod constraints;
 pub mod control;
 mod energy;

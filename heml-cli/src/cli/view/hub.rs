@@ -1,0 +1,60 @@
+//! The hand-off between the thread that produces frames (the simulation or the
+//! playback) and the server's connections: latest-wins `watch` channels for frames,
+//! status and mesh, a channel of commands the other way.
+//!
+//! The producer never waits: it replaces the value in a `watch` (a slow page skips
+//! the frames it had no time for, nothing queues) and drains its command channel
+//! without blocking. Replies to a command go back to the connection that sent it
+//! through a small bounded channel, dropped when full.
+
+use std::sync::mpsc;
+
+use axum::body::Bytes;
+use axum::extract::ws::Utf8Bytes;
+use tokio::sync::watch;
+
+use super::protocol::Request;
+
+/// Capacity of a connection's reply channel (replies beyond it are dropped).
+pub const REPLY_CAPACITY: usize = 32;
+
+/// A command with where to answer it.
+pub struct Envelope {
+    /// The parsed command.
+    pub request: Request,
+    /// The sending connection's reply channel.
+    pub reply: tokio::sync::mpsc::Sender<Utf8Bytes>,
+}
+
+impl Envelope {
+    /// Sends `text` back to the connection, unless it is gone or its channel full.
+    pub fn answer(&self, text: String) {
+        let _ = self.reply.try_send(text.into());
+    }
+}
+
+/// The producer's side and the connections' side of the hand-off.
+pub struct Hub {
+    /// Latest binary frame.
+    pub frames: watch::Sender<Bytes>,
+    /// Latest status JSON.
+    pub status: watch::Sender<Utf8Bytes>,
+    /// Current mesh JSON.
+    pub mesh: watch::Sender<Utf8Bytes>,
+    /// Commands to the producer.
+    pub commands: mpsc::Sender<Envelope>,
+}
+
+impl Hub {
+    /// A hub and the producer's end of the command channel.
+    pub fn new() -> (Hub, mpsc::Receiver<Envelope>) {
+        let (commands, rx) = mpsc::channel();
+        let hub = Hub {
+            frames: watch::Sender::new(Bytes::new()),
+            status: watch::Sender::new(Utf8Bytes::from_static("")),
+            mesh: watch::Sender::new(Utf8Bytes::from_static("")),
+            commands,
+        };
+        (hub, rx)
+    }
+}

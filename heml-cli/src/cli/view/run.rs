@@ -1,0 +1,131 @@
+//! The `heml view` command: chooses what to show (a scene, the demo, a recorded
+//! run), starts its producer thread and serves the page.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use heml::scene::Scene;
+use heml::{HemlError, Result};
+
+use super::control::{Controls, Unavailable};
+use super::hub::Hub;
+use super::playback::Recording;
+use super::{live, playback, server};
+use crate::cli::demo::DEMO_SCENE;
+
+/// Arguments of `heml view`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ViewArgs {
+    /// A scene file (TOML), or a run's output directory or its `.pvd` to play back.
+    #[arg(required_unless_present = "demo", conflicts_with = "demo")]
+    pub input: Option<PathBuf>,
+    /// Show the embedded demo scene (the one `heml demo` runs).
+    #[arg(long)]
+    pub demo: bool,
+    /// TCP port (0: any free port).
+    #[arg(long, default_value_t = 0)]
+    pub port: u16,
+    /// Address to listen on. Anything but loopback exposes the simulation's controls
+    /// to the network (there is no authentication).
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: String,
+    /// Worker threads of the force assembly (pinned to CPUs when there are enough).
+    #[arg(long, default_value_t = default_threads())]
+    pub threads: usize,
+    /// Do not open a browser; just print the URL.
+    #[arg(long)]
+    pub no_open: bool,
+}
+
+fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Is `host` a loopback address (or `localhost`)?
+pub fn is_loopback(host: &str) -> bool {
+    host == "localhost" || host.parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback())
+}
+
+/// Runs `heml view` until interrupted.
+pub fn run(args: ViewArgs) -> Result<()> {
+    if !is_loopback(&args.host) {
+        eprintln!(
+            "heml warning: ********************************************************************\n\
+             heml warning: listening on {} (not loopback): anyone who can reach this machine can\n\
+             heml warning: watch and drive the simulation; there is no authentication.\n\
+             heml warning: ********************************************************************",
+            args.host
+        );
+    }
+    let (hub, commands) = Hub::new();
+    let hub = Arc::new(hub);
+    // the producer first: a bad scene or recording is an error before anything listens
+    let producer = match (&args.input, args.demo) {
+        (_, true) => {
+            let scene = Scene::from_toml_str_named(DEMO_SCENE, ".", "demo.toml (embedded)")?;
+            live::spawn(scene, args.threads, hub.clone(), commands, controls())?
+        }
+        (Some(p), false) if p.extension().is_some_and(|x| x == "toml") => {
+            let scene = Scene::from_file(p)?;
+            live::spawn(scene, args.threads, hub.clone(), commands, controls())?
+        }
+        (Some(p), false) => {
+            let rec = Recording::read(p)?;
+            outln!("{}: {} frames", rec.source.display(), rec.frames.len());
+            playback::spawn(rec, hub.clone(), commands)?
+        }
+        (None, false) => return Err(HemlError::Invalid("give a scene file, a run's output or --demo".into())),
+    };
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| HemlError::Invalid(format!("cannot start the server's runtime: {e}")))?;
+    let no_open = args.no_open;
+    let served = runtime.block_on(server::serve(hub, &args.host, args.port, |addr| {
+        let url = format!("http://{addr}/");
+        outln!("heml view: {url}  (Ctrl-C to stop)");
+        if !no_open {
+            open_browser(&url);
+        }
+    }));
+    drop(producer);
+    served.map_err(|e| HemlError::Invalid(format!("cannot serve on {}:{}: {e}", args.host, args.port)))
+}
+
+/// The grasp, tool and cut controls of this build (see [`super::control`]): the
+/// one line to change when the library's runtime-control API is wired in.
+fn controls() -> Box<dyn Controls> {
+    Box::new(Unavailable)
+}
+
+/// Asks the desktop to open `url` (failure is not an error: the URL is printed).
+fn open_browser(url: &str) {
+    let opener = if cfg!(target_os = "macos") {
+        "open"
+    } else if cfg!(target_os = "windows") {
+        "explorer"
+    } else {
+        "xdg-open"
+    };
+    if let Err(e) = std::process::Command::new(opener)
+        .arg(url)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+    {
+        log::info!("could not open a browser ({opener}: {e}); open {url} yourself");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn loopback_hosts_are_recognised() {
+        for h in ["127.0.0.1", "::1", "localhost", "127.0.0.2"] {
+            assert!(super::is_loopback(h), "{h}");
+        }
+        for h in ["0.0.0.0", "192.168.1.2", "example.org", "::"] {
+            assert!(!super::is_loopback(h), "{h}");
+        }
+    }
+}

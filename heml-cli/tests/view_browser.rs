@@ -1,0 +1,314 @@
+//! `heml view` in a real browser: Debian's headless Chromium driven by chromedriver
+//! (WebDriver, the fantoccini crate). The page must draw the organ (WebGL through
+//! SwiftShader), its pause and step buttons must stop and step the simulation, and
+//! its E field must change the server's material, and a drag on the tissue must send
+//! a grasp (refused in this build, and shown so). A screenshot is saved to
+//! `target/view-e2e/screenshot.png`.
+//!
+//! Needs `chromium` and `chromedriver` on PATH (`.ci/run` installs them); without
+//! them the test says so loudly and returns, except under CI (`CI` set), where it fails.
+#[path = "support/view.rs"]
+mod view;
+
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+use fantoccini::{ClientBuilder, Locator};
+use serde_json::json;
+use view::{Client, ViewServer};
+
+const WAIT: Duration = Duration::from_secs(60);
+
+fn on_path(name: &str) -> Option<PathBuf> {
+    std::env::var_os("PATH")?
+        .to_str()?
+        .split(':')
+        .map(|d| Path::new(d).join(name))
+        .find(|p| p.is_file())
+}
+
+struct Driver(Child);
+
+impl Drop for Driver {
+    /// Ends chromedriver and the browser it started (same process group), even when
+    /// the test failed before closing its session.
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", "--", &format!("-{}", self.0.id())])
+            .status();
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// chromium and chromedriver, or None after saying loudly why the test cannot run
+/// (a failure under CI).
+fn browser_binaries() -> Option<(PathBuf, PathBuf)> {
+    match (on_path("chromium"), on_path("chromedriver")) {
+        (Some(c), Some(d)) => Some((c, d)),
+        _ => {
+            let msg = "chromium and chromedriver are not on PATH: the browser test of `heml view` did NOT run \
+                       (apt-get install chromium chromium-driver; .ci/run installs them)";
+            if std::env::var_os("CI").is_some() {
+                panic!("{msg}");
+            }
+            eprintln!("\n*** SKIPPED: {msg} ***\n");
+            None
+        }
+    }
+}
+
+/// A headless Chromium session (WebGL through SwiftShader) and its chromedriver.
+async fn open_browser(chromium: &Path, chromedriver: &Path) -> (fantoccini::Client, Driver, PathBuf) {
+    let port = free_port();
+    let driver = Driver(
+        Command::new(chromedriver)
+            .arg(format!("--port={port}"))
+            .process_group(0)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start chromedriver"),
+    );
+    let profile = std::env::temp_dir().join(format!("heml-view-chromium-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&profile);
+    let caps = json!({
+        "browserName": "chrome",
+        "goog:chromeOptions": {
+            "binary": chromium,
+            "args": [
+                "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                "--disable-crash-reporter", "--disable-breakpad",
+                "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--window-size=1000,700",
+                format!("--user-data-dir={}", profile.display()),
+            ]
+        }
+    });
+    let caps = match caps {
+        serde_json::Value::Object(m) => m,
+        _ => unreachable!(),
+    };
+    // chromedriver takes a moment to listen
+    let start = Instant::now();
+    let browser = loop {
+        match ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
+            .capabilities(caps.clone())
+            .connect(&format!("http://127.0.0.1:{port}"))
+            .await
+        {
+            Ok(c) => break c,
+            Err(e) if start.elapsed() < Duration::from_secs(30) => {
+                let _ = e;
+                tokio::time::sleep(Duration::from_millis(200)).await;
+            }
+            Err(e) => panic!("cannot start a WebDriver session: {e}"),
+        }
+    };
+    (browser, driver, profile)
+}
+
+async fn wait_for_frames(browser: &fantoccini::Client, n: u64) {
+    let start = Instant::now();
+    loop {
+        let frames = browser
+            .execute("return window.hemlView ? window.hemlView.frames : 0", vec![])
+            .await
+            .unwrap()
+            .as_u64()
+            .unwrap_or(0);
+        if frames >= n {
+            break;
+        }
+        assert!(start.elapsed() < WAIT, "the page received {frames} frames in {WAIT:?}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+#[tokio::test(flavor = "current_thread")]
+async fn the_page_draws_the_organ_and_drives_the_simulation() {
+    let Some((chromium, chromedriver)) = browser_binaries() else {
+        return;
+    };
+    let server = ViewServer::start(&["view", "--demo", "--threads", "1"]);
+    let (browser, _driver, profile) = open_browser(&chromium, &chromedriver).await;
+    browser.goto(&server.url).await.expect("open the page");
+
+    // frames arrive and are drawn
+    wait_for_frames(&browser, 10).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let probe = browser.execute("return window.hemlView.probe()", vec![]).await.unwrap();
+    let inside = probe["inside"].as_f64().unwrap();
+    let area = probe["area"].as_f64().unwrap();
+    assert_eq!(probe["webgl"], true, "no WebGL context: {probe}");
+    // the organ's projected bounding box is mostly covered by the box-shaped demo
+    // block: at least a third of its pixels differ from the background
+    assert!(area > 1000.0 && inside > area / 3.0, "organ pixels: {probe}");
+    // and little is drawn outside it (fixed-node markers at the box's edge)
+    assert!(probe["outside"].as_f64().unwrap() < 0.05 * area, "{probe}");
+
+    let png = browser.screenshot().await.expect("screenshot");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/view-e2e");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("screenshot.png"), &png).unwrap();
+
+    // pause from the page: the server's time stops
+    let mut ws = Client::connect(&server).await;
+    assert!(ws.until(WAIT, |c| c.status.is_object()).await);
+    browser.find(Locator::Id("pause")).await.unwrap().click().await.unwrap();
+    assert!(ws.until(WAIT, |c| c.paused()).await, "the pause button did not pause");
+    ws.drain(Duration::from_millis(300)).await;
+    let (t0, steps0) = (ws.time(), ws.steps());
+    ws.drain(Duration::from_millis(700)).await;
+    assert_eq!((ws.time(), ws.steps()), (t0, steps0), "time went on while paused");
+
+    // one step from the page: exactly one dt
+    let dt = ws.status["dt"].as_f64().unwrap();
+    browser.find(Locator::Id("step")).await.unwrap().click().await.unwrap();
+    assert!(ws.until(WAIT, |c| c.steps() == steps0 + 1).await, "{}", ws.status);
+    assert!((ws.time() - (t0 + dt)).abs() <= 4.0 * f64::EPSILON * (t0 + dt));
+    ws.drain(Duration::from_millis(300)).await;
+    assert_eq!(ws.steps(), steps0 + 1, "one click stepped more than once");
+
+    // E from the page's field: the server's law changes (mu ∝ E)
+    let e0 = ws.scene_param("E");
+    let mu0 = ws.law_param("mu");
+    let field = browser.find(Locator::Id("E")).await.unwrap();
+    field.click().await.unwrap();
+    field.clear().await.unwrap();
+    field.send_keys(&format!("{}", 3.0 * e0)).await.unwrap();
+    browser.find(Locator::Id("setE")).await.unwrap().click().await.unwrap();
+    assert!(
+        ws.until(WAIT, |c| c.scene_param("E") == 3.0 * e0).await,
+        "{}",
+        ws.status
+    );
+    assert!((ws.law_param("mu") / mu0 - 3.0).abs() < 1e-12);
+    // the panel shows the status
+    let shown = browser.find(Locator::Id("time")).await.unwrap().text().await.unwrap();
+    assert!(shown.ends_with(" s"), "panel time {shown:?}");
+
+    // a drag on the tissue: the page picks the surface node under the cursor and
+    // sends grasp_start / grasp_move / grasp_end; this build answers "not available",
+    // the page shows it, and the simulation is untouched
+    let probe = browser.execute("return window.hemlView.probe()", vec![]).await.unwrap();
+    let r: Vec<f64> = probe["rect"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let (cx, cy) = ((r[0] + r[2]) / 2.0, (r[1] + r[3]) / 2.0);
+    let steps1 = ws.steps();
+    let drag = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveTo {
+            duration: None,
+            x: cx,
+            y: cy,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::MoveTo {
+            duration: Some(Duration::from_millis(300)),
+            x: cx + 60.0,
+            y: cy,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    browser.perform_actions(drag).await.unwrap();
+    let start = Instant::now();
+    let shown = loop {
+        let m = browser
+            .find(Locator::Id("message"))
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        if m.contains("not available") || start.elapsed() > Duration::from_secs(10) {
+            break m;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert!(
+        shown.starts_with("grasp_") && shown.contains("not available"),
+        "page message {shown:?}"
+    );
+    ws.drain(Duration::from_millis(300)).await;
+    assert_eq!(ws.steps(), steps1, "the refused grasp moved the simulation");
+
+    browser.close().await.unwrap();
+    let _ = std::fs::remove_dir_all(&profile);
+}
+
+/// The README's measurement (not a test: run it by hand, once):
+/// `HEML_VIEW_BENCH=scene.toml cargo test --release -p heml-cli --test view_browser -- --ignored --nocapture`.
+/// Frames per second received by a headless page over 10 s, bytes per frame, and the
+/// real-time factor with the page open and after it closed.
+#[tokio::test(flavor = "current_thread")]
+#[ignore = "a measurement for the README, run by hand"]
+async fn measure_frames_per_second() {
+    let Some(scene) = std::env::var_os("HEML_VIEW_BENCH") else {
+        eprintln!("set HEML_VIEW_BENCH=scene.toml");
+        return;
+    };
+    let Some((chromium, chromedriver)) = browser_binaries() else {
+        return;
+    };
+    let threads = std::env::var("HEML_VIEW_THREADS").unwrap_or_else(|_| "2".into());
+    let server = ViewServer::start(&["view", scene.to_str().unwrap(), "--threads", &threads]);
+    let mut ws = Client::connect(&server).await;
+    let closed_before = mean_rtf(&mut ws, 10).await;
+    let (browser, _driver, profile) = open_browser(&chromium, &chromedriver).await;
+    browser.goto(&server.url).await.expect("open the page");
+    wait_for_frames(&browser, 5).await;
+    let count = |b: &fantoccini::Client| {
+        let b = b.clone();
+        async move {
+            b.execute("return window.hemlView.frames", vec![])
+                .await
+                .unwrap()
+                .as_f64()
+                .unwrap()
+        }
+    };
+    let f0 = count(&browser).await;
+    let t0 = Instant::now();
+    let open = mean_rtf(&mut ws, 10).await;
+    let fps = (count(&browser).await - f0) / t0.elapsed().as_secs_f64();
+    let bytes = browser.execute("return window.hemlView.bytes", vec![]).await.unwrap();
+    browser.close().await.unwrap();
+    let _ = std::fs::remove_dir_all(&profile);
+    let closed_after = mean_rtf(&mut ws, 10).await;
+    println!(
+        "{}: {fps:.1} frames/s received, {bytes} bytes/frame, real-time factor {open:.3} with the page open, \
+         {closed_before:.3} / {closed_after:.3} closed (before / after), step p50 {} ms",
+        scene.to_string_lossy(),
+        ws.status["step_ms_p50"]
+    );
+}
+
+/// Mean real-time factor of the status messages over `secs` seconds.
+async fn mean_rtf(ws: &mut Client, secs: u64) -> f64 {
+    let mut samples = Vec::new();
+    let end = Instant::now() + Duration::from_secs(secs);
+    while Instant::now() < end {
+        let before = ws.status["frame"].clone();
+        ws.until(Duration::from_secs(1), |c| c.status["frame"] != before).await;
+        samples.push(ws.status["real_time_factor"].as_f64().unwrap_or(f64::NAN));
+    }
+    samples.iter().sum::<f64>() / samples.len() as f64
+}
