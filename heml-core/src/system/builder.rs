@@ -2,9 +2,11 @@
 //! at [`SystemBuilder::build`] (errors, never panics).
 
 use super::constraints::{Constraints, Prescribed, Ramp};
+use super::control::Grasps;
+use super::parts::{Diagnostics, Evaluation, Model, Scratch, Snapshot, State, Stepping};
 use super::prony::{validate_prony, PronyState, PronyTerm};
-use super::stability::{stable_time_step, TimeStepPolicy, DEFAULT_SAFETY};
-use super::{Rayleigh, Region, Snapshot, System};
+use super::stability::{critical_time_step, damped_safe, TimeStepPolicy, DEFAULT_SAFETY};
+use super::{Rayleigh, Region, System};
 use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
 use crate::material::Material;
@@ -484,44 +486,60 @@ impl SystemBuilder {
             return invalid(format!("initial velocity of node {} is not finite", shown(i)));
         }
         let mut sys = System {
-            x,
-            v,
-            mass,
-            inv_mass,
-            force: vec![Vec3::zeros(); n],
-            reaction: vec![Vec3::zeros(); n],
-            reaction_total: Vec3::zeros(),
-            regions,
-            constraints,
-            constrained_ids,
-            gravity: self.gravity,
-            nodal: self.nodal,
-            damping: self.damping,
-            t: 0.0,
-            step: 0,
-            forces_current: false,
-            accepted_forces: false,
-            force_options: self.opts,
-            elastic_energy: None,
-            stable_dt: f64::INFINITY,
-            safety: self.safety,
-            policy: self.policy,
-            warned: false,
-            warnings,
-            in_step: None,
-            snapshot: Snapshot::default(),
-            energy_every: self.energy_every,
-            length_scale: (hi - lo).norm(),
-            scratch: vec![Vec3::zeros(); n],
-            elastic: vec![Vec3::zeros(); n],
-            input_ids: self.input_ids,
-            surface: BoundarySurface::of_mesh(mesh.tets()),
-            cut: Default::default(),
-            surface_loads: Default::default(),
-            mesh,
+            model: Model {
+                mass,
+                inv_mass,
+                regions,
+                constraints,
+                constrained_ids,
+                gravity: self.gravity,
+                nodal: self.nodal,
+                damping: self.damping,
+                force_options: self.opts,
+                length_scale: (hi - lo).norm(),
+                input_ids: self.input_ids,
+                surface: BoundarySurface::of_mesh(mesh.tets()),
+                mesh,
+                grasps: Grasps::default(),
+                revision: 0,
+                cut: Default::default(),
+                surface_loads: Default::default(),
+            },
+            state: State {
+                x,
+                v,
+                t: 0.0,
+                step: 0,
+                in_step: None,
+                snapshot: Snapshot::default(),
+            },
+            eval: Evaluation {
+                force: vec![Vec3::zeros(); n],
+                reaction: vec![Vec3::zeros(); n],
+                reaction_total: Vec3::zeros(),
+                elastic_energy: None,
+                forces_current: false,
+                accepted_forces: false,
+            },
+            scratch: Scratch {
+                buf: vec![Vec3::zeros(); n],
+                elastic: vec![Vec3::zeros(); n],
+            },
+            stepping: Stepping {
+                critical_dt: f64::INFINITY,
+                stable_dt: f64::INFINITY,
+                safety: self.safety,
+                policy: self.policy,
+                energy_every: self.energy_every,
+            },
+            diag: Diagnostics {
+                warned: false,
+                warnings,
+            },
         };
         sys.apply_constraints(0.0);
-        sys.stable_dt = stable_time_step(&sys);
+        sys.stepping.critical_dt = critical_time_step(&sys);
+        sys.stepping.stable_dt = damped_safe(&sys, sys.stepping.critical_dt);
         Ok(sys)
     }
 }

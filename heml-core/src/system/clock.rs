@@ -35,7 +35,7 @@ impl System {
     /// # Ok::<(), heml_core::HemlError>(())
     /// ```
     pub fn set_clock(&mut self, time: f64, steps: u64) -> Result<()> {
-        if self.in_step.is_some() {
+        if self.state.in_step.is_some() {
             return Err(HemlError::Invalid("set_clock: a step is in progress".into()));
         }
         if !(time.is_finite() && time >= 0.0) {
@@ -43,8 +43,8 @@ impl System {
                 "set_clock: time {time} must be finite and ≥ 0"
             )));
         }
-        self.t = time;
-        self.step = steps;
+        self.state.t = time;
+        self.state.step = steps;
         self.invalidate();
         self.apply_constraints(time);
         Ok(())

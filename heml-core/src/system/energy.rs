@@ -12,7 +12,8 @@ pub struct Energies {
     pub elastic: f64,
     /// Potential of gravity relative to the rest configuration: −Σ m_i g·(x_i − X_i).
     pub gravity: f64,
-    /// Potential of the constant nodal forces: −Σ f_j·(x_j − X_j).
+    /// Potential of the constant nodal forces, −Σ f_j·(x_j − X_j), plus that of the
+    /// grasp springs, ½ k Σ |x_i − T(a_i)|² (see [`super::control`]).
     pub loads: f64,
     /// kinetic + elastic + gravity + loads (conserved by an exact undamped motion
     /// without prescribed displacements).

@@ -72,6 +72,8 @@ pub mod cut;
 mod energy;
 pub mod implicit;
 mod integrator;
+mod parts;
+mod passes;
 mod prony;
 mod stability;
 pub mod statics;
@@ -99,6 +101,7 @@ use crate::material::Material;
 use crate::mesh::surface::BoundarySurface;
 use crate::mesh::TetMesh;
 use crate::Vec3;
+use parts::{Diagnostics, Evaluation, Model, Scratch, State, Stepping};
 use prony::PronyState;
 
 /// Rayleigh damping coefficients: force −α m_i v_i − β K v.
@@ -154,68 +157,18 @@ impl Region {
     }
 }
 
-/// The state saved by [`System::begin_step`] and restored on failure.
-#[derive(Debug, Default)]
-struct Snapshot {
-    x: Vec<Vec3>,
-    v: Vec<Vec3>,
-    t: f64,
-    step: u64,
-    prony: Vec<Option<PronyState>>,
-}
-
 /// A simulated body: state, masses, regions, constraints, loads and damping.
+///
+/// Its parts are kept apart (module `system::parts`): the model, the state, the forces
+/// evaluated at that state, scratch buffers, time-step settings and diagnostics.
 #[derive(Debug)]
 pub struct System {
-    mesh: TetMesh,
-    x: Vec<Vec3>,
-    v: Vec<Vec3>,
-    mass: Vec<f64>,
-    /// 1/m for free nodes, 0 for constrained ones.
-    inv_mass: Vec<f64>,
-    force: Vec<Vec3>,
-    reaction: Vec<Vec3>,
-    reaction_total: Vec3,
-    regions: Vec<Region>,
-    constraints: Constraints,
-    constrained_ids: Vec<usize>,
-    gravity: Vec3,
-    nodal: Vec<(usize, Vec3)>,
-    damping: Rayleigh,
-    t: f64,
-    step: u64,
-    /// Forces in `force` belong to the current positions, velocities and time.
-    forces_current: bool,
-    /// Forces in `force` were computed by [`System::finish_step`] for the state it
-    /// accepted and nothing has touched the state since (not even a kick), so the
-    /// next step's first [`System::compute_forces`] can reuse them bit for bit.
-    accepted_forces: bool,
-    /// Elastic energy at the current positions, when known.
-    elastic_energy: Option<f64>,
-    stable_dt: f64,
-    safety: f64,
-    policy: TimeStepPolicy,
-    warned: bool,
-    warnings: Vec<String>,
-    in_step: Option<(f64, f64)>,
-    snapshot: Snapshot,
-    energy_every: u64,
-    /// Bounding-box diagonal (sets the finite-difference step of the stiffness damping).
-    length_scale: f64,
-    scratch: Vec<Vec3>,
-    elastic: Vec<Vec3>,
-    /// Ids that messages show for the nodes (see [`SystemBuilder::input_node_ids`]).
-    input_ids: Option<Vec<usize>>,
-    /// The options the force fields were built with (the adaptive step evaluates the
-    /// laws' tangents with the same J0 extension).
-    force_options: ForceOptions,
-    /// The outward boundary triangles of the tets in the dynamics.
-    surface: BoundarySurface,
-    // ----- cutting and surface loads (`cut/`, `surface_load.rs`) -----
-    /// Which tets cuts removed, and the topology that keeps cuts local.
-    cut: cut::CutState,
-    /// Pressure and traction on boundary faces.
-    surface_loads: surface_load::SurfaceLoads,
+    model: Model,
+    state: State,
+    eval: Evaluation,
+    scratch: Scratch,
+    stepping: Stepping,
+    diag: Diagnostics,
 }
 
 impl System {
@@ -228,40 +181,45 @@ impl System {
 
     /// The mesh (rest configuration).
     pub fn mesh(&self) -> &TetMesh {
-        &self.mesh
+        &self.model.mesh
     }
     /// The outward boundary surface of the body (what tools touch and pressure
     /// loads act on), as triangles of node ids.
     pub fn surface(&self) -> &BoundarySurface {
-        &self.surface
+        &self.model.surface
     }
     /// Rest positions.
     pub fn rest_positions(&self) -> &[Vec3] {
-        self.mesh.nodes()
+        self.model.mesh.nodes()
     }
     /// Current positions.
     pub fn positions(&self) -> &[Vec3] {
-        &self.x
+        &self.state.x
     }
     /// Current velocities.
     pub fn velocities(&self) -> &[Vec3] {
-        &self.v
+        &self.state.v
     }
     /// Displacements x − X.
     pub fn displacements(&self) -> Vec<Vec3> {
-        self.x.iter().zip(self.mesh.nodes()).map(|(x, p)| x - p).collect()
+        self.state
+            .x
+            .iter()
+            .zip(self.model.mesh.nodes())
+            .map(|(x, p)| x - p)
+            .collect()
     }
     /// Lumped masses.
     pub fn masses(&self) -> &[f64] {
-        &self.mass
+        &self.model.mass
     }
     /// Total mass.
     pub fn total_mass(&self) -> f64 {
-        self.mass.iter().sum()
+        self.model.mass.iter().sum()
     }
     /// Forces of the last [`System::compute_forces`] (zero on constrained nodes).
     pub fn forces(&self) -> &[Vec3] {
-        &self.force
+        &self.eval.force
     }
     /// Reaction forces of the last force evaluation: on each constrained node, minus
     /// the sum of the elastic (viscous-elastic), external and damping forces acting on
@@ -269,80 +227,80 @@ impl System {
     /// lumped mass is not included (it vanishes for fixed nodes and at rest). Zero on
     /// free nodes.
     pub fn reactions(&self) -> &[Vec3] {
-        &self.reaction
+        &self.eval.reaction
     }
     /// Sum of [`System::reactions`].
     pub fn total_reaction(&self) -> Vec3 {
-        self.reaction_total
+        self.eval.reaction_total
     }
     /// Time.
     pub fn time(&self) -> f64 {
-        self.t
+        self.state.t
     }
     /// Number of completed steps.
     pub fn step_count(&self) -> u64 {
-        self.step
+        self.state.step
     }
     /// Material regions.
     pub fn regions(&self) -> &[Region] {
-        &self.regions
+        &self.model.regions
     }
     /// Constraints.
     pub fn constraints(&self) -> &Constraints {
-        &self.constraints
+        &self.model.constraints
     }
     /// Whether node `i` moves freely (not fixed, not prescribed).
     pub fn is_free(&self, i: usize) -> bool {
-        !self.constraints.is_constrained(i)
+        !self.model.constraints.is_constrained(i)
     }
     /// Gravity acceleration.
     pub fn gravity(&self) -> Vec3 {
-        self.gravity
+        self.model.gravity
     }
     /// Constant nodal forces (node, force).
     pub fn nodal_forces(&self) -> &[(usize, Vec3)] {
-        &self.nodal
+        &self.model.nodal
     }
     /// Rayleigh damping.
     pub fn damping(&self) -> Rayleigh {
-        self.damping
+        self.model.damping
     }
     /// The stable time-step estimate computed at build time (see [`stable_time_step`]).
     pub fn stable_dt(&self) -> f64 {
-        self.stable_dt
+        self.stepping.stable_dt
     }
     /// The force options the regions were built with.
     pub fn force_options(&self) -> ForceOptions {
-        self.force_options
+        self.model.force_options
     }
     /// Safety factor applied to the critical time step.
     pub fn safety(&self) -> f64 {
-        self.safety
+        self.stepping.safety
     }
     /// What happens when a step exceeds [`System::stable_dt`].
     pub fn time_step_policy(&self) -> TimeStepPolicy {
-        self.policy
+        self.stepping.policy
     }
     /// Sets the time-step policy.
     pub fn set_time_step_policy(&mut self, policy: TimeStepPolicy) {
-        self.policy = policy;
+        self.stepping.policy = policy;
     }
     /// Warnings issued so far, oldest first. Each was also logged at the `Warn` level
     /// through the `log` facade when it was issued (the library never prints; install
     /// a logger to see them as they come).
     pub fn warnings(&self) -> &[String] {
-        &self.warnings
+        &self.diag.warnings
     }
     /// The id that messages show for node `i`: the caller's numbering given to
     /// [`SystemBuilder::input_node_ids`] (e.g. a mesh file's, when the scene loader
     /// renumbered the nodes), or `i` itself.
     pub fn input_id(&self, i: usize) -> usize {
-        self.input_ids.as_ref().map_or(i, |ids| ids[i])
+        self.model.input_ids.as_ref().map_or(i, |ids| ids[i])
     }
     /// Whether [`System::forces`] belong to the current state (lets velocity Verlet
     /// reuse the forces of the end of its previous step).
     pub fn forces_current(&self) -> bool {
-        self.forces_current
+        self.eval.forces_current
     }
 
     // ----- user edits --------------------------------------------------------------
@@ -351,29 +309,33 @@ impl System {
     /// by the next constraint application.
     pub fn positions_mut(&mut self) -> &mut [Vec3] {
         self.invalidate();
-        &mut self.x
+        &mut self.state.x
     }
     /// Mutable velocities (e.g. an initial velocity field).
     pub fn velocities_mut(&mut self) -> &mut [Vec3] {
         self.invalidate();
-        &mut self.v
+        &mut self.state.v
     }
     /// Mutable positions and velocities together (for custom integrators).
     pub fn kinematics_mut(&mut self) -> (&mut [Vec3], &mut [Vec3]) {
         self.invalidate();
-        (&mut self.x, &mut self.v)
+        (&mut self.state.x, &mut self.state.v)
     }
 
     fn invalidate(&mut self) {
-        self.forces_current = false;
-        self.accepted_forces = false;
-        self.elastic_energy = None;
+        self.eval.forces_current = false;
+        self.eval.accepted_forces = false;
+        self.eval.elastic_energy = None;
     }
 
     /// Imposes the constraints at time `t`: fixed nodes at rest with zero velocity,
     /// prescribed nodes at X + r(t)·u with velocity r'(t)·u.
     pub fn apply_constraints(&mut self, t: f64) {
-        if self.constraints.apply(t, self.mesh.nodes(), &mut self.x, &mut self.v) {
+        if self
+            .model
+            .constraints
+            .apply(t, self.model.mesh.nodes(), &mut self.state.x, &mut self.state.v)
+        {
             self.invalidate();
         }
     }
@@ -395,51 +357,51 @@ impl System {
                 "time step dt = {dt} must be a finite number > 0"
             )));
         }
-        if explicit && dt > self.stable_dt {
+        if explicit && dt > self.stepping.stable_dt {
             let msg = format!(
                 "time step dt = {dt:e} exceeds the stable estimate {:e} (see stable_time_step); \
                  the explicit integration may blow up",
-                self.stable_dt
+                self.stepping.stable_dt
             );
-            match self.policy {
+            match self.stepping.policy {
                 TimeStepPolicy::Ignore | TimeStepPolicy::Adapt => {}
                 TimeStepPolicy::Refuse => return Err(HemlError::Invalid(msg)),
                 TimeStepPolicy::Warn => {
-                    if !self.warned {
-                        self.warned = true;
+                    if !self.diag.warned {
+                        self.diag.warned = true;
                         self.warn(msg);
                     }
                 }
             }
         }
-        let s = &mut self.snapshot;
-        s.x.clone_from(&self.x);
-        s.v.clone_from(&self.v);
-        s.t = self.t;
-        s.step = self.step;
-        s.prony.resize_with(self.regions.len(), || None);
-        for (dst, r) in s.prony.iter_mut().zip(&self.regions) {
+        let s = &mut self.state.snapshot;
+        passes::copy(&mut s.x, &self.state.x);
+        passes::copy(&mut s.v, &self.state.v);
+        s.t = self.state.t;
+        s.step = self.state.step;
+        s.prony.resize_with(self.model.regions.len(), || None);
+        for (dst, r) in s.prony.iter_mut().zip(&self.model.regions) {
             match (&r.prony, dst) {
                 (Some(p), Some(d)) => p.save_into(d),
                 (Some(p), d) => *d = Some(p.clone()),
                 (None, d) => *d = None,
             }
         }
-        self.in_step = Some((self.t, dt));
+        self.state.in_step = Some((self.state.t, dt));
         Ok(())
     }
 
     /// Restores the state saved by [`System::begin_step`].
     fn rollback(&mut self) {
-        if self.in_step.take().is_none() {
+        if self.state.in_step.take().is_none() {
             return;
         }
-        let s = &self.snapshot;
-        self.x.clone_from(&s.x);
-        self.v.clone_from(&s.v);
-        self.t = s.t;
-        self.step = s.step;
-        for (r, saved) in self.regions.iter_mut().zip(&s.prony) {
+        let s = &self.state.snapshot;
+        self.state.x.clone_from(&s.x);
+        self.state.v.clone_from(&s.v);
+        self.state.t = s.t;
+        self.state.step = s.step;
+        for (r, saved) in self.model.regions.iter_mut().zip(&s.prony) {
             if let (Some(p), Some(saved)) = (&mut r.prony, saved) {
                 saved.save_into(p);
             }
@@ -449,7 +411,7 @@ impl System {
 
     /// The step being attempted, for error messages.
     fn attempted_step(&self) -> u64 {
-        self.step + u64::from(self.in_step.is_some())
+        self.state.step + u64::from(self.state.in_step.is_some())
     }
 
     /// Computes the total force on every node at the current positions, velocities
@@ -467,7 +429,7 @@ impl System {
     pub fn compute_forces(&mut self) -> Result<()> {
         // the state accepted by the last finish_step, at the start of this step: its
         // forces were computed (and checked finite) before it was accepted
-        if self.accepted_forces && self.in_step.is_some_and(|(t0, _)| t0 == self.t) {
+        if self.eval.accepted_forces && self.state.in_step.is_some_and(|(t0, _)| t0 == self.state.t) {
             return Ok(());
         }
         match self.compute_forces_inner() {
@@ -481,84 +443,97 @@ impl System {
 
     fn compute_forces_inner(&mut self) -> Result<()> {
         let zero = Vec3::zeros();
-        let stiffness = self.damping.beta > 0.0;
-        self.force.fill(zero);
+        let stiffness = self.model.damping.beta > 0.0;
+        self.eval.force.fill(zero);
         if stiffness {
-            self.elastic.fill(zero);
+            self.scratch.elastic.fill(zero);
         }
         let mut energy = 0.0;
-        for r in &mut self.regions {
+        for r in &mut self.model.regions {
             if r.prony.is_none() && !stiffness {
-                energy += r.field.add_forces(&self.x, &mut self.force)?;
+                energy += r.field.add_forces(&self.state.x, &mut self.eval.force)?;
                 continue;
             }
-            self.scratch.fill(zero);
-            energy += r.field.add_forces(&self.x, &mut self.scratch)?;
+            self.scratch.buf.fill(zero);
+            energy += r.field.add_forces(&self.state.x, &mut self.scratch.buf)?;
             if stiffness {
-                for (e, s) in self.elastic.iter_mut().zip(&self.scratch) {
+                for (e, s) in self.scratch.elastic.iter_mut().zip(&self.scratch.buf) {
                     *e += s;
                 }
             }
             if let Some(p) = &mut r.prony {
-                p.apply(self.t, &mut self.scratch)?;
+                p.apply(self.state.t, &mut self.scratch.buf)?;
             }
-            for (f, s) in self.force.iter_mut().zip(&self.scratch) {
+            for (f, s) in self.eval.force.iter_mut().zip(&self.scratch.buf) {
                 *f += s;
             }
         }
-        if self.gravity != zero {
-            for (f, m) in self.force.iter_mut().zip(&self.mass) {
-                *f += self.gravity * *m;
+        if self.model.gravity != zero {
+            for (f, m) in self.eval.force.iter_mut().zip(&self.model.mass) {
+                *f += self.model.gravity * *m;
             }
         }
-        for &(i, fi) in &self.nodal {
-            self.force[i] += fi;
+        for &(i, fi) in &self.model.nodal {
+            self.eval.force[i] += fi;
         }
-        self.surface_loads.add_forces(&self.x, &mut self.force);
-        if self.damping.alpha > 0.0 {
-            for ((f, m), v) in self.force.iter_mut().zip(&self.mass).zip(&self.v) {
-                *f -= v * (self.damping.alpha * m);
+        self.add_control_forces();
+        self.model.surface_loads.add_forces(&self.state.x, &mut self.eval.force);
+        if self.model.damping.alpha > 0.0 {
+            for ((f, m), v) in self.eval.force.iter_mut().zip(&self.model.mass).zip(&self.state.v) {
+                *f -= v * (self.model.damping.alpha * m);
             }
         }
         if stiffness {
             self.add_stiffness_damping()?;
         }
         let mut total = zero;
-        for &i in &self.constrained_ids {
-            self.reaction[i] = -self.force[i];
-            total += self.reaction[i];
-            self.force[i] = zero;
+        for &i in &self.model.constrained_ids {
+            self.eval.reaction[i] = -self.eval.force[i];
+            total += self.eval.reaction[i];
+            self.eval.force[i] = zero;
         }
-        self.reaction_total = total;
-        if let Some(i) = self.force.iter().position(|f| !f.iter().all(|c| c.is_finite())) {
+        self.eval.reaction_total = total;
+        if let Some(i) = passes::first_non_finite(&self.eval.force) {
             return Err(HemlError::Numerical(format!(
                 "step {}: non-finite force {:?} at node {} (t = {}); {}",
                 self.attempted_step(),
-                self.force[i].as_slice(),
+                self.eval.force[i].as_slice(),
                 self.input_id(i),
-                self.t,
+                self.state.t,
                 self.kept_state()
             )));
         }
-        self.elastic_energy = Some(energy);
-        self.forces_current = true;
+        self.eval.elastic_energy = Some(energy);
+        self.eval.forces_current = true;
         Ok(())
     }
 
     /// Adds β (f(x + εv) − f(x))/ε = −β K v to the forces (`self.elastic` holds f(x)).
     fn add_stiffness_damping(&mut self) -> Result<()> {
-        let vmax = self.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let vmax = self.state.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
         if !(vmax > 0.0 && vmax.is_finite()) {
             return Ok(());
         }
-        let eps = 1e-7 * self.length_scale / vmax;
-        let xp: Vec<Vec3> = self.x.iter().zip(&self.v).map(|(x, v)| x + v * eps).collect();
-        self.scratch.fill(Vec3::zeros());
-        for r in &self.regions {
-            r.field.add_forces(&xp, &mut self.scratch)?;
+        let eps = 1e-7 * self.model.length_scale / vmax;
+        let xp: Vec<Vec3> = self
+            .state
+            .x
+            .iter()
+            .zip(&self.state.v)
+            .map(|(x, v)| x + v * eps)
+            .collect();
+        self.scratch.buf.fill(Vec3::zeros());
+        for r in &self.model.regions {
+            r.field.add_forces(&xp, &mut self.scratch.buf)?;
         }
-        let c = self.damping.beta / eps;
-        for ((f, fp), f0) in self.force.iter_mut().zip(&self.scratch).zip(&self.elastic) {
+        let c = self.model.damping.beta / eps;
+        for ((f, fp), f0) in self
+            .eval
+            .force
+            .iter_mut()
+            .zip(&self.scratch.buf)
+            .zip(&self.scratch.elastic)
+        {
             *f += (fp - f0) * c;
         }
         Ok(())
@@ -567,18 +542,14 @@ impl System {
     /// v += h·f/m on free nodes (constrained nodes have zero force and no inverse
     /// mass). Uses the forces of the last [`System::compute_forces`].
     pub fn kick(&mut self, h: f64) {
-        self.accepted_forces = false;
-        for ((v, f), im) in self.v.iter_mut().zip(&self.force).zip(&self.inv_mass) {
-            *v += f * (h * im);
-        }
+        self.eval.accepted_forces = false;
+        passes::kick(&mut self.state.v, &self.eval.force, &self.model.inv_mass, h);
     }
 
     /// x += h·v on every node (constrained nodes are reset by the next constraint
     /// application).
     pub fn drift(&mut self, h: f64) {
-        for (x, v) in self.x.iter_mut().zip(&self.v) {
-            *x += v * h;
-        }
+        passes::drift(&mut self.state.x, &self.state.v, h);
         self.invalidate();
     }
 
@@ -586,16 +557,16 @@ impl System {
     /// there (call it after the position update when forces are needed at the new
     /// time within the same step, as velocity Verlet does).
     pub fn advance_time(&mut self) -> Result<()> {
-        let Some((t0, dt)) = self.in_step else {
+        let Some((t0, dt)) = self.state.in_step else {
             return Err(HemlError::Invalid(
                 "advance_time called outside begin_step/finish_step".into(),
             ));
         };
-        if self.t != t0 + dt {
-            self.t = t0 + dt;
+        if self.state.t != t0 + dt {
+            self.state.t = t0 + dt;
             self.invalidate();
         }
-        self.apply_constraints(self.t);
+        self.apply_constraints(self.state.t);
         Ok(())
     }
 
@@ -609,27 +580,22 @@ impl System {
     /// and the state of the previous step restored.
     pub fn finish_step(&mut self) -> Result<StepStats> {
         self.advance_time()?;
-        let (_, dt) = self.in_step.unwrap_or_default();
-        let bad = first_non_finite(&self.x)
-            .map(|i| ("position", i, self.x[i]))
-            .or_else(|| first_non_finite(&self.v).map(|i| ("velocity", i, self.v[i])));
+        let (_, dt) = self.state.in_step.unwrap_or_default();
+        let bad = passes::first_non_finite(&self.state.x)
+            .map(|i| ("position", i, self.state.x[i]))
+            .or_else(|| passes::first_non_finite(&self.state.v).map(|i| ("velocity", i, self.state.v[i])));
         // the fastest node: a step that moves a node by more than the body's size is a
         // blow-up in progress even while every number is still finite (a physical
         // run would need speeds of ~1000 m/s at the usual steps)
-        let (fastest, max_speed) = self
-            .v
-            .iter()
-            .enumerate()
-            .map(|(i, v)| (i, v.norm()))
-            .fold((0, 0.0_f64), |a, b| if b.1 > a.1 { b } else { a });
-        let diverging = bad.is_none() && max_speed * dt > self.length_scale;
+        let (fastest, max_speed) = passes::fastest(&self.state.v);
+        let diverging = bad.is_none() && max_speed * dt > self.model.length_scale;
         if let Some((what, i, value)) = bad {
             let msg = format!(
                 "step {}: non-finite {what} {:?} at node {} (t = {}); {}",
-                self.step + 1,
+                self.state.step + 1,
                 value.as_slice(),
                 self.input_id(i),
-                self.t,
+                self.state.t,
                 self.kept_state()
             );
             self.rollback();
@@ -639,34 +605,34 @@ impl System {
             let msg = format!(
                 "step {}: diverging at node {}: it moved {:e} m in one step (speed {max_speed:e} m/s), more than the \
                  size of the body ({:e} m) (t = {}); {}",
-                self.step + 1,
+                self.state.step + 1,
                 self.input_id(fastest),
                 max_speed * dt,
-                self.length_scale,
-                self.t,
+                self.model.length_scale,
+                self.state.t,
                 self.kept_state()
             );
             self.rollback();
             return Err(HemlError::Numerical(msg));
         }
-        if !self.forces_current {
+        if !self.eval.forces_current {
             // rolls back on failure
             self.compute_forces()?;
-            self.accepted_forces = true;
+            self.eval.accepted_forces = true;
         }
-        self.in_step = None;
-        self.step += 1;
-        let energies = if self.step.checked_rem(self.energy_every) == Some(0) {
+        self.state.in_step = None;
+        self.state.step += 1;
+        let energies = if self.state.step.checked_rem(self.stepping.energy_every) == Some(0) {
             Some(self.energies()?)
         } else {
             None
         };
         Ok(StepStats {
-            step: self.step,
-            time: self.t,
+            step: self.state.step,
+            time: self.state.t,
             dt,
             max_speed,
-            reaction: self.reaction_total,
+            reaction: self.eval.reaction_total,
             energies,
             newton_iterations: 0,
             cg_iterations: 0,
@@ -674,8 +640,11 @@ impl System {
     }
 
     fn kept_state(&self) -> String {
-        match self.in_step {
-            Some((t0, _)) => format!("the system keeps its last good state (step {}, t = {t0})", self.step),
+        match self.state.in_step {
+            Some((t0, _)) => format!(
+                "the system keeps its last good state (step {}, t = {t0})",
+                self.state.step
+            ),
             None => "outside a step".into(),
         }
     }
@@ -685,9 +654,9 @@ impl System {
     /// Elastic energy at the current positions (reused from the last force evaluation
     /// when the positions have not changed since).
     pub fn elastic_energy(&self) -> Result<f64> {
-        match self.elastic_energy {
+        match self.eval.elastic_energy {
             Some(e) => Ok(e),
-            None => self.regions.iter().map(|r| r.field.energy(&self.x)).sum(),
+            None => self.model.regions.iter().map(|r| r.field.energy(&self.state.x)).sum(),
         }
     }
 
@@ -695,44 +664,43 @@ impl System {
     pub fn energies(&self) -> Result<Energies> {
         let kinetic = 0.5
             * self
+                .model
                 .mass
                 .iter()
-                .zip(&self.v)
+                .zip(&self.state.v)
                 .map(|(m, v)| m * v.norm_squared())
                 .sum::<f64>();
-        let rest = self.mesh.nodes();
+        let rest = self.model.mesh.nodes();
         let gravity = -self
+            .model
             .mass
             .iter()
-            .zip(self.x.iter().zip(rest))
-            .map(|(m, (x, p))| m * self.gravity.dot(&(x - p)))
+            .zip(self.state.x.iter().zip(rest))
+            .map(|(m, (x, p))| m * self.model.gravity.dot(&(x - p)))
             .sum::<f64>();
         let loads = -self
+            .model
             .nodal
             .iter()
-            .map(|(i, f)| f.dot(&(self.x[*i] - rest[*i])))
-            .sum::<f64>()
-            + self.surface_loads.energy(&self.x, rest);
+            .map(|(i, f)| f.dot(&(self.state.x[*i] - rest[*i])))
+            .sum::<f64>();
+        let loads = loads + self.model.grasps.energy(&self.state.x) + self.model.surface_loads.energy(&self.state.x, rest);
         Ok(Energies::new(kinetic, self.elastic_energy()?, gravity, loads))
     }
 
     /// Logs a warning (`log::warn!`) and keeps it in [`System::warnings`].
     fn warn(&mut self, msg: String) {
         log::warn!("{msg}");
-        self.warnings.push(msg);
+        self.diag.warnings.push(msg);
     }
 
     /// Sum of the elastic forces (no Prony, loads or damping) of the regions selected
     /// by `keep`, at positions `x`, into `out` (overwritten).
     pub(crate) fn elastic_forces_at(&self, x: &[Vec3], out: &mut [Vec3], keep: impl Fn(&Region) -> bool) -> Result<()> {
         out.fill(Vec3::zeros());
-        for r in self.regions.iter().filter(|r| keep(r)) {
+        for r in self.model.regions.iter().filter(|r| keep(r)) {
             r.field.add_forces(x, out)?;
         }
         Ok(())
     }
-}
-
-fn first_non_finite(a: &[Vec3]) -> Option<usize> {
-    a.iter().position(|p| !p.iter().all(|c| c.is_finite()))
 }

@@ -166,7 +166,7 @@ fn power_iteration(sys: &System, keep: impl Fn(&Region) -> bool + Copy, max_iter
         u.iter_mut().for_each(|v| *v /= norm);
         // w = M^(-1/2) u, y = M^(-1/2) K w with K w ≈ −(f(x + εw) − f(x − εw)) / 2ε
         let wmax = u.iter().zip(&s).map(|(v, si)| v.norm() * si).fold(0.0, f64::max);
-        let eps = 1e-6 * sys.length_scale / wmax;
+        let eps = 1e-6 * sys.model.length_scale / wmax;
         for i in 0..n {
             xp[i] = x[i] + u[i] * (s[i] * eps);
             xm[i] = x[i] - u[i] * (s[i] * eps);
@@ -187,9 +187,17 @@ fn power_iteration(sys: &System, keep: impl Fn(&Region) -> bool + Copy, max_iter
 
 /// The stable time-step estimate of a system (see the module docs): the smaller of the
 /// wave-speed estimate of its invariant regions and the power-iteration estimate of
-/// its other regions, reduced for damping and multiplied by the system's safety
-/// factor. ∞ when no node is free.
+/// its other regions, reduced for damping (and for the springs of its grasps, see
+/// [`super::control`]) and multiplied by the system's safety factor. ∞ when no node
+/// is free.
 pub fn stable_time_step(sys: &System) -> f64 {
+    damped_safe(sys, critical_time_step(sys))
+}
+
+/// The undamped critical step 2/ω_max of the elastic regions (no safety factor): the
+/// part of [`stable_time_step`] that depends on the laws, the mesh and the set of free
+/// nodes only.
+pub(crate) fn critical_time_step(sys: &System) -> f64 {
     if (0..sys.positions().len()).all(|i| !sys.is_free(i)) {
         return f64::INFINITY;
     }
@@ -209,17 +217,33 @@ pub fn stable_time_step(sys: &System) -> f64 {
             _ => {}
         }
     }
-    damped_safe(sys, dt)
+    dt
 }
 
 /// An undamped critical step reduced for the system's Rayleigh damping and
 /// multiplied by its safety factor (see the module docs); ∞ stays ∞.
+///
+/// Grasp springs (stiffness k, damping c on a node of mass m) add k to the diagonal
+/// of K and c to the mass-proportional damping of their nodes, so the estimate uses
+/// ω² = ω_el² + max_i Σk/m_i (a Gershgorin-type bound on the largest eigenvalue of
+/// M⁻¹(K + K_grasp)) and α + max_i Σc/m_i as mass damping: a grasp limits the step
+/// only when it is stiffer than the tissue under it.
 pub(crate) fn damped_safe(sys: &System, dt: f64) -> f64 {
-    if !dt.is_finite() {
-        return dt;
-    }
-    let omega = 2.0 / dt;
+    let (gk, gc) = sys.model.grasps.rates(&sys.model.inv_mass);
     let d = sys.damping();
-    let xi = d.alpha / (2.0 * omega) + d.beta * omega / 2.0;
-    sys.safety() * dt * ((1.0 + xi * xi).sqrt() - xi)
+    if gk == 0.0 && gc == 0.0 {
+        if !dt.is_finite() {
+            return dt;
+        }
+        let omega = 2.0 / dt;
+        let xi = d.alpha / (2.0 * omega) + d.beta * omega / 2.0;
+        return sys.safety() * dt * ((1.0 + xi * xi).sqrt() - xi);
+    }
+    let omega_el = if dt.is_finite() { 2.0 / dt } else { 0.0 };
+    let omega = (omega_el * omega_el + gk).sqrt();
+    if omega == 0.0 {
+        return f64::INFINITY;
+    }
+    let xi = (d.alpha + gc) / (2.0 * omega) + d.beta * omega / 2.0;
+    sys.safety() * (2.0 / omega) * ((1.0 + xi * xi).sqrt() - xi)
 }

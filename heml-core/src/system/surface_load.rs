@@ -337,7 +337,7 @@ impl System {
                 "surface load: the selection {sel:?} contains no boundary face"
             )));
         }
-        let rest = self.mesh.nodes();
+        let rest = self.model.mesh.nodes();
         let rest_area = faces
             .iter()
             .map(|tri| {
@@ -345,14 +345,14 @@ impl System {
                 0.5 * (b - a).cross(&(c - a)).norm()
             })
             .collect();
-        self.surface_loads.loads.push(Some(FaceLoad {
+        self.model.surface_loads.loads.push(Some(FaceLoad {
             load,
             faces,
             owners,
             rest_area,
         }));
         self.invalidate();
-        Ok(self.surface_loads.loads.len() - 1)
+        Ok(self.model.surface_loads.loads.len() - 1)
     }
 
     /// Sets the pressure of surface load `id` (a pressure load) between steps.
@@ -360,7 +360,7 @@ impl System {
         self.check_between_steps("set_pressure")?;
         let new = SurfaceLoad::Pressure(pressure);
         new.check()?;
-        let l = self.surface_loads.get_mut(id)?;
+        let l = self.model.surface_loads.get_mut(id)?;
         if !matches!(l.load, SurfaceLoad::Pressure(_)) {
             return Err(HemlError::Invalid(format!(
                 "surface load {id} is a traction, not a pressure (use set_surface_load)"
@@ -375,7 +375,7 @@ impl System {
     pub fn set_surface_load(&mut self, id: usize, load: SurfaceLoad) -> Result<()> {
         self.check_between_steps("set_surface_load")?;
         load.check()?;
-        self.surface_loads.get_mut(id)?.load = load;
+        self.model.surface_loads.get_mut(id)?.load = load;
         self.invalidate();
         Ok(())
     }
@@ -383,15 +383,15 @@ impl System {
     /// Removes surface load `id` between steps.
     pub fn remove_surface_load(&mut self, id: usize) -> Result<()> {
         self.check_between_steps("remove_surface_load")?;
-        self.surface_loads.get_mut(id)?;
-        self.surface_loads.loads[id] = None;
+        self.model.surface_loads.get_mut(id)?;
+        self.model.surface_loads.loads[id] = None;
         self.invalidate();
         Ok(())
     }
 
     /// Surface load `id`.
     pub fn surface_load(&self, id: usize) -> Result<&FaceLoad> {
-        self.surface_loads
+        self.model.surface_loads
             .loads
             .get(id)
             .and_then(Option::as_ref)
@@ -400,6 +400,6 @@ impl System {
 
     /// All surface loads.
     pub fn surface_loads(&self) -> &SurfaceLoads {
-        &self.surface_loads
+        &self.model.surface_loads
     }
 }

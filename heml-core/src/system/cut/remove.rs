@@ -27,48 +27,48 @@ impl System {
     /// index): O(n log n) once. The first cut calls it; a simulator that must not
     /// stall on its first cut calls it up front.
     pub fn prepare_cutting(&mut self) {
-        if self.cut.topo.is_some() {
+        if self.model.cut.topo.is_some() {
             return;
         }
-        let mut region_of = vec![0u32; self.mesh.n_tets()];
-        for (r, region) in self.regions.iter().enumerate() {
+        let mut region_of = vec![0u32; self.model.mesh.n_tets()];
+        for (r, region) in self.model.regions.iter().enumerate() {
             for &t in region.field.tet_ids() {
                 region_of[t] = r as u32;
             }
         }
-        let topo = Topology::new(self.mesh.tets(), self.mesh.n_nodes(), region_of, &self.surface);
-        for r in &mut self.regions {
+        let topo = Topology::new(self.model.mesh.tets(), self.model.mesh.n_nodes(), region_of, &self.model.surface);
+        for r in &mut self.model.regions {
             // builds the field's id index (a field that cannot remove tets says so
             // when a cut reaches it)
             let _ = r.field.remove_tets(&[]);
         }
-        self.cut.topo = Some(Box::new(topo));
+        self.model.cut.topo = Some(Box::new(topo));
     }
 
     /// Whether tet `t` is still in the system (not removed by a cut).
     pub fn tet_alive(&self, t: usize) -> bool {
-        match &self.cut.topo {
+        match &self.model.cut.topo {
             Some(topo) => topo.alive.get(t).copied().unwrap_or(false),
-            None => t < self.mesh.n_tets(),
+            None => t < self.model.mesh.n_tets(),
         }
     }
 
     /// Number of tets still in the system.
     pub fn n_tets_alive(&self) -> usize {
-        self.cut.topo.as_ref().map_or(self.mesh.n_tets(), |t| t.n_alive)
+        self.model.cut.topo.as_ref().map_or(self.model.mesh.n_tets(), |t| t.n_alive)
     }
 
     /// The ids of the tets still in the system, ascending (all of the mesh's until a
     /// cut).
     pub fn alive_tets(&self) -> Vec<usize> {
-        (0..self.mesh.n_tets()).filter(|&t| self.tet_alive(t)).collect()
+        (0..self.model.mesh.n_tets()).filter(|&t| self.tet_alive(t)).collect()
     }
 
     /// How many cuts changed the tet set: caches built on it (an
     /// [`AdaptiveStep`](crate::system::AdaptiveStep)'s geometry, a viewer's mesh)
     /// compare it to know when to refresh.
     pub fn topology_version(&self) -> u64 {
-        self.cut.version
+        self.model.cut.version
     }
 
     /// The connected components of the remaining tets (tets sharing a face are
@@ -77,7 +77,7 @@ impl System {
     /// has, hence `&mut self`).
     pub fn tet_components(&mut self) -> (Vec<usize>, usize) {
         self.prepare_cutting();
-        self.cut.topo.as_ref().map_or((Vec::new(), 0), |t| t.components())
+        self.model.cut.topo.as_ref().map_or((Vec::new(), 0), |t| t.components())
     }
 
     /// Removes the tets crossed by `blade` at the current positions (see
@@ -92,8 +92,8 @@ impl System {
         let tris = blade.triangles();
         let (lo, hi) = bounds(tris.iter().flatten());
         self.prepare_cutting();
-        let alive: &[bool] = self.cut.topo.as_ref().map_or(&[], |t| &t.alive);
-        let (x, tets) = (&self.x, self.mesh.tets());
+        let alive: &[bool] = self.model.cut.topo.as_ref().map_or(&[], |t| &t.alive);
+        let (x, tets) = (&self.state.x, self.model.mesh.tets());
         let hit: Vec<usize> = (0..tets.len())
             .into_par_iter()
             .with_min_len(4096)
@@ -147,7 +147,7 @@ impl System {
         if tets.is_empty() {
             return Err(HemlError::Invalid("remove_tets: the list of tets is empty".into()));
         }
-        let n = self.mesh.n_tets();
+        let n = self.model.mesh.n_tets();
         if let Some(&bad) = tets.iter().find(|&&t| t >= n) {
             return Err(HemlError::Invalid(format!(
                 "remove_tets: tet id {bad} is out of range (the mesh has {n} tets, ids 0..{})",
@@ -170,40 +170,40 @@ impl System {
             )));
         }
         self.prepare_cutting();
-        let Some(mut topo) = self.cut.topo.take() else {
+        let Some(mut topo) = self.model.cut.topo.take() else {
             return Err(HemlError::Invalid("remove_tets: no cut topology".into()));
         };
         // the force fields first: the only step that can fail (it does not, as the
         // regions' tets are those the topology was built from), before any change;
         // the viscous regions' removed tets' forces first of all, for their history
-        let mut per_region: Vec<Vec<usize>> = vec![Vec::new(); self.regions.len()];
+        let mut per_region: Vec<Vec<usize>> = vec![Vec::new(); self.model.regions.len()];
         for &t in &removed {
             per_region[topo.region_of[t] as usize].push(t);
         }
         // every field concerned must support removal (an empty removal asks), so
         // that no field is cut when a later one would refuse
-        for (r, ids) in self.regions.iter_mut().zip(&per_region) {
+        for (r, ids) in self.model.regions.iter_mut().zip(&per_region) {
             if let (false, Err(e)) = (ids.is_empty(), r.field.remove_tets(&[])) {
-                self.cut.topo = Some(topo);
+                self.model.cut.topo = Some(topo);
                 return Err(e);
             }
         }
         let mut shares: Vec<(usize, [usize; 4], [Vec3; 4])> = Vec::new();
-        for (r, region) in self.regions.iter().enumerate().filter(|(_, r)| r.prony.is_some()) {
+        for (r, region) in self.model.regions.iter().enumerate().filter(|(_, r)| r.prony.is_some()) {
             for &t in &per_region[r] {
-                match region.field.tet_forces(t, &self.x) {
-                    Ok(f) => shares.push((r, self.mesh.tets()[t].map(|i| i as usize), f)),
+                match region.field.tet_forces(t, &self.state.x) {
+                    Ok(f) => shares.push((r, self.model.mesh.tets()[t].map(|i| i as usize), f)),
                     Err(e) => {
-                        self.cut.topo = Some(topo);
+                        self.model.cut.topo = Some(topo);
                         return Err(e);
                     }
                 }
             }
         }
-        for (r, ids) in self.regions.iter_mut().zip(&per_region) {
+        for (r, ids) in self.model.regions.iter_mut().zip(&per_region) {
             if !ids.is_empty() {
                 if let Err(e) = r.field.remove_tets(ids) {
-                    self.cut.topo = Some(topo);
+                    self.model.cut.topo = Some(topo);
                     return Err(e);
                 }
             }
@@ -212,12 +212,12 @@ impl System {
         let mut touched: Vec<usize> = Vec::with_capacity(4 * removed.len());
         for &t in &removed {
             topo.alive[t] = false;
-            let density = self.regions[topo.region_of[t] as usize].density;
-            let share = density * self.mesh.tet_volume(t) / 4.0;
+            let density = self.model.regions[topo.region_of[t] as usize].density;
+            let share = density * self.model.mesh.tet_volume(t) / 4.0;
             removed_mass += 4.0 * share;
-            for &i in &self.mesh.tets()[t] {
+            for &i in &self.model.mesh.tets()[t] {
                 let i = i as usize;
-                self.mass[i] -= share;
+                self.model.mass[i] -= share;
                 topo.tet_count[i] -= 1;
                 touched.push(i);
             }
@@ -225,33 +225,33 @@ impl System {
         topo.n_alive -= removed.len();
         touched.sort_unstable();
         touched.dedup();
-        topo.update_surface(self.mesh.tets(), &removed, &mut self.surface);
+        topo.update_surface(self.model.mesh.tets(), &removed, &mut self.model.surface);
         let orphaned: Vec<usize> = touched.iter().copied().filter(|&i| topo.tet_count[i] == 0).collect();
         for &i in &touched {
             if topo.tet_count[i] == 0 {
-                self.mass[i] = 0.0;
+                self.model.mass[i] = 0.0;
             }
-            self.inv_mass[i] = if self.constraints.is_constrained(i) || self.mass[i] == 0.0 {
+            self.model.inv_mass[i] = if self.model.constraints.is_constrained(i) || self.model.mass[i] == 0.0 {
                 0.0
             } else {
-                1.0 / self.mass[i]
+                1.0 / self.model.mass[i]
             };
         }
         for &i in &orphaned {
             self.drop_node(i);
         }
         if !orphaned.is_empty() {
-            self.constrained_ids.retain(|i| orphaned.binary_search(i).is_err());
-            self.nodal.retain(|(i, _)| orphaned.binary_search(i).is_err());
+            self.model.constrained_ids.retain(|i| orphaned.binary_search(i).is_err());
+            self.model.nodal.retain(|(i, _)| orphaned.binary_search(i).is_err());
         }
         for (r, nodes, f) in &shares {
-            if let Some(p) = &mut self.regions[*r].prony {
+            if let Some(p) = &mut self.model.regions[*r].prony {
                 p.remove_share(nodes, f);
             }
         }
-        self.surface_loads.drop_tets(|t| topo.alive[t]);
-        self.cut.topo = Some(topo);
-        self.cut.version += 1;
+        self.model.surface_loads.drop_tets(|t| topo.alive[t]);
+        self.model.cut.topo = Some(topo);
+        self.model.cut.version += 1;
         self.invalidate();
         Ok(CutReport {
             removed_tets: removed,
@@ -265,26 +265,16 @@ impl System {
     /// is (a free node becomes prescribed at its current displacement), at rest,
     /// with no reaction.
     fn drop_node(&mut self, i: usize) {
-        self.v[i] = Vec3::zeros();
-        self.reaction[i] = Vec3::zeros();
-        self.force[i] = Vec3::zeros();
-        if !self.constraints.is_constrained(i) {
-            self.constraints.prescribed.push(Prescribed {
+        self.state.v[i] = Vec3::zeros();
+        self.eval.reaction[i] = Vec3::zeros();
+        self.eval.force[i] = Vec3::zeros();
+        if !self.model.constraints.is_constrained(i) {
+            self.model.constraints.prescribed.push(Prescribed {
                 node: i,
-                displacement: self.x[i] - self.mesh.nodes()[i],
+                displacement: self.state.x[i] - self.model.mesh.nodes()[i],
                 ramp: Ramp::Step,
             });
-            self.constraints.mask[i] = true;
+            self.model.constraints.mask[i] = true;
         }
-    }
-
-    /// An error when called inside a step (runtime changes happen between steps).
-    pub(crate) fn check_between_steps(&self, what: &str) -> Result<()> {
-        if self.in_step.is_some() {
-            return Err(HemlError::Invalid(format!(
-                "{what} called inside a step (between begin_step and finish_step): change the system between steps"
-            )));
-        }
-        Ok(())
     }
 }

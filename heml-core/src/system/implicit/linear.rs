@@ -1,7 +1,8 @@
 //! The tangent linear solve both Newton problems share when no direct factorisation
-//! is used: (c_k K + c_m M) dx = rhs over the free coordinates of a [`DofMap`], by
+//! is used: (c_k K + c_m M + K_g) dx = rhs over the free coordinates of a [`DofMap`], by
 //! conjugate gradients with a block-Jacobi preconditioner, K the matrix-free
-//! generated tangent of every region.
+//! generated tangent of every region and K_g the diagonal of the grasp springs and
+//! dampers.
 
 use super::cg::{pcg, CgReport};
 use crate::error::Result;
@@ -17,6 +18,9 @@ pub(in crate::system) struct TangentSolve {
     pub ck: f64,
     /// Mass coefficient c_m (0 for a static solve).
     pub cm: f64,
+    /// Velocity coefficient c_v of the step (v⁺ = v + c_v d; 0 for a static solve):
+    /// the grasp dampers c add c·c_v to the diagonal, the springs k.
+    pub cv: f64,
     /// CG relative tolerance.
     pub tol: f64,
     /// CG iteration cap.
@@ -68,16 +72,23 @@ impl TangentSolve {
         rhs: &mut [f64],
     ) -> Result<CgReport> {
         for t in tangents.iter_mut() {
-            t.update(&sys.x)?;
+            t.update(&sys.state.x)?;
         }
-        let n = sys.x.len();
+        let n = sys.state.x.len();
         let (ck, cm) = (self.ck, self.cm);
         let mut blocks = vec![Matrix3::zeros(); n];
         for t in tangents.iter() {
             t.add_diagonal_blocks(&mut blocks)?;
         }
-        for (b, m) in blocks.iter_mut().zip(&sys.mass) {
+        for (b, m) in blocks.iter_mut().zip(&sys.model.mass) {
             *b = *b * ck + Matrix3::identity() * (cm * m);
+        }
+        // grasp springs and dampers: (k + c c_v) I on their nodes
+        let grasps = sys.model.grasps.diagonal(n, self.cv);
+        if let Some(g) = &grasps {
+            for (b, d) in blocks.iter_mut().zip(g) {
+                *b += Matrix3::identity() * *d;
+            }
         }
         preconditioner(&mut blocks, |i, a| dofs.get(i, a).is_some());
         let mut px = vec![Vec3::zeros(); n];
@@ -92,8 +103,13 @@ impl TangentSolve {
                     failure = Some(e);
                 }
             }
-            for ((k, p), m) in kp.iter_mut().zip(&px).zip(&sys.mass) {
+            for ((k, p), m) in kp.iter_mut().zip(&px).zip(&sys.model.mass) {
                 *k = *k * ck + p * (cm * m);
+            }
+            if let Some(g) = &grasps {
+                for ((k, p), d) in kp.iter_mut().zip(&px).zip(g) {
+                    *k += p * *d;
+                }
             }
             out.copy_from_slice(&dofs.gather(&kp));
         };

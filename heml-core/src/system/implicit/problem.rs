@@ -6,8 +6,9 @@
 //! c_a = 4/h², c_v = 2/h, â = a (the acceleration at the start of the step). The
 //! residual is r = f(x⁺, v⁺) − M a⁺ — f the system's full force: elastic (viscous-
 //! elastic), gravity, loads and Rayleigh damping −αMv − βKv — and the tangent
-//! −∂r/∂x⁺ = (1 + β c_v) K + (c_a + α c_v) M, with K the elastic stiffness of
-//! [`crate::force::tangent`]. The line-search merit is the incremental potential
+//! −∂r/∂x⁺ = (1 + β c_v) K + (c_a + α c_v) M + (k + c c_v) I on grasped nodes, with K
+//! the elastic stiffness of [`crate::force::tangent`] and k, c the grasp springs and
+//! dampers (so that a stiff grasp does not stall the Newton iteration). The line-search merit is the incremental potential
 //! W(x⁺) + gravity and load potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
 //! without damping (with damping, a decreasing residual norm is accepted too).
 
@@ -53,25 +54,25 @@ pub(super) struct ImplicitStep<'a> {
 impl ImplicitStep<'_> {
     /// d_i = x_i − x0_i − h v0_i on a free node.
     fn d(&self, sys: &System, i: usize) -> Vec3 {
-        sys.x[i] - self.x0[i] - self.v0[i] * self.h
+        sys.state.x[i] - self.x0[i] - self.v0[i] * self.h
     }
 
     /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
     /// velocity).
     pub fn set_velocities(&self, sys: &mut System) {
-        for i in 0..sys.x.len() {
-            if sys.inv_mass[i] > 0.0 {
-                sys.v[i] = self.v0[i] + self.d(sys, i) * self.cv;
+        for i in 0..sys.state.x.len() {
+            if sys.model.inv_mass[i] > 0.0 {
+                sys.state.v[i] = self.v0[i] + self.d(sys, i) * self.cv;
             }
         }
-        sys.forces_current = false;
+        sys.eval.forces_current = false;
     }
 
     /// a⁺ = c_a d − â on the free nodes, zero on the constrained ones.
     pub fn accelerations(&self, sys: &System) -> Vec<Vec3> {
-        (0..sys.x.len())
+        (0..sys.state.x.len())
             .map(|i| {
-                if sys.inv_mass[i] > 0.0 {
+                if sys.model.inv_mass[i] > 0.0 {
                     self.d(sys, i) * self.ca - self.a0[i]
                 } else {
                     Vec3::zeros()
@@ -82,7 +83,10 @@ impl ImplicitStep<'_> {
 
     /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.
     fn coefficients(&self, sys: &System) -> (f64, f64) {
-        (self.ca + sys.damping.alpha * self.cv, 1.0 + sys.damping.beta * self.cv)
+        (
+            self.ca + sys.model.damping.alpha * self.cv,
+            1.0 + sys.model.damping.beta * self.cv,
+        )
     }
 }
 
@@ -100,8 +104,8 @@ impl NewtonProblem for ImplicitStep<'_> {
         sys.compute_forces_inner()?;
         let a = self.accelerations(sys);
         for (i, r) in self.r.iter_mut().enumerate() {
-            *r = sys.force[i] - a[i] * sys.mass[i];
-            if sys.inv_mass[i] == 0.0 {
+            *r = sys.eval.force[i] - a[i] * sys.model.mass[i];
+            if sys.model.inv_mass[i] == 0.0 {
                 *r = Vec3::zeros();
             }
         }
@@ -133,6 +137,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         let solve = TangentSolve {
             ck,
             cm,
+            cv: self.cv,
             tol: s.cg_tolerance,
             max_iterations: s.cg_max_iterations,
         };
@@ -163,11 +168,11 @@ impl NewtonProblem for ImplicitStep<'_> {
 
     fn merit(&self, sys: &System) -> Result<f64> {
         let e = sys.energies()?;
-        let inertia: f64 = (0..sys.x.len())
-            .filter(|&i| sys.inv_mass[i] > 0.0)
+        let inertia: f64 = (0..sys.state.x.len())
+            .filter(|&i| sys.model.inv_mass[i] > 0.0)
             .map(|i| {
                 let a = self.d(sys, i) * self.ca - self.a0[i];
-                0.5 * sys.mass[i] * a.norm_squared() / self.ca
+                0.5 * sys.model.mass[i] * a.norm_squared() / self.ca
             })
             .sum();
         Ok(e.elastic + e.gravity + e.loads + inertia)

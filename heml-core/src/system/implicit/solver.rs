@@ -30,9 +30,10 @@ pub struct ImplicitSolver {
     tangents: Vec<Box<dyn TangentOperator>>,
     dofs: Option<DofMap>,
     /// Newmark: the acceleration at the end of the last step, valid at `accel_at`
-    /// (step count, time).
+    /// (step count, time, model revision: a runtime change of loads, constraints or
+    /// grasps between steps makes it stale).
     accel: Vec<Vec3>,
-    accel_at: Option<(u64, f64)>,
+    accel_at: Option<(u64, f64, u64)>,
 }
 
 impl std::fmt::Debug for ImplicitSolver {
@@ -77,23 +78,29 @@ impl ImplicitSolver {
     /// the system's regions, constraints or the projection setting changed.
     fn prepare(&mut self, sys: &System) -> Result<()> {
         let shape = Shape {
-            n_nodes: sys.x.len(),
+            n_nodes: sys.state.x.len(),
             tets: sys
+                .model
                 .regions
                 .iter()
                 .flat_map(|r| r.field.tet_ids().iter().copied())
                 .collect(),
-            constrained: sys.constrained_ids.clone(),
+            constrained: sys.model.constrained_ids.clone(),
             project: self.settings.project_psd,
         };
         if self.shape.as_ref() == Some(&shape) {
             return Ok(());
         }
-        let mut tangents = Vec::with_capacity(sys.regions.len());
-        for r in &sys.regions {
+        let mut tangents = Vec::with_capacity(sys.model.regions.len());
+        for r in &sys.model.regions {
             let t = r
                 .material
-                .tangent(&sys.mesh, Some(r.field.tet_ids()), &sys.force_options, shape.project)?
+                .tangent(
+                    &sys.model.mesh,
+                    Some(r.field.tet_ids()),
+                    &sys.model.force_options,
+                    shape.project,
+                )?
                 .ok_or_else(|| {
                     HemlError::Invalid(format!(
                         "law `{}` has no tangent stiffness: it cannot be integrated implicitly",
@@ -102,8 +109,10 @@ impl ImplicitSolver {
                 })?;
             tangents.push(t);
         }
-        let held: Vec<[bool; 3]> = (0..sys.x.len()).map(|i| [sys.inv_mass[i] == 0.0; 3]).collect();
-        self.dofs = Some(DofMap::new(&held, sys.mesh.tets()));
+        let held: Vec<[bool; 3]> = (0..sys.state.x.len())
+            .map(|i| [sys.model.inv_mass[i] == 0.0; 3])
+            .collect();
+        self.dofs = Some(DofMap::new(&held, sys.model.mesh.tets()));
         self.tangents = tangents;
         self.shape = Some(shape);
         Ok(())
@@ -129,7 +138,7 @@ impl ImplicitSolver {
 
     fn step_inner(&mut self, sys: &mut System, h: f64) -> Result<StepStats> {
         self.prepare(sys)?;
-        let n = sys.x.len();
+        let n = sys.state.x.len();
         let (ca, cv) = match self.scheme {
             ImplicitScheme::BackwardEuler => (1.0 / (h * h), 1.0 / h),
             ImplicitScheme::Newmark => (4.0 / (h * h), 2.0 / h),
@@ -137,33 +146,33 @@ impl ImplicitSolver {
         let a0 = match self.scheme {
             ImplicitScheme::BackwardEuler => vec![Vec3::zeros(); n],
             ImplicitScheme::Newmark => {
-                if self.accel_at != Some((sys.step, sys.t)) || self.accel.len() != n {
+                if self.accel_at != Some((sys.state.step, sys.state.t, sys.model.revision)) || self.accel.len() != n {
                     // the acceleration of the current state (first step, or the state
-                    // was changed since the last Newmark step)
+                    // or the model was changed since the last Newmark step)
                     sys.compute_forces_inner()?;
-                    self.accel = (0..n).map(|i| sys.force[i] * sys.inv_mass[i]).collect();
+                    self.accel = (0..n).map(|i| sys.eval.force[i] * sys.model.inv_mass[i]).collect();
                 }
                 self.accel.clone()
             }
         };
-        let x0 = sys.x.clone();
-        let v0 = sys.v.clone();
+        let x0 = sys.state.x.clone();
+        let v0 = sys.state.v.clone();
         sys.advance_time()?;
         // predictor a⁺ = â (d = 2â/c_a): x⁺ = x + h v for backward Euler, the
         // constant-acceleration guess for Newmark
         for i in 0..n {
-            if sys.inv_mass[i] > 0.0 {
-                sys.x[i] = x0[i] + v0[i] * h + a0[i] * (2.0 / ca);
+            if sys.model.inv_mass[i] > 0.0 {
+                sys.state.x[i] = x0[i] + v0[i] * h + a0[i] * (2.0 / ca);
             }
         }
         sys.invalidate();
         let load_norm = {
-            let mut ext: Vec<Vec3> = sys.mass.iter().map(|m| sys.gravity * *m).collect();
-            for &(i, f) in &sys.nodal {
+            let mut ext: Vec<Vec3> = sys.model.mass.iter().map(|m| sys.model.gravity * *m).collect();
+            for &(i, f) in &sys.model.nodal {
                 ext[i] += f;
             }
             (0..n)
-                .filter(|&i| sys.inv_mass[i] > 0.0)
+                .filter(|&i| sys.model.inv_mass[i] > 0.0)
                 .map(|i| ext[i].norm_squared())
                 .sum::<f64>()
                 .sqrt()
@@ -205,7 +214,7 @@ impl ImplicitSolver {
         let mut stats = sys.finish_step()?;
         stats.newton_iterations = newton_iterations;
         stats.cg_iterations = cg_iterations;
-        self.accel_at = Some((sys.step, sys.t));
+        self.accel_at = Some((sys.state.step, sys.state.t, sys.model.revision));
         Ok(stats)
     }
 }

@@ -9,15 +9,16 @@ impl System {
     /// Largest nodal external load |m_i g + f_nodal| and reaction |r_i| (reactions
     /// from the last force evaluation).
     fn load_scale(&self) -> f64 {
-        let mut ext: Vec<Vec3> = self.mass.iter().map(|m| self.gravity * *m).collect();
-        for &(i, f) in &self.nodal {
+        let mut ext: Vec<Vec3> = self.model.mass.iter().map(|m| self.model.gravity * *m).collect();
+        for &(i, f) in &self.model.nodal {
             ext[i] += f;
         }
         let loads = ext.iter().map(|f| f.norm()).fold(0.0, f64::max);
         let reactions = self
+            .model
             .constrained_ids
             .iter()
-            .map(|&i| self.reaction[i].norm())
+            .map(|&i| self.eval.reaction[i].norm())
             .fold(0.0, f64::max);
         loads.max(reactions)
     }
@@ -41,6 +42,6 @@ impl System {
     /// max |f_i| over the nodes: the forces on constrained nodes (and on slider
     /// coordinates, see `slider_forces`) are zeroed, so this is the free residual.
     fn free_residual(&self) -> f64 {
-        self.force.iter().map(|f| f.norm()).fold(0.0, f64::max)
+        self.eval.force.iter().map(|f| f.norm()).fold(0.0, f64::max)
     }
 }

@@ -49,7 +49,7 @@ impl NewtonProblem for Equilibrium<'_> {
     }
 
     fn residual<'s>(&'s self, sys: &'s System) -> &'s [Vec3] {
-        &sys.force
+        &sys.eval.force
     }
 
     fn converged(&self, sys: &System, it: usize, step: f64) -> Option<StaticReport> {
@@ -69,6 +69,15 @@ impl NewtonProblem for Equilibrium<'_> {
             Linear::Banded(stiffness) => {
                 let mut k = BandLdl::new(dofs.len(), dofs.band());
                 stiffness.add_to(sys, dofs, &mut k);
+                if let Some(g) = sys.model.grasps.diagonal(sys.state.x.len(), 0.0) {
+                    for (i, d) in g.iter().enumerate().filter(|(_, d)| **d != 0.0) {
+                        for a in 0..3 {
+                            if let Some(j) = dofs.get(i, a) {
+                                k.add(j, j, *d);
+                            }
+                        }
+                    }
+                }
                 if !k.factor() {
                     return Ok(false);
                 }
@@ -79,6 +88,7 @@ impl NewtonProblem for Equilibrium<'_> {
                 let solve = TangentSolve {
                     ck: 1.0,
                     cm: 0.0,
+                    cv: 0.0,
                     tol: CG_TOL,
                     max_iterations: CG_MAX_ITERATIONS,
                 };
@@ -106,18 +116,18 @@ impl System {
     /// without stress, nothing free) or stalled (then dynamic relaxation goes on from the
     /// current iterate).
     pub(super) fn static_newton(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<Option<StaticReport>> {
-        let t = self.t;
-        let n = self.x.len();
+        let t = self.state.t;
+        let n = self.state.x.len();
         let mut held = vec![[false; 3]; n];
         for (i, h) in held.iter_mut().enumerate() {
-            if self.constraints.is_constrained(i) {
+            if self.model.constraints.is_constrained(i) {
                 *h = [true; 3];
             }
         }
         for s in sliders {
             held[s.node][s.axis] = true;
         }
-        let dofs = DofMap::new(&held, self.mesh.tets());
+        let dofs = DofMap::new(&held, self.model.mesh.tets());
         if dofs.len() == 0 {
             return Ok(None);
         }
@@ -128,12 +138,14 @@ impl System {
         let linear = match stiffness {
             stiffness if BandLdl::fits(dofs.len(), dofs.band()) => Linear::Banded(stiffness),
             _ => {
-                let mut tangents = Vec::with_capacity(self.regions.len());
-                for r in &self.regions {
-                    match r
-                        .material
-                        .tangent(&self.mesh, Some(r.field.tet_ids()), &self.force_options, true)?
-                    {
+                let mut tangents = Vec::with_capacity(self.model.regions.len());
+                for r in &self.model.regions {
+                    match r.material.tangent(
+                        &self.model.mesh,
+                        Some(r.field.tet_ids()),
+                        &self.model.force_options,
+                        true,
+                    )? {
                         Some(t) => tangents.push(t),
                         None => return Ok(None),
                     }
@@ -141,7 +153,7 @@ impl System {
                 Linear::Cg(tangents)
             }
         };
-        self.v.fill(Vec3::zeros());
+        self.state.v.fill(Vec3::zeros());
         self.apply_constraints(t);
         self.apply_sliders(sliders);
         let mut problem = Equilibrium {

@@ -17,12 +17,12 @@ impl System {
     /// Relaxes from the current positions until the criterion holds or
     /// `opts.max_iterations` force evaluations are spent (an error).
     pub(super) fn fire(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<StaticReport> {
-        let t = self.t;
-        self.v.fill(Vec3::zeros());
+        let t = self.state.t;
+        self.state.v.fill(Vec3::zeros());
         self.apply_constraints(t);
         self.apply_sliders(sliders);
         let mut slider_reactions = vec![0.0; sliders.len()];
-        let dt_max = self.stable_dt;
+        let dt_max = self.stepping.stable_dt;
         if !(dt_max.is_finite() && dt_max > 0.0) {
             return Err(HemlError::Numerical(format!(
                 "quasi-static solve: no usable stable time step ({dt_max})"
@@ -56,7 +56,7 @@ impl System {
                 )));
             }
             it += 1;
-            let power: f64 = self.force.iter().zip(&self.v).map(|(f, v)| f.dot(v)).sum();
+            let power: f64 = self.eval.force.iter().zip(&self.state.v).map(|(f, v)| f.dot(v)).sum();
             if power > 0.0 {
                 n_pos += 1;
                 if n_pos > N_DELAY {
@@ -67,7 +67,7 @@ impl System {
                 n_pos = 0;
                 dt = (dt * F_DEC).max(dt_min);
                 alpha = ALPHA0;
-                for (x, v) in self.x.iter_mut().zip(&mut self.v) {
+                for (x, v) in self.state.x.iter_mut().zip(&mut self.state.v) {
                     *x -= *v * (0.5 * dt);
                     *v = Vec3::zeros();
                 }
@@ -76,7 +76,7 @@ impl System {
             // v ← (1 − α) v + α (|√m v| / |f/√m|) f/m
             self.kick(dt);
             let (mut vv, mut ff) = (0.0, 0.0);
-            for ((v, f), im) in self.v.iter().zip(&self.force).zip(&self.inv_mass) {
+            for ((v, f), im) in self.state.v.iter().zip(&self.eval.force).zip(&self.model.inv_mass) {
                 if *im > 0.0 {
                     vv += v.norm_squared() / im;
                     ff += f.norm_squared() * im;
@@ -84,7 +84,7 @@ impl System {
             }
             if ff > 0.0 {
                 let c = alpha * (vv / ff).sqrt();
-                for ((v, f), im) in self.v.iter_mut().zip(&self.force).zip(&self.inv_mass) {
+                for ((v, f), im) in self.state.v.iter_mut().zip(&self.eval.force).zip(&self.model.inv_mass) {
                     *v = *v * (1.0 - alpha) + f * (c * im);
                 }
             }

@@ -81,13 +81,13 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
         if !problem.solve_linear(sys, dofs, &mut dx)? {
             return Ok(None);
         }
-        let x0 = sys.x.clone();
+        let x0 = sys.state.x.clone();
         let r0 = norm2(problem.residual(sys));
         let e0 = problem.merit(sys)?;
         let mut step = 1.0;
         let mut accepted = false;
         for _ in 0..MAX_HALVINGS {
-            dofs.step(&mut sys.x, &x0, &dx, step);
+            dofs.step(&mut sys.state.x, &x0, &dx, step);
             sys.invalidate();
             if problem.evaluate(sys).is_ok() {
                 // the merit descends along the Newton step when K is positive
@@ -102,7 +102,7 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
             step *= 0.5;
         }
         if !accepted {
-            sys.x.copy_from_slice(&x0);
+            sys.state.x.copy_from_slice(&x0);
             sys.invalidate();
             return Ok(None);
         }

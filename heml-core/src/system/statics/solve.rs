@@ -14,8 +14,8 @@ impl System {
         if !t.is_finite() {
             return Err(HemlError::Invalid(format!("load time {t} must be finite")));
         }
-        self.t = t;
-        self.v.fill(Vec3::zeros());
+        self.state.t = t;
+        self.state.v.fill(Vec3::zeros());
         self.invalidate();
         self.apply_constraints(t);
         Ok(())
@@ -39,7 +39,7 @@ impl System {
     pub fn solve_static_with(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<StaticReport> {
         if let Some(s) = sliders
             .iter()
-            .find(|s| s.node >= self.x.len() || s.axis > 2 || !s.value.is_finite())
+            .find(|s| s.node >= self.state.x.len() || s.axis > 2 || !s.value.is_finite())
         {
             return Err(HemlError::Invalid(format!(
                 "slider on node {} axis {} at {}: node or axis out of range, or value not finite",
@@ -52,14 +52,14 @@ impl System {
                 opts.tol, opts.abs_tol
             )));
         }
-        let damping = std::mem::take(&mut self.damping);
+        let damping = std::mem::take(&mut self.model.damping);
         let result = match self.static_newton(sliders, opts) {
             Ok(Some(report)) => Ok(report),
             Ok(None) => self.fire(sliders, opts),
             Err(e) => Err(e),
         };
-        self.damping = damping;
-        self.v.fill(Vec3::zeros());
+        self.model.damping = damping;
+        self.state.v.fill(Vec3::zeros());
         self.invalidate();
         result
     }

@@ -25,15 +25,16 @@ impl Stiffness {
     pub(super) fn new(sys: &System) -> Option<Self> {
         let fopts = ForceOptions::default();
         if sys
+            .model
             .regions
             .iter()
             .any(|r| r.material.stress(&Matrix3::identity(), &fopts).is_none())
         {
             return None;
         }
-        let dm_inv = (0..sys.mesh.n_tets())
+        let dm_inv = (0..sys.model.mesh.n_tets())
             .map(|k| {
-                rest_edge_matrix(&sys.mesh.tet_points(k))
+                rest_edge_matrix(&sys.model.mesh.tet_points(k))
                     .try_inverse()
                     .unwrap_or_else(Matrix3::zeros)
             })
@@ -44,10 +45,10 @@ impl Stiffness {
     /// Adds the tangent stiffness of every region at the system's positions into
     /// the lower triangle of `k` (rows and columns numbered by `dofs`).
     pub(super) fn add_to(&self, sys: &System, dofs: &DofMap, k: &mut BandLdl) {
-        for r in &sys.regions {
+        for r in &sys.model.regions {
             for &t in r.field.tet_ids() {
-                let idx = sys.mesh.tets()[t].map(|i| i as usize);
-                let p = idx.map(|i| sys.x[i]);
+                let idx = sys.model.mesh.tets()[t].map(|i| i as usize);
+                let p = idx.map(|i| sys.state.x[i]);
                 let f = rest_edge_matrix(&p) * self.dm_inv[t];
                 // A[(i,j),(k,l)] = ∂P_ij/∂F_kl by central differences
                 let mut a = [[0.0; 9]; 9];
@@ -77,7 +78,7 @@ impl Stiffness {
                     }
                 }
                 g[0] = std::array::from_fn(|j| -(g[1][j] + g[2][j] + g[3][j]));
-                let vol = sys.mesh.tet_volume(t);
+                let vol = sys.model.mesh.tet_volume(t);
                 for na in 0..4 {
                     for i in 0..3 {
                         let Some(row) = dofs.get(idx[na], i) else {
