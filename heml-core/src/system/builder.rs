@@ -516,6 +516,7 @@ impl SystemBuilder {
             elastic: vec![Vec3::zeros(); n],
             input_ids: self.input_ids,
             surface: BoundarySurface::of_mesh(mesh.tets()),
+            tools: Default::default(),
             mesh,
         };
         sys.apply_constraints(0.0);

@@ -66,6 +66,7 @@
 mod adaptive;
 mod builder;
 mod constraints;
+pub mod contact;
 pub mod control;
 mod energy;
 pub mod implicit;
@@ -208,6 +209,8 @@ pub struct System {
     force_options: ForceOptions,
     /// The outward boundary triangles of the tets in the dynamics.
     surface: BoundarySurface,
+    /// Rigid tools in contact with `surface` (control: poses set between steps).
+    tools: contact::ToolSet,
 }
 
 impl System {
@@ -506,6 +509,10 @@ impl System {
         for &(i, fi) in &self.nodal {
             self.force[i] += fi;
         }
+        // tool contact on the current boundary surface (records each tool's wrench)
+        let moving = self.in_step.map(|(_, dt)| (self.step, dt));
+        self.tools
+            .add_forces(self.surface.nodes(), &self.x, &self.v, moving, &mut self.force);
         if self.damping.alpha > 0.0 {
             for ((f, m), v) in self.force.iter_mut().zip(&self.mass).zip(&self.v) {
                 *f -= v * (self.damping.alpha * m);

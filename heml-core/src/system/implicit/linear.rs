@@ -1,5 +1,5 @@
 //! The tangent linear solve both Newton problems share when no direct factorisation
-//! is used: (c_k K + c_m M) dx = rhs over the free coordinates of a [`DofMap`], by
+//! is used: (c_k K + c_m M + K_contact) dx = rhs over the free coordinates of a [`DofMap`], by
 //! conjugate gradients with a block-Jacobi preconditioner, K the matrix-free
 //! generated tangent of every region.
 
@@ -17,6 +17,9 @@ pub(in crate::system) struct TangentSolve {
     pub ck: f64,
     /// Mass coefficient c_m (0 for a static solve).
     pub cm: f64,
+    /// ∂v⁺/∂x⁺ of the scheme (0 for a static solve): the tool contacts' damping
+    /// enters the operator as c·c_v.
+    pub cv: f64,
     /// CG relative tolerance.
     pub tol: f64,
     /// CG iteration cap.
@@ -79,6 +82,7 @@ impl TangentSolve {
         for (b, m) in blocks.iter_mut().zip(&sys.mass) {
             *b = *b * ck + Matrix3::identity() * (cm * m);
         }
+        sys.tools.add_diagonal_blocks(self.cv, &mut blocks);
         preconditioner(&mut blocks, |i, a| dofs.get(i, a).is_some());
         let mut px = vec![Vec3::zeros(); n];
         let mut kp = vec![Vec3::zeros(); n];
@@ -95,6 +99,7 @@ impl TangentSolve {
             for ((k, p), m) in kp.iter_mut().zip(&px).zip(&sys.mass) {
                 *k = *k * ck + p * (cm * m);
             }
+            sys.tools.add_product(self.cv, &px, &mut kp);
             out.copy_from_slice(&dofs.gather(&kp));
         };
         let precond = |r: &[f64], out: &mut [f64]| {

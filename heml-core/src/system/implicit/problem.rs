@@ -7,8 +7,10 @@
 //! residual is r = f(x⁺, v⁺) − M a⁺ — f the system's full force: elastic (viscous-
 //! elastic), gravity, loads and Rayleigh damping −αMv − βKv — and the tangent
 //! −∂r/∂x⁺ = (1 + β c_v) K + (c_a + α c_v) M, with K the elastic stiffness of
-//! [`crate::force::tangent`]. The line-search merit is the incremental potential
-//! W(x⁺) + gravity and load potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
+//! [`crate::force::tangent`], plus the tool contacts' (k + c c_v) n nᵀ on every
+//! penetrating surface node (`system::contact`: their forces depend on x⁺ and v⁺,
+//! and the residual includes them). The line-search merit is the incremental potential
+//! W(x⁺) + gravity, load and contact potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
 //! without damping (with damping, a decreasing residual norm is accepted too).
 
 use super::linear::TangentSolve;
@@ -133,6 +135,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         let solve = TangentSolve {
             ck,
             cm,
+            cv: self.cv,
             tol: s.cg_tolerance,
             max_iterations: s.cg_max_iterations,
         };
@@ -170,6 +173,6 @@ impl NewtonProblem for ImplicitStep<'_> {
                 0.5 * sys.mass[i] * a.norm_squared() / self.ca
             })
             .sum();
-        Ok(e.elastic + e.gravity + e.loads + inertia)
+        Ok(e.elastic + e.gravity + e.loads + sys.tools.energy() + inertia)
     }
 }

@@ -69,6 +69,7 @@ impl NewtonProblem for Equilibrium<'_> {
             Linear::Banded(stiffness) => {
                 let mut k = BandLdl::new(dofs.len(), dofs.band());
                 stiffness.add_to(sys, dofs, &mut k);
+                add_contact_stiffness(sys, dofs, &mut k);
                 if !k.factor() {
                     return Ok(false);
                 }
@@ -79,6 +80,7 @@ impl NewtonProblem for Equilibrium<'_> {
                 let solve = TangentSolve {
                     ck: 1.0,
                     cm: 0.0,
+                    cv: 0.0,
                     tol: CG_TOL,
                     max_iterations: CG_MAX_ITERATIONS,
                 };
@@ -97,7 +99,23 @@ impl NewtonProblem for Equilibrium<'_> {
 
     fn merit(&self, sys: &System) -> Result<f64> {
         let e = sys.energies()?;
-        Ok(e.elastic + e.gravity + e.loads)
+        Ok(e.elastic + e.gravity + e.loads + sys.tools.energy())
+    }
+}
+
+/// Adds the tool contacts' stiffness k n nᵀ (lower triangle) on the free
+/// coordinates of every penetrating node.
+fn add_contact_stiffness(sys: &System, dofs: &DofMap, k: &mut BandLdl) {
+    for c in sys.tools.contacts() {
+        for a in 0..3 {
+            let Some(row) = dofs.get(c.node, a) else { continue };
+            for b in 0..3 {
+                match dofs.get(c.node, b) {
+                    Some(col) if col <= row => k.add(row, col, c.stiffness * c.normal[a] * c.normal[b]),
+                    _ => {}
+                }
+            }
+        }
     }
 }
 
