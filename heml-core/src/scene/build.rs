@@ -62,6 +62,9 @@ pub struct Simulation {
     pub plan: RunPlan,
     /// Warnings found while building (e.g. dt above the stable estimate).
     pub warnings: Vec<String>,
+    /// The `[[tool]]`s: their ids in `system` and the paths the runner moves them
+    /// along.
+    pub tools: Vec<super::tools::ScriptedTool>,
     /// The node renumbering of `[mesh] renumber`: internal node `i` (of `system`,
     /// whose arrays are all in internal order) is file node `new_to_old[i]`. The
     /// runner writes its frames back in file order and the system's messages name
@@ -324,9 +327,10 @@ impl Scene {
             ));
         }
         b = b.rayleigh(d.mass, d.stiffness);
-        let system = b
+        let mut system = b
             .build()
             .map_err(|e| HemlError::Invalid(format!("{}: {e}", self.origin.display())))?;
+        let tools = self.add_tools(&mut system)?;
 
         // time step and cadence
         let stable = system.stable_dt();
@@ -435,6 +439,7 @@ impl Scene {
             max_steps: limits.max_steps,
             plan,
             warnings,
+            tools,
             node_order,
         })
     }

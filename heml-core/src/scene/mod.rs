@@ -47,6 +47,7 @@ mod plan;
 mod runner;
 mod schema;
 mod select;
+mod tools;
 
 pub use build::Simulation;
 pub use output::CSV_HEADER;
@@ -60,6 +61,7 @@ pub use schema::{
     NodalLoadSpec, OutputSpec, PlaneSpec, PrescribeSpec, SolverSpec, Units,
 };
 pub use select::Selection;
+pub use tools::{KeyframeSpec, ScriptedTool, ToolPath, ToolShapeKind, ToolSpec};
 
 use std::path::{Path, PathBuf};
 
@@ -92,6 +94,9 @@ pub struct Scene {
     /// `[output]`.
     #[serde(default)]
     pub output: OutputSpec,
+    /// `[[tool]]` entries: rigid tools on keyframed paths.
+    #[serde(default, rename = "tool")]
+    pub tools: Vec<ToolSpec>,
     /// Directory that relative input paths (`[mesh] file`) are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,

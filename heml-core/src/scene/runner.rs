@@ -116,6 +116,7 @@ impl Simulation {
             self.csv,
             &self.system,
             self.node_order.as_ref(),
+            self.tools.iter().map(|t| (t.id, t.name.clone())).collect(),
         )?;
         let sys = &mut self.system;
         if let Err(e) = sys.compute_forces() {
@@ -178,6 +179,12 @@ impl Simulation {
                     (step, dt, reason)
                 }
             };
+            // scripted tools: where their paths are at the end of the step
+            for tool in &self.tools {
+                if let Err(e) = sys.set_tool_pose(tool.id, tool.path.at(sys.time() + dt)) {
+                    return Err(fail(&mut out, sys, e));
+                }
+            }
             let stats = match self.integrator.step(sys, dt) {
                 Ok(stats) => stats,
                 Err(e) => return Err(fail(&mut out, sys, e)),
