@@ -22,7 +22,8 @@
 //! Each step reports, per tool, the [`Wrench`] the tissue applies to it
 //! ([`System::tool_wrench`]), separately from the support reactions. A device thread
 //! exchanges poses and wrenches with the simulation thread through [`haptic_link`],
-//! without locks (latency: one step).
+//! without locks (latency: one step); [`run_haptic_loop`] runs a device, the
+//! simulation and a display on three threads that way and measures the loop.
 //!
 //! ```
 //! use heml_core::mesh::generate::{box_mesh, HexSplit};
@@ -80,12 +81,14 @@
 
 mod api;
 mod handoff;
+mod haptic;
 mod law;
 mod set;
 mod shape;
 mod tool;
 
 pub use handoff::{haptic_link, latest, DeviceEnd, PoseSample, Publisher, Reader, SimulationEnd, WrenchSample};
+pub use haptic::{run_haptic_loop, HapticOptions, HapticReport, Palpation, Percentiles};
 pub use law::ContactLaw;
 pub use set::{Contact, ToolSet};
 pub use shape::ToolShape;
