@@ -12,16 +12,16 @@
 use heml::integrators::{BackwardEuler, SymplecticEuler};
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
-use heml::system::contact::{run_haptic_loop, ContactLaw, HapticOptions, Palpation, Tool};
+use heml::system::contact::{run_haptic_loop, ContactLaw, HapticOptions, Palpation};
 use heml::system::{Integrator, System};
 
-/// Soft tissue clamped within 5 mm of its lowest point, under gravity, damped.
+/// Soft tissue clamped within 5 mm of its lowest point, damped, without gravity
+/// (a soft organ sags by centimetres and would move away from the tool).
 fn tissue(mesh: TetMesh) -> heml::Result<System> {
     let low = mesh.nodes().iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
     heml::system(mesh)
         .material("neo_hookean", &Params::from([("E", 5e3), ("nu", 0.45)]))?
         .density(1000.0)
-        .gravity(Vec3::new(0.0, 0.0, -9.81))
         .fix_where(|p| p.z < low + 0.005)
         .rayleigh(15.0, 0.0)
         .energy_every(0)
@@ -32,67 +32,22 @@ fn tissue(mesh: TetMesh) -> heml::Result<System> {
 /// largest tool force the simulation published.
 fn palpate(mesh: TetMesh, integrator: &mut dyn Integrator, explicit: bool, seconds: f64) -> heml::Result<f64> {
     let mut sys = tissue(mesh)?;
-    // the highest surface point is pressed by a 4 mm capsule, 2 cm long
-    let top = sys
-        .surface()
-        .nodes()
-        .iter()
-        .map(|&i| sys.positions()[i as usize])
-        .fold(Vec3::repeat(f64::NEG_INFINITY), |a, p| if p.z > a.z { p } else { a });
-    let (radius, half) = (0.004, 0.01);
+    // a 4 mm capsule, 2 cm long, palpates the highest surface point
     let law = ContactLaw {
         stiffness: 200.0,
         damping: 0.05,
     };
-    let tool = sys.add_tool(Tool::capsule(radius, half, law))?;
-    let path = Palpation {
-        top,
-        tip: radius + half,
-        lift: 0.002,
-        depth: 0.004,
-        press_period: seconds.min(1.0),
-        sweep: 0.003,
-        sweep_period: 2.0 * seconds.min(1.0),
-    };
-    // explicit: substeps at the stable step (its contact-stiffened bound included)
-    let max_substep = if explicit {
-        let m = sys
-            .masses()
-            .iter()
-            .copied()
-            .filter(|&m| m > 0.0)
-            .fold(f64::INFINITY, f64::min);
-        (0.9 * sys.stable_dt()).min(0.9 * law.critical_dt(m))
+    let (tool, path) = Palpation::on_top(&mut sys, 0.004, 0.01, law, seconds.min(1.0))?;
+    let opts = if explicit {
+        HapticOptions::explicit(&sys, seconds)
     } else {
-        f64::INFINITY
-    };
-    let opts = HapticOptions {
-        duration: seconds,
-        max_substep,
-        ..HapticOptions::default()
+        HapticOptions {
+            duration: seconds,
+            ..HapticOptions::default()
+        }
     };
     let report = run_haptic_loop(&mut sys, integrator, tool, |t| path.at(t), &opts)?;
-    let felt = report.forces.iter().map(|(_, f)| f.norm()).fold(0.0, f64::max);
-    println!(
-        "{:<17} {} tets: {} ticks, {} iterations × {} substeps, real-time factor {:.2}",
-        integrator.name(),
-        sys.mesh().n_tets(),
-        report.ticks,
-        report.iterations,
-        report.substeps,
-        report.sim_time / seconds
-    );
-    println!("  compute per iteration: {}", report.compute);
-    println!("  wrench period:         {}", report.period);
-    println!("  device period:         {}", report.device_period);
-    println!(
-        "  fresh wrench on {:.0} % of ticks; {} snapshots ({:.0} Hz); largest force felt {felt:.4} N \
-         (published {:.4} N)",
-        100.0 * report.fresh,
-        report.snapshots,
-        report.snapshot_rate,
-        report.peak_force
-    );
+    println!("{:<17} {} tets: {report}", integrator.name(), sys.mesh().n_tets());
     assert!(report.forces.iter().all(|(_, f)| f.iter().all(|c| c.is_finite())));
     Ok(report.peak_force)
 }

@@ -30,8 +30,28 @@ pub struct HapticOptions {
     /// Display snapshot rate (Hz), 30–60 for a screen (default 60).
     pub snapshot_rate: f64,
     /// Largest simulation step (s): each iteration takes ⌈T/max_substep⌉ equal
-    /// substeps (default: one step per period).
+    /// substeps (default: one step per period; see [`HapticOptions::explicit`]).
     pub max_substep: f64,
+}
+
+impl HapticOptions {
+    /// Options for an explicit integrator on `sys`: substeps no longer than 0.9 ×
+    /// the smaller of the system's stable step and the stiffest tool contact's
+    /// critical step on the lightest node, 2√(m/k).
+    pub fn explicit(sys: &System, duration: f64) -> Self {
+        let m = sys.masses().iter().copied().filter(|&m| m > 0.0).fold(f64::INFINITY, f64::min);
+        let contact = sys
+            .tools()
+            .ids()
+            .filter_map(|id| sys.tools().get(id))
+            .map(|t| t.law.critical_dt(m))
+            .fold(f64::INFINITY, f64::min);
+        HapticOptions {
+            duration,
+            max_substep: 0.9 * sys.stable_dt().min(contact),
+            ..HapticOptions::default()
+        }
+    }
 }
 
 impl Default for HapticOptions {
@@ -112,6 +132,32 @@ pub struct HapticReport {
     pub snapshots: u64,
     /// Their rate (Hz) over the run.
     pub snapshot_rate: f64,
+}
+
+impl std::fmt::Display for HapticReport {
+    /// Four lines: counts and real-time factor, compute time, wrench period, device
+    /// period with the fresh-wrench share, snapshots and peak force.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let felt = self.forces.iter().map(|(_, f)| f.norm()).fold(0.0, f64::max);
+        let run = self.forces.last().map_or(0.0, |(t, _)| *t);
+        writeln!(
+            f,
+            "{} device ticks, {} iterations × {} substeps, simulated {:.3} s in {:.3} s of device time",
+            self.ticks, self.iterations, self.substeps, self.sim_time, run
+        )?;
+        writeln!(f, "  compute per iteration: {}", self.compute)?;
+        writeln!(f, "  wrench period:         {}", self.period)?;
+        write!(
+            f,
+            "  device period:         {}; fresh wrench on {:.0} % of ticks; {} snapshots ({:.0} Hz); \
+             peak force {:.4} N (felt {felt:.4} N)",
+            self.device_period,
+            100.0 * self.fresh,
+            self.snapshots,
+            self.snapshot_rate,
+            self.peak_force
+        )
+    }
 }
 
 /// Sleeps until `deadline` (coarse: the OS's timer slack, ~0.05–0.1 ms).
@@ -300,6 +346,37 @@ pub struct Palpation {
 }
 
 impl Palpation {
+    /// Adds a vertical capsule (`radius`, `half_length`, contact `law`) above the
+    /// highest surface node of `sys` and returns it with a palpation of that node:
+    /// 2 mm lift, 4 mm deep, ±3 mm sweep, one press per `press_period` (the sweep
+    /// takes twice as long). The haptic example and `heml bench --haptic` share it.
+    pub fn on_top(
+        sys: &mut System,
+        radius: f64,
+        half_length: f64,
+        law: super::ContactLaw,
+        press_period: f64,
+    ) -> Result<(ToolId, Palpation)> {
+        let x = sys.positions();
+        let top = sys
+            .surface()
+            .nodes()
+            .iter()
+            .map(|&i| x[i as usize])
+            .fold(Vec3::repeat(f64::NEG_INFINITY), |a, p| if p.z > a.z { p } else { a });
+        let path = Palpation {
+            top,
+            tip: radius + half_length,
+            lift: 0.002,
+            depth: 0.004,
+            press_period,
+            sweep: 0.003,
+            sweep_period: 2.0 * press_period,
+        };
+        let tool = super::Tool::capsule(radius, half_length, law).at(path.at(0.0));
+        Ok((sys.add_tool(tool)?, path))
+    }
+
     /// The pose at device time `t`.
     pub fn at(&self, t: f64) -> Pose {
         use std::f64::consts::TAU;
