@@ -13,29 +13,16 @@ use heml::integrators::{BackwardEuler, SymplecticEuler};
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
 use heml::system::contact::{run_haptic_loop, ContactLaw, HapticOptions, Palpation};
-use heml::system::{Integrator, System};
-
-/// Soft tissue clamped within 5 mm of its lowest point, damped, without gravity
-/// (a soft organ sags by centimetres and would move away from the tool).
-fn tissue(mesh: TetMesh) -> heml::Result<System> {
-    let low = mesh.nodes().iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
-    heml::system(mesh)
-        .material("neo_hookean", &Params::from([("E", 5e3), ("nu", 0.45)]))?
-        .density(1000.0)
-        .fix_where(|p| p.z < low + 0.005)
-        .rayleigh(15.0, 0.0)
-        .energy_every(0)
-        .build()
-}
+use heml::system::Integrator;
 
 /// Runs the loop for `seconds` of device time with `integrator`; returns the
 /// largest tool force the simulation published.
 fn palpate(mesh: TetMesh, integrator: &mut dyn Integrator, explicit: bool, seconds: f64) -> heml::Result<f64> {
-    let mut sys = tissue(mesh)?;
+    let mut sys = Palpation::tissue(mesh)?;
     // a 4 mm capsule, 2 cm long, palpates the highest surface point
     let law = ContactLaw {
         stiffness: 200.0,
-        damping: 0.05,
+        damping: 0.002,
     };
     let (tool, path) = Palpation::on_top(&mut sys, 0.004, 0.01, law, seconds.min(1.0))?;
     let opts = if explicit {

@@ -7,25 +7,11 @@
 use heml::integrators::{BackwardEuler, SymplecticEuler};
 use heml::prelude::*;
 use heml::system::contact::{run_haptic_loop, ContactLaw, HapticOptions, Palpation};
-use heml::system::{Integrator, System};
-use std::path::{Path, PathBuf};
+use heml::system::Integrator;
+use std::path::PathBuf;
 
 /// Device time of each run (s).
 const SECONDS: f64 = 3.0;
-
-/// The organ in metres, E = 5 kPa, ν = 0.45, clamped within 5 mm of its lowest
-/// point, mass-damped, no gravity (a sagging organ would move away from the tool) (as `examples/haptic_loop.rs`).
-fn organ(path: &Path) -> heml::Result<System> {
-    let mesh = read_mesh(path)?.0.scaled(1e-3)?;
-    let low = mesh.nodes().iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
-    heml::system(mesh)
-        .material("neo_hookean", &Params::from([("E", 5e3), ("nu", 0.45)]))?
-        .density(1000.0)
-        .fix_where(|p| p.z < low + 0.005)
-        .rayleigh(15.0, 0.0)
-        .energy_every(0)
-        .build()
-}
 
 /// The meshes: `mesh` alone, or the two kidneys of the shared collection.
 fn meshes(mesh: Option<&PathBuf>) -> heml::Result<Vec<PathBuf>> {
@@ -51,10 +37,10 @@ pub fn run(mesh: Option<&PathBuf>, pool: &rayon::ThreadPool, threads: usize) -> 
     outln!("haptic loop: 1 kHz device, {SECONDS} s of device time per run, {threads} simulation thread(s)");
     for path in meshes(mesh)? {
         for explicit in [true, false] {
-            let mut sys = organ(&path)?;
+            let mut sys = Palpation::tissue(read_mesh(&path)?.0.scaled(1e-3)?)?; // millimetres
             let law = ContactLaw {
                 stiffness: 200.0,
-                damping: 0.05,
+                damping: 0.002,
             };
             let (tool, palpation) = Palpation::on_top(&mut sys, 0.004, 0.01, law, 1.0)?;
             let (mut integrator, opts): (Box<dyn Integrator>, _) = if explicit {
@@ -68,12 +54,12 @@ pub fn run(mesh: Option<&PathBuf>, pool: &rayon::ThreadPool, threads: usize) -> 
                     },
                 )
             };
-            let report = pool.install(|| {
-                run_haptic_loop(&mut sys, integrator.as_mut(), tool, |t| palpation.at(t), &opts)
-            })?;
+            let report =
+                pool.install(|| run_haptic_loop(&mut sys, integrator.as_mut(), tool, |t| palpation.at(t), &opts))?;
             outln!(
                 "{} ({} tets), {}: {report}",
-                path.file_name().map_or(path.display().to_string(), |n| n.to_string_lossy().into()),
+                path.file_name()
+                    .map_or(path.display().to_string(), |n| n.to_string_lossy().into()),
                 sys.mesh().n_tets(),
                 integrator.name()
             );

@@ -28,8 +28,8 @@ impl System {
     /// Adds a rigid tool in contact with the boundary surface; its forces enter
     /// from the next force evaluation. Errors (the system unchanged) on a bad shape,
     /// law or pose, or inside a step. Warns (see [`System::warnings`]) when the
-    /// contact stiffness makes the surface nodes' explicit stable step, 2√(m/k),
-    /// shorter than [`System::stable_dt`]: explicit integrators then need a smaller
+    /// contact makes the surface nodes' explicit stable step
+    /// ([`super::ContactLaw::critical_dt`], 2√(m/k) undamped) shorter than [`System::stable_dt`]: explicit integrators then need a smaller
     /// dt; implicit ones do not.
     pub fn add_tool(&mut self, tool: Tool) -> Result<ToolId> {
         self.between_steps("add_tool")?;
@@ -45,8 +45,8 @@ impl System {
         let critical = tool.law.critical_dt(m_min) * self.safety;
         if critical < self.stable_dt {
             self.warn(format!(
-                "{id}: contact stiffness {:e} N/m limits the explicit time step to {critical:e} s (2·√(m/k) × \
-                 safety, lightest surface node {m_min:e} kg), below the stable estimate {:e} s; use a smaller dt, \
+                "{id}: contact stiffness {:e} N/m limits the explicit time step to {critical:e} s (critical step \
+                 of the spring and dashpot on the lightest surface node, {m_min:e} kg, × safety), below the stable estimate {:e} s; use a smaller dt, \
                  a softer contact or an implicit integrator",
                 tool.law.stiffness, self.stable_dt
             ));

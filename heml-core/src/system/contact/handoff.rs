@@ -193,12 +193,18 @@ impl SimulationEnd {
         });
     }
 
+    /// The newest device pose, marked as the one the next published wrench
+    /// answers ([`WrenchSample::pose_seq`]).
+    pub fn take(&mut self) -> PoseSample {
+        let s = self.pose();
+        self.used = s.seq;
+        s
+    }
+
     /// Before a step: moves tool `id` of `sys` to the newest device pose.
     pub fn apply(&mut self, sys: &mut System, id: ToolId) -> Result<()> {
-        let s = self.pose();
-        sys.set_tool_pose(id, s.pose)?;
-        self.used = s.seq;
-        Ok(())
+        let s = self.take();
+        sys.set_tool_pose(id, s.pose)
     }
 
     /// After a step: publishes tool `id`'s wrench of the step's end state.

@@ -6,7 +6,8 @@
 //! The device here is a stand-in: it follows a scripted path and records the force
 //! it would render. The simulation thread, at every device period T, picks up the
 //! newest pose, advances the system by T of simulated time (in substeps no longer
-//! than [`HapticOptions::max_substep`], e.g. the explicit stable step), publishes
+//! than [`HapticOptions::max_substep`], e.g. the explicit stable step, the simulated
+//! tool following the device pose at most at [`HapticOptions::max_tool_speed`]), publishes
 //! the tool's wrench and a snapshot when one is due, then sleeps to the next period.
 //! It records how long each iteration computed: the loop keeps up with the device
 //! when p99 ≤ T.
@@ -32,14 +33,27 @@ pub struct HapticOptions {
     /// Largest simulation step (s): each iteration takes ⌈T/max_substep⌉ equal
     /// substeps (default: one step per period; see [`HapticOptions::explicit`]).
     pub max_substep: f64,
+    /// Fastest the simulated tool follows the device (m/s, default 0.25). The
+    /// simulated tool is a proxy that moves towards the newest device pose by at
+    /// most this speed × the substep: when the simulation falls behind real time
+    /// the device pose jumps between iterations, and a tool teleported millimetres
+    /// into the tissue would meet it with forces an explicit step cannot take.
+    pub max_tool_speed: f64,
 }
 
 impl HapticOptions {
-    /// Options for an explicit integrator on `sys`: substeps no longer than 0.9 ×
-    /// the smaller of the system's stable step and the stiffest tool contact's
-    /// critical step on the lightest node, 2√(m/k).
+    /// Options for an explicit integrator on `sys`: substeps no longer than the
+    /// stable step of the tissue and the tightest tool contact together,
+    /// 1/√(1/dt_e² + 1/dt_c²) (the frequencies add: ω² = ω_e² + ω_c²), with dt_e
+    /// the system's stable step and dt_c 0.9 × the contact's critical step on the
+    /// lightest node ([`super::ContactLaw::critical_dt`]).
     pub fn explicit(sys: &System, duration: f64) -> Self {
-        let m = sys.masses().iter().copied().filter(|&m| m > 0.0).fold(f64::INFINITY, f64::min);
+        let m = sys
+            .masses()
+            .iter()
+            .copied()
+            .filter(|&m| m > 0.0)
+            .fold(f64::INFINITY, f64::min);
         let contact = sys
             .tools()
             .ids()
@@ -48,7 +62,7 @@ impl HapticOptions {
             .fold(f64::INFINITY, f64::min);
         HapticOptions {
             duration,
-            max_substep: 0.9 * sys.stable_dt().min(contact),
+            max_substep: 1.0 / (sys.stable_dt().powi(-2) + (0.9 * contact).powi(-2)).sqrt(),
             ..HapticOptions::default()
         }
     }
@@ -61,6 +75,7 @@ impl Default for HapticOptions {
             duration: 1.0,
             snapshot_rate: 60.0,
             max_substep: f64::INFINITY,
+            max_tool_speed: 0.25,
         }
     }
 }
@@ -184,11 +199,13 @@ pub fn run_haptic_loop(
 ) -> Result<HapticReport> {
     let rate_ok = |r: f64| r.is_finite() && r > 0.0;
     if !(rate_ok(opts.device_rate) && rate_ok(opts.snapshot_rate) && rate_ok(opts.duration))
+        || opts.max_tool_speed.is_nan()
+        || opts.max_tool_speed <= 0.0
         || opts.max_substep.is_nan()
         || opts.max_substep <= 0.0
     {
         return Err(HemlError::Invalid(format!(
-            "haptic loop: rates, duration and max_substep must be > 0: {opts:?}"
+            "haptic loop: rates, duration and max_substep and max_tool_speed must be > 0: {opts:?}"
         )));
     }
     let period = 1.0 / opts.device_rate;
@@ -253,8 +270,16 @@ pub fn run_haptic_loop(
         while !done.load(Ordering::Acquire) {
             let t0 = Instant::now();
             let step = (|| -> Result<()> {
-                sim.apply(sys, tool)?;
+                let target = sim.take().pose;
                 for _ in 0..substeps {
+                    let proxy = sys.tools().get(tool).map_or(target, |t| t.pose);
+                    let gap = (target.translation - proxy.translation).norm();
+                    let s = if gap > 0.0 {
+                        (opts.max_tool_speed * h / gap).min(1.0)
+                    } else {
+                        1.0
+                    };
+                    sys.set_tool_pose(tool, proxy.lerp(&target, s))?;
                     integrator.step(sys, h)?;
                 }
                 sim.publish(sys, tool)
@@ -346,6 +371,23 @@ pub struct Palpation {
 }
 
 impl Palpation {
+    /// The body a palpation benchmark presses: soft tissue (neo-Hookean, E = 5 kPa,
+    /// ν = 0.45, ρ = 1000 kg/m³, α = 15/s) clamped within 5 mm of its lowest point,
+    /// without gravity (a soft organ sags by centimetres and would move away from
+    /// the tool). The law is looked up in the registry: programs built on the `heml`
+    /// facade have it. The haptic example and `heml bench --haptic` share it.
+    pub fn tissue(mesh: crate::mesh::TetMesh) -> Result<System> {
+        let low = mesh.nodes().iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+        let params = crate::Params::from([("E", 5e3), ("nu", 0.45)]);
+        System::builder(mesh)
+            .material("neo_hookean", &params)?
+            .density(1000.0)
+            .fix_where(|p| p.z < low + 0.005)
+            .rayleigh(15.0, 0.0)
+            .energy_every(0)
+            .build()
+    }
+
     /// Adds a vertical capsule (`radius`, `half_length`, contact `law`) above the
     /// highest surface node of `sys` and returns it with a palpation of that node:
     /// 2 mm lift, 4 mm deep, ±3 mm sweep, one press per `press_period` (the sweep

@@ -21,8 +21,9 @@ use crate::error::{HemlError, Result};
 /// deeper than d ≤ F/k (one node carrying everything is the worst case), plus, while it moves at speed u, the ground it
 /// covers in one step, u·dt, before the next force evaluation sees it. With an
 /// explicit integrator k is bounded by stability: a node of mass m on a spring k is
-/// stable for dt < 2√(m/k), so k ≤ 4m/dt² and d ≥ F·dt²/(4m) — halve dt, and the
-/// reachable tolerance drops fourfold. Implicit integrators add k to their operator
+/// stable for dt < 2√(m/k) (less with damping, see [`ContactLaw::critical_dt`]), so
+/// k ≤ 4m/dt² and d ≥ F·dt²/(4m) — halve dt, and the reachable tolerance drops
+/// fourfold. Implicit integrators add k to their operator
 /// and take any k; d then is F/(n_c·k) + u·dt.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactLaw {
@@ -70,9 +71,13 @@ impl ContactLaw {
         }
     }
 
-    /// The smallest stable explicit time step for a node of mass `m` held only by
-    /// this contact spring: 2√(m/k).
+    /// The largest stable explicit (symplectic Euler) time step for a node of mass
+    /// `m` held only by this contact: (2/ω)(√(1 + ζ²) − ζ) with ω = √(k/m) and
+    /// ζ = c/(2√(k·m)) — 2√(m/k) without damping, about 2m/c when the dashpot
+    /// dominates (a light node on a strong dashpot is the tighter limit).
     pub fn critical_dt(&self, m: f64) -> f64 {
-        2.0 * (m / self.stiffness).sqrt()
+        let omega = (self.stiffness / m).sqrt();
+        let zeta = self.damping / (2.0 * (self.stiffness * m).sqrt());
+        2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta)
     }
 }
