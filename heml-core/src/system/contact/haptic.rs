@@ -35,7 +35,7 @@ pub struct HapticOptions {
     pub max_substep: f64,
     /// Fastest the simulated tool follows the device (m/s, default 0.25). The
     /// simulated tool is a proxy that moves towards the newest device pose by at
-    /// most this speed × the substep: when the simulation falls behind real time
+    /// most this speed × the device period, once per iteration: when the simulation falls behind real time
     /// the device pose jumps between iterations, and a tool teleported millimetres
     /// into the tissue would meet it with forces an explicit step cannot take.
     pub max_tool_speed: f64,
@@ -270,16 +270,18 @@ pub fn run_haptic_loop(
         while !done.load(Ordering::Acquire) {
             let t0 = Instant::now();
             let step = (|| -> Result<()> {
+                // the proxy moves once per iteration (moving it every substep would
+                // discard the forces each explicit step reuses from the last one)
                 let target = sim.take().pose;
+                let proxy = sys.tools().get(tool).map_or(target, |t| t.pose);
+                let gap = (target.translation - proxy.translation).norm();
+                let s = if gap > 0.0 {
+                    (opts.max_tool_speed * period / gap).min(1.0)
+                } else {
+                    1.0
+                };
+                sys.set_tool_pose(tool, proxy.lerp(&target, s))?;
                 for _ in 0..substeps {
-                    let proxy = sys.tools().get(tool).map_or(target, |t| t.pose);
-                    let gap = (target.translation - proxy.translation).norm();
-                    let s = if gap > 0.0 {
-                        (opts.max_tool_speed * h / gap).min(1.0)
-                    } else {
-                        1.0
-                    };
-                    sys.set_tool_pose(tool, proxy.lerp(&target, s))?;
                     integrator.step(sys, h)?;
                 }
                 sim.publish(sys, tool)

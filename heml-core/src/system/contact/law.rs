@@ -81,3 +81,46 @@ impl ContactLaw {
         2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Symplectic Euler on m x'' = −k x − c v is stable just below
+    /// [`ContactLaw::critical_dt`] and blows up just above it, undamped and with
+    /// a dashpot that dominates.
+    #[test]
+    fn critical_dt_is_the_symplectic_euler_limit() {
+        let m = 3e-7;
+        for c in [0.0, 1e-4, 0.05] {
+            let law = ContactLaw {
+                stiffness: 200.0,
+                damping: c,
+            };
+            let h0 = law.critical_dt(m);
+            // the largest |x| over 20 000 steps from x = 1 mm at rest
+            let run = |h: f64| {
+                let (mut x, mut v, mut top) = (1e-3f64, 0.0, 0.0f64);
+                for _ in 0..20_000 {
+                    v += h * (-law.stiffness * x - c * v) / m;
+                    x += h * v;
+                    top = top.max(x.abs());
+                }
+                top
+            };
+            // 1 % either side: below, the undamped orbit is an ellipse whose x extent
+            // is 1/√(1 − (hω/2)²) ≈ 7× the start at hω = 1.98 (damped: less), so
+            // 100× bounds it; above, the spectral radius exceeds 1 by O(0.1) and
+            // 20 000 steps grow far past 1000×
+            assert!(run(0.99 * h0) < 0.1, "c = {c}: unstable below {h0:e}");
+            assert!(run(1.01 * h0) > 1.0, "c = {c}: stable above {h0:e}");
+        }
+        // undamped: 2√(m/k); a dominant dashpot: about 2m/c
+        assert!((ContactLaw::stiff(200.0).critical_dt(m) - 2.0 * (m / 200.0f64).sqrt()).abs() < 1e-18);
+        let strong = ContactLaw {
+            stiffness: 1e-3,
+            damping: 0.05,
+        };
+        assert!((strong.critical_dt(m) / (2.0 * m / 0.05) - 1.0).abs() < 1e-3);
+    }
+}
