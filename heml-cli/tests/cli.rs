@@ -133,3 +133,35 @@ fn a_closed_pipe_ends_the_report_quietly() {
     assert!(out.status.success(), "status {:?}, stderr:\n{err}", out.status);
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// `heml bench --haptic` on a small box (coordinates in mm, as the kidney files):
+/// one report per integrator with the loop's percentiles; without the shared
+/// meshes it names the missing file and the variable to set.
+#[test]
+fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
+    use heml::io::write_mesh;
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = support::temp_dir("cli", "haptic");
+    let path = dir.join("block_mm.vtu");
+    write_mesh(&path, &box_mesh([40.0, 40.0, 20.0], [4, 4, 2], HexSplit::Six).unwrap()).unwrap();
+    let (ok, out, err) = heml(&["bench", "--haptic", "--threads", "1", "--mesh", path.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    for name in ["symplectic_euler", "backward_euler"] {
+        assert!(
+            out.contains(&format!("block_mm.vtu (192 tets), {name}: 3000 device ticks")),
+            "{out}"
+        );
+    }
+    assert_eq!(out.matches("compute per iteration: p50").count(), 2, "{out}");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
+        .args(["bench", "--haptic"])
+        .env("HEML_MESHES", &dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&status.stderr);
+    assert!(!status.status.success());
+    assert!(
+        err.contains("gen_kidney_20k.msh not found") && err.contains("HEML_MESHES"),
+        "{err}"
+    );
+}

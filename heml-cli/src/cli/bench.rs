@@ -50,6 +50,13 @@ pub struct BenchArgs {
     /// thread pool is pinned to the k-th CPU this process may use.
     #[arg(long)]
     pub no_pin: bool,
+    /// Instead of the usual table: the 1 kHz haptic loop (a device thread moving a
+    /// capsule over the organ, the simulation in real time, a 60 Hz display) on
+    /// gen_kidney_20k and gen_kidney_100k of the shared meshes ($HEML_MESHES, or
+    /// ../shared/meshes; or --mesh), with symplectic and backward Euler: loop
+    /// compute time and period p50/p99/max.
+    #[arg(long)]
+    pub haptic: bool,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -200,6 +207,9 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         Placement::Pinned => "pinned to CPUs",
         Placement::Os => "placed by the OS",
     };
+    if args.haptic {
+        return super::haptic::run(args.mesh.as_ref(), &pool(threads)?, threads);
+    }
     if args.scaling {
         outln!(
             "law: {}   SIMD: {}   workers {workers}   (--mesh, --tets and --shuffle do not apply)",

@@ -14,6 +14,7 @@ macro_rules! out {
 
 pub mod bench;
 pub mod demo;
+pub mod haptic;
 pub mod info;
 pub mod materials;
 pub mod out;

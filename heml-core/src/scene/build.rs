@@ -62,6 +62,9 @@ pub struct Simulation {
     pub plan: RunPlan,
     /// Warnings found while building (e.g. dt above the stable estimate).
     pub warnings: Vec<String>,
+    /// The `[[tool]]`s: their ids in `system` and the paths the runner moves them
+    /// along.
+    pub tools: Vec<super::tools::ScriptedTool>,
     /// The node renumbering of `[mesh] renumber`: internal node `i` (of `system`,
     /// whose arrays are all in internal order) is file node `new_to_old[i]`. The
     /// runner writes its frames back in file order and the system's messages name
@@ -340,6 +343,7 @@ impl Scene {
             .map_err(|e| HemlError::Invalid(format!("{}: {e}", self.origin.display())))?;
         // [[cut]] and [[surface_load]] (surgery.rs)
         let (surgery, surgery_warnings) = self.surgery(&mut system, s.duration)?;
+        let tools = self.add_tools(&mut system)?;
 
         // time step and cadence
         let stable = system.stable_dt();
@@ -448,6 +452,7 @@ impl Scene {
             max_steps: limits.max_steps,
             plan,
             warnings,
+            tools,
             node_order,
             surgery,
         })

@@ -48,6 +48,7 @@ mod runner;
 mod schema;
 mod select;
 mod surgery;
+mod tools;
 
 pub use build::Simulation;
 pub use output::CSV_HEADER;
@@ -62,6 +63,7 @@ pub use schema::{
 };
 pub use select::Selection;
 pub use surgery::{CutSpec, FacePlaneSpec, SurfaceLoadSpec, Surgery};
+pub use tools::{KeyframeSpec, ScriptedTool, ToolPath, ToolShapeKind, ToolSpec};
 
 use std::path::{Path, PathBuf};
 
@@ -100,6 +102,9 @@ pub struct Scene {
     /// `[[surface_load]]` entries: pressure or traction on boundary faces.
     #[serde(default)]
     pub surface_load: Vec<SurfaceLoadSpec>,
+    /// `[[tool]]` entries: rigid tools on keyframed paths.
+    #[serde(default, rename = "tool")]
+    pub tools: Vec<ToolSpec>,
     /// Directory that relative input paths (`[mesh] file`) are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,

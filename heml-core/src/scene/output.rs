@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{HemlError, Result};
 use crate::io::{write_vtu, FieldPrecision, PvdWriter, VtuEncoding, VtuFrame};
 use crate::mesh::reorder::Permutation;
+use crate::system::contact::ToolId;
 use crate::system::{DtReason, Energies, System};
 use crate::Vec3;
 
@@ -23,7 +24,8 @@ use crate::Vec3;
 /// `dt` is the step that led to the row's state and `dt_reason` why it was chosen
 /// (see [`crate::system::DtReason`]; `fixed` unless `dt_policy = "adapt"`), and
 /// `cg_iterations` the conjugate-gradient iterations of that step (0 for explicit
-/// integrators).
+/// integrators). A scene with `[[tool]]`s appends, per tool, the force the tissue
+/// applies to it (N): `tool_<name>_fx, tool_<name>_fy, tool_<name>_fz`.
 pub const CSV_HEADER: &str = "time,step,kinetic,elastic,gravity,loads,total,reaction_x,reaction_y,reaction_z,\
                               reaction_norm,dt,dt_reason,cg_iterations";
 
@@ -48,6 +50,8 @@ pub(crate) struct Output {
     /// Step count and path of the last frame written.
     last: Option<(u64, PathBuf)>,
     csv: Option<Csv>,
+    /// The tools whose forces are appended to each CSV row.
+    tools: Vec<ToolId>,
     /// When the system's nodes are renumbered: the permutation and the tets in the
     /// file's node numbering, so that frames read like the input mesh.
     file_order: Option<(Permutation, Vec<[u32; 4]>)>,
@@ -63,6 +67,7 @@ impl Output {
         csv: bool,
         sys: &System,
         node_order: Option<&Permutation>,
+        tools: Vec<(ToolId, String)>,
     ) -> Result<Output> {
         std::fs::create_dir_all(dir).map_err(|e| HemlError::io(dir, e))?;
         crate::io::atomic::remove_stale_temporaries(dir);
@@ -74,7 +79,11 @@ impl Output {
         let csv = if csv {
             let path = dir.join("energy.csv");
             let mut file = File::create(&path).map_err(|e| HemlError::io(&path, e))?;
-            let header = format!("{CSV_HEADER}\n");
+            let mut header = CSV_HEADER.to_string();
+            for (_, name) in &tools {
+                let _ = write!(header, ",tool_{name}_fx,tool_{name}_fy,tool_{name}_fz");
+            }
+            header.push('\n');
             file.write_all(header.as_bytes()).map_err(|e| HemlError::io(&path, e))?;
             Some(Csv {
                 file,
@@ -102,6 +111,7 @@ impl Output {
             frames: 0,
             last: None,
             csv,
+            tools: tools.into_iter().map(|(id, _)| id).collect(),
             file_order,
         })
     }
@@ -195,6 +205,14 @@ impl Output {
                 reason.as_str(),
                 cg_iterations
             );
+            if !self.tools.is_empty() {
+                csv.pending.pop(); // the newline: tool columns follow
+                for &id in &self.tools {
+                    let f = sys.tool_wrench(id).map(|w| w.force).unwrap_or(Vec3::repeat(f64::NAN));
+                    let _ = write!(csv.pending, ",{:e},{:e},{:e}", f.x, f.y, f.z);
+                }
+                csv.pending.push('\n');
+            }
         }
     }
 

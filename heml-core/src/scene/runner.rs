@@ -116,6 +116,7 @@ impl Simulation {
             self.csv,
             &self.system,
             self.node_order.as_ref(),
+            self.tools.iter().map(|t| (t.id, t.name.clone())).collect(),
         )?;
         let sys = &mut self.system;
         let event_tol = 1e-9 * self.dt;
@@ -184,6 +185,12 @@ impl Simulation {
             };
             if let Err(e) = self.surgery.before_step(sys, event_tol) {
                 return Err(fail(&mut out, sys, e));
+            }
+            // scripted tools: where their paths are at the end of the step
+            for tool in &self.tools {
+                if let Err(e) = sys.set_tool_pose(tool.id, tool.path.at(sys.time() + dt)) {
+                    return Err(fail(&mut out, sys, e));
+                }
             }
             let stats = match self.integrator.step(sys, dt) {
                 Ok(stats) => stats,

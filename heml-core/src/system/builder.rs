@@ -504,6 +504,7 @@ impl SystemBuilder {
                 revision: 0,
                 cut: Default::default(),
                 surface_loads: Default::default(),
+                tools: Default::default(),
             },
             state: State {
                 x,

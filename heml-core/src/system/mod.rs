@@ -67,6 +67,7 @@ mod adaptive;
 mod builder;
 mod clock;
 mod constraints;
+pub mod contact;
 pub mod control;
 pub mod cut;
 mod energy;
@@ -478,6 +479,15 @@ impl System {
         }
         self.add_control_forces();
         self.model.surface_loads.add_forces(&self.state.x, &mut self.eval.force);
+        // tool contact on the current boundary surface (records each tool's wrench)
+        let moving = self.state.in_step.map(|(_, dt)| (self.state.step, dt));
+        self.model.tools.add_forces(
+            self.model.surface.nodes(),
+            &self.state.x,
+            &self.state.v,
+            moving,
+            &mut self.eval.force,
+        );
         if self.model.damping.alpha > 0.0 {
             for ((f, m), v) in self.eval.force.iter_mut().zip(&self.model.mass).zip(&self.state.v) {
                 *f -= v * (self.model.damping.alpha * m);
@@ -684,7 +694,8 @@ impl System {
             .iter()
             .map(|(i, f)| f.dot(&(self.state.x[*i] - rest[*i])))
             .sum::<f64>();
-        let loads = loads + self.model.grasps.energy(&self.state.x) + self.model.surface_loads.energy(&self.state.x, rest);
+        let loads =
+            loads + self.model.grasps.energy(&self.state.x) + self.model.surface_loads.energy(&self.state.x, rest);
         Ok(Energies::new(kinetic, self.elastic_energy()?, gravity, loads))
     }
 

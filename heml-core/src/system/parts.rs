@@ -52,6 +52,8 @@ pub(crate) struct Model {
     pub(crate) cut: super::cut::CutState,
     /// Pressure and traction on boundary faces.
     pub(crate) surface_loads: super::surface_load::SurfaceLoads,
+    /// Rigid tools in contact with `surface` (control: poses set between steps).
+    pub(crate) tools: super::contact::ToolSet,
 }
 
 /// Where the body is: positions, velocities, time, step count, and the step in

@@ -391,7 +391,8 @@ impl System {
 
     /// Surface load `id`.
     pub fn surface_load(&self, id: usize) -> Result<&FaceLoad> {
-        self.model.surface_loads
+        self.model
+            .surface_loads
             .loads
             .get(id)
             .and_then(Option::as_ref)

@@ -36,7 +36,12 @@ impl System {
                 region_of[t] = r as u32;
             }
         }
-        let topo = Topology::new(self.model.mesh.tets(), self.model.mesh.n_nodes(), region_of, &self.model.surface);
+        let topo = Topology::new(
+            self.model.mesh.tets(),
+            self.model.mesh.n_nodes(),
+            region_of,
+            &self.model.surface,
+        );
         for r in &mut self.model.regions {
             // builds the field's id index (a field that cannot remove tets says so
             // when a cut reaches it)
@@ -55,7 +60,11 @@ impl System {
 
     /// Number of tets still in the system.
     pub fn n_tets_alive(&self) -> usize {
-        self.model.cut.topo.as_ref().map_or(self.model.mesh.n_tets(), |t| t.n_alive)
+        self.model
+            .cut
+            .topo
+            .as_ref()
+            .map_or(self.model.mesh.n_tets(), |t| t.n_alive)
     }
 
     /// The ids of the tets still in the system, ascending (all of the mesh's until a
@@ -241,7 +250,9 @@ impl System {
             self.drop_node(i);
         }
         if !orphaned.is_empty() {
-            self.model.constrained_ids.retain(|i| orphaned.binary_search(i).is_err());
+            self.model
+                .constrained_ids
+                .retain(|i| orphaned.binary_search(i).is_err());
             self.model.nodal.retain(|(i, _)| orphaned.binary_search(i).is_err());
         }
         for (r, nodes, f) in &shares {

@@ -1,5 +1,5 @@
 //! The tangent linear solve both Newton problems share when no direct factorisation
-//! is used: (c_k K + c_m M + K_g) dx = rhs over the free coordinates of a [`DofMap`], by
+//! is used: (c_k K + c_m M + K_g + K_contact) dx = rhs over the free coordinates of a [`DofMap`], by
 //! conjugate gradients with a block-Jacobi preconditioner, K the matrix-free
 //! generated tangent of every region and K_g the diagonal of the grasp springs and
 //! dampers.
@@ -19,7 +19,8 @@ pub(in crate::system) struct TangentSolve {
     /// Mass coefficient c_m (0 for a static solve).
     pub cm: f64,
     /// Velocity coefficient c_v of the step (v⁺ = v + c_v d; 0 for a static solve):
-    /// the grasp dampers c add c·c_v to the diagonal, the springs k.
+    /// the grasp dampers c add c·c_v to the diagonal, the springs k; the tool
+    /// contacts' damping enters the operator as c·c_v.
     pub cv: f64,
     /// CG relative tolerance.
     pub tol: f64,
@@ -90,6 +91,7 @@ impl TangentSolve {
                 *b += Matrix3::identity() * *d;
             }
         }
+        sys.model.tools.add_diagonal_blocks(self.cv, &mut blocks);
         preconditioner(&mut blocks, |i, a| dofs.get(i, a).is_some());
         let mut px = vec![Vec3::zeros(); n];
         let mut kp = vec![Vec3::zeros(); n];
@@ -111,6 +113,7 @@ impl TangentSolve {
                     *k += p * *d;
                 }
             }
+            sys.model.tools.add_product(self.cv, &px, &mut kp);
             out.copy_from_slice(&dofs.gather(&kp));
         };
         let precond = |r: &[f64], out: &mut [f64]| {

@@ -8,8 +8,11 @@
 //! elastic), gravity, loads and Rayleigh damping −αMv − βKv — and the tangent
 //! −∂r/∂x⁺ = (1 + β c_v) K + (c_a + α c_v) M + (k + c c_v) I on grasped nodes, with K
 //! the elastic stiffness of [`crate::force::tangent`] and k, c the grasp springs and
-//! dampers (so that a stiff grasp does not stall the Newton iteration). The line-search merit is the incremental potential
-//! W(x⁺) + gravity and load potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
+//! dampers (so that a stiff grasp does not stall the Newton iteration), plus the tool
+//! contacts' (k + c c_v) n nᵀ on every penetrating surface node (`system::contact`:
+//! their forces depend on x⁺ and v⁺, and the residual includes them). The line-search
+//! merit is the incremental potential W(x⁺) + gravity, load, grasp and contact
+//! potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
 //! without damping (with damping, a decreasing residual norm is accepted too).
 
 use super::linear::TangentSolve;
@@ -175,6 +178,6 @@ impl NewtonProblem for ImplicitStep<'_> {
                 0.5 * sys.model.mass[i] * a.norm_squared() / self.ca
             })
             .sum();
-        Ok(e.elastic + e.gravity + e.loads + inertia)
+        Ok(e.elastic + e.gravity + e.loads + sys.model.tools.energy() + inertia)
     }
 }

@@ -78,6 +78,7 @@ impl NewtonProblem for Equilibrium<'_> {
                         }
                     }
                 }
+                add_contact_stiffness(sys, dofs, &mut k);
                 if !k.factor() {
                     return Ok(false);
                 }
@@ -107,7 +108,23 @@ impl NewtonProblem for Equilibrium<'_> {
 
     fn merit(&self, sys: &System) -> Result<f64> {
         let e = sys.energies()?;
-        Ok(e.elastic + e.gravity + e.loads)
+        Ok(e.elastic + e.gravity + e.loads + sys.model.tools.energy())
+    }
+}
+
+/// Adds the tool contacts' stiffness k n nᵀ (lower triangle) on the free
+/// coordinates of every penetrating node.
+fn add_contact_stiffness(sys: &System, dofs: &DofMap, k: &mut BandLdl) {
+    for c in sys.model.tools.contacts() {
+        for a in 0..3 {
+            let Some(row) = dofs.get(c.node, a) else { continue };
+            for b in 0..3 {
+                match dofs.get(c.node, b) {
+                    Some(col) if col <= row => k.add(row, col, c.stiffness * c.normal[a] * c.normal[b]),
+                    _ => {}
+                }
+            }
+        }
     }
 }
 
