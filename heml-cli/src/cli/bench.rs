@@ -50,6 +50,15 @@ pub struct BenchArgs {
     /// thread pool is pinned to the k-th CPU this process may use.
     #[arg(long)]
     pub no_pin: bool,
+    /// Instead of the usual table: backward Euler at dt = 10 ms on these meshes
+    /// (liver-like tissue, ν = 0.49) against the best explicit integrator at its stable
+    /// step on the same scene, at 1 and --threads threads.
+    #[arg(long, num_args = 1.., value_name = "MESH")]
+    pub implicit: Vec<PathBuf>,
+    /// Scale of the --implicit meshes to metres (default 1e-3: millimetre files, as
+    /// the generated organ meshes).
+    #[arg(long, default_value_t = 1e-3)]
+    pub implicit_scale: f64,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -200,6 +209,9 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         Placement::Pinned => "pinned to CPUs",
         Placement::Os => "placed by the OS",
     };
+    if !args.implicit.is_empty() {
+        return super::bench_implicit::run(&args.implicit, args.implicit_scale, threads, placement);
+    }
     if args.scaling {
         outln!(
             "law: {}   SIMD: {}   workers {workers}   (--mesh, --tets and --shuffle do not apply)",

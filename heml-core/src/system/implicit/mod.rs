@@ -17,9 +17,12 @@
 
 pub mod cg;
 pub(super) mod linear;
+mod matrix;
 mod problem;
 mod settings;
 mod solver;
+mod timings;
 
-pub use settings::{CgFailure, ImplicitScheme, ImplicitSettings};
+pub use settings::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings};
 pub use solver::ImplicitSolver;
+pub use timings::PhaseTimes;

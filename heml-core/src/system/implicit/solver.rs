@@ -1,8 +1,10 @@
 //! [`ImplicitSolver`]: the state an implicit integrator keeps between steps (tangent
 //! operators, numbering of the unknowns, Newmark's acceleration) and its step.
 
+use super::linear::SolveCache;
 use super::problem::ImplicitStep;
 use super::settings::{ImplicitScheme, ImplicitSettings};
+use super::timings::PhaseTimes;
 use crate::error::{HemlError, Result};
 use crate::force::TangentOperator;
 use crate::system::statics::dofs::DofMap;
@@ -33,6 +35,12 @@ pub struct ImplicitSolver {
     /// (step count, time).
     accel: Vec<Vec3>,
     accel_at: Option<(u64, f64)>,
+    /// The assembled system matrix and the phase times of the current step.
+    cache: SolveCache,
+    /// The last step's first Newton correction (CG's warm start), by degree of freedom.
+    last_dx: Option<Vec<f64>>,
+    /// Phase times of the last step.
+    times: PhaseTimes,
 }
 
 impl std::fmt::Debug for ImplicitSolver {
@@ -55,7 +63,15 @@ impl ImplicitSolver {
             dofs: None,
             accel: Vec::new(),
             accel_at: None,
+            cache: SolveCache::default(),
+            last_dx: None,
+            times: PhaseTimes::default(),
         }
+    }
+
+    /// Where the time of the last step went (wall clock; zero before the first step).
+    pub fn last_phase_times(&self) -> PhaseTimes {
+        self.times
     }
 
     /// The scheme.
@@ -106,6 +122,8 @@ impl ImplicitSolver {
         self.dofs = Some(DofMap::new(&held, sys.mesh.tets()));
         self.tangents = tangents;
         self.shape = Some(shape);
+        self.cache.invalidate();
+        self.last_dx = None;
         Ok(())
     }
 
@@ -122,12 +140,15 @@ impl ImplicitSolver {
             Err(e) => {
                 sys.rollback();
                 self.accel_at = None;
+                self.last_dx = None;
                 Err(e)
             }
         }
     }
 
     fn step_inner(&mut self, sys: &mut System, h: f64) -> Result<StepStats> {
+        let start = std::time::Instant::now();
+        self.cache.times = PhaseTimes::default();
         self.prepare(sys)?;
         let n = sys.x.len();
         let (ca, cv) = match self.scheme {
@@ -173,6 +194,10 @@ impl ImplicitSolver {
         let mut problem = ImplicitStep {
             settings: &settings,
             tangents: &mut self.tangents,
+            cache: &mut self.cache,
+            guess: if settings.warm_start { self.last_dx.take() } else { None },
+            first_dx: None,
+            merit_time: std::cell::Cell::new(0.0),
             x0: &x0,
             v0: &v0,
             a0: &a0,
@@ -196,6 +221,8 @@ impl ImplicitSolver {
         }
         let newton_iterations = outcome.map_or(settings.newton_iterations, |o| o.iterations);
         let cg_iterations = problem.cg_iterations;
+        self.last_dx = problem.first_dx.take();
+        let merit_time = problem.merit_time.get();
         if self.scheme == ImplicitScheme::Newmark {
             self.accel = problem.accelerations(sys);
         }
@@ -206,6 +233,11 @@ impl ImplicitSolver {
         stats.newton_iterations = newton_iterations;
         stats.cg_iterations = cg_iterations;
         self.accel_at = Some((sys.step, sys.t));
+        self.times = PhaseTimes {
+            forces: self.cache.times.forces + merit_time,
+            total: start.elapsed().as_secs_f64(),
+            ..self.cache.times
+        };
         Ok(stats)
     }
 }
