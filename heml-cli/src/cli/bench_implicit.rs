@@ -16,8 +16,8 @@ use std::time::Instant;
 
 /// Implicit step size.
 const DT: f64 = 0.01;
-/// Timed implicit steps per case (0.2 s simulated).
-const IMPLICIT_STEPS: usize = 20;
+/// Timed implicit steps per case (0.12 s simulated).
+const IMPLICIT_STEPS: usize = 12;
 /// Timed explicit steps per case.
 const EXPLICIT_STEPS: usize = 50;
 

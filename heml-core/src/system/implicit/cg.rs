@@ -1,5 +1,5 @@
-//! Preconditioned conjugate gradients, matrix-free: the linear solver of the
-//! implicit integrators' Newton iterations.
+//! Preconditioned conjugate gradients, given the operator and preconditioner as
+//! products: the linear solver of the implicit integrators' Newton iterations.
 
 /// What a conjugate-gradient solve reached.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -22,8 +22,8 @@ struct Shape {
 }
 
 /// An implicit time stepper: backward Euler or Newmark on the shared Newton core
-/// (`statics::newton`, the static solver's) with matrix-free preconditioned
-/// conjugate gradients on the generated tangent. The integrators `backward_euler`
+/// (`statics::newton`, the static solver's) with preconditioned conjugate gradients
+/// on the assembled generated tangent. The integrators `backward_euler`
 /// and `newmark` of `heml-integrators` wrap it.
 pub struct ImplicitSolver {
     scheme: ImplicitScheme,
