@@ -26,7 +26,7 @@ fn scene(mesh: &TetMesh) -> heml::Result<System> {
     let (lo, hi) = mesh.bounding_box();
     let cut = lo.x + 0.1 * (hi.x - lo.x);
     heml::system(mesh.clone())
-        .material("neo_hookean", &Params::from([("E", 3e3), ("nu", 0.49)]))?
+        .material("neo_hookean", Params::from([("E", 3e3), ("nu", 0.49)]))?
         .density(1000.0)
         .gravity(Vec3::new(0.0, 0.0, -9.81))
         .fix_where(move |p| p.x < cut)

@@ -22,7 +22,7 @@ enum Linear {
     Banded(Stiffness),
     /// Preconditioned conjugate gradients on the assembled generated tangent
     /// (projected to positive semi-definite per tet).
-    Cg(Vec<Box<dyn TangentOperator>>, SolveCache),
+    Cg(Vec<Box<dyn TangentOperator>>, Box<SolveCache>),
 }
 
 /// CG relative tolerance of the static Newton steps: an inexact Newton step whose
@@ -140,7 +140,7 @@ impl System {
                         None => return Ok(None),
                     }
                 }
-                Linear::Cg(tangents, SolveCache::default())
+                Linear::Cg(tangents, Box::default())
             }
         };
         self.v.fill(Vec3::zeros());
