@@ -91,25 +91,18 @@ impl TangentSolve {
                 x.iter_mut().zip(&g).for_each(|(x, g)| *x = alpha * g);
             }
         }
-        let apply = |p: &[f64], out: &mut [f64]| matrix.apply(p, out);
-        let report = match self.preconditioner {
-            CgPreconditioner::BlockJacobi => pcg(
-                apply,
-                |r, out| matrix.block_jacobi(r, out),
-                &b,
-                &mut x,
-                self.tol,
-                self.max_iterations,
-            ),
-            CgPreconditioner::SymmetricGaussSeidel => pcg(
-                apply,
-                |r, out| matrix.symmetric_gauss_seidel(r, out),
-                &b,
-                &mut x,
-                self.tol,
-                self.max_iterations,
-            ),
+        let precond: fn(&BlockMatrix, &[f64], &mut [f64]) = match self.preconditioner {
+            CgPreconditioner::BlockJacobi => BlockMatrix::block_jacobi,
+            CgPreconditioner::SymmetricGaussSeidel => BlockMatrix::symmetric_gauss_seidel,
         };
+        let report = pcg(
+            |p, out| matrix.apply(p, out),
+            |r, out| precond(matrix, r, out),
+            &b,
+            &mut x,
+            self.tol,
+            self.max_iterations,
+        );
         dofs.gather_flat(&x, rhs);
         let t3 = Instant::now();
         cache.times.tangent += (t1 - t0).as_secs_f64();
