@@ -11,9 +11,9 @@ const BE_DOC: &str = "Backward (implicit) Euler: M(v⁺ − v)/h = f(x + h v⁺,
 
 First order, unconditionally stable and numerically dissipative: steps of 1–40 ms on
 stiff, nearly incompressible tissue where explicit schemes need microseconds. Per step,
-Newton iterations (default 1) with a matrix-free block-Jacobi preconditioned conjugate
-gradient on the exact generated tangent, each tet's stiffness projected to positive
-semi-definite. Not bound by the explicit stable step.";
+Newton iterations (default 1) with a symmetric Gauss–Seidel preconditioned conjugate
+gradient on the assembled exact generated tangent, each tet's stiffness projected to
+positive semi-definite. Not bound by the explicit stable step.";
 
 const NEWMARK_DOC: &str = "Newmark average acceleration (β = 1/4, γ = 1/2), Newton/CG.
 

@@ -8,7 +8,7 @@
 use heml::integrators::{BackwardEuler, Newmark};
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
-use heml::system::{ImplicitSettings, StaticOptions, System, SystemBuilder, TimeStepPolicy};
+use heml::system::{CgPreconditioner, ImplicitSettings, StaticOptions, System, SystemBuilder, TimeStepPolicy};
 use std::path::Path;
 
 fn link() {
@@ -232,6 +232,94 @@ fn cg_that_misses_its_tolerance_warns_or_refuses() {
     assert!(e.contains("step 2") && e.contains("relative residual"), "{e}");
     assert_eq!(sys.positions(), &x[..], "a refused step keeps the state");
     assert_eq!(sys.step_count(), 1);
+}
+
+/// A backward-Euler step gives the same bits on 1 and 2 threads: the tangent update,
+/// the assembly (per row, fixed order), the products and the preconditioner never
+/// depend on how rayon splits the work. Five steps from rest of the soft block (378
+/// nodes, 1440 tets: several parallel chunks of every loop).
+#[test]
+fn backward_euler_is_bitwise_deterministic_across_thread_counts() {
+    link();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let mut sys = soft_block().build().unwrap();
+            let mut be = BackwardEuler::default();
+            let mut cg = Vec::new();
+            for _ in 0..5 {
+                cg.push(be.step(&mut sys, 0.01).unwrap().cg_iterations);
+            }
+            (sys.positions().to_vec(), sys.velocities().to_vec(), cg)
+        })
+    };
+    let (x1, v1, cg1) = run(1);
+    let (x2, v2, cg2) = run(2);
+    assert_eq!(cg1, cg2);
+    assert!(cg1.iter().all(|&c| c > 0), "{cg1:?}");
+    let bits = |v: &[Vec3]| v.iter().flat_map(|p| p.iter().map(|c| c.to_bits())).collect::<Vec<_>>();
+    assert!(bits(&x1) == bits(&x2), "positions differ between 1 and 2 threads");
+    assert!(bits(&v1) == bits(&v2), "velocities differ between 1 and 2 threads");
+}
+
+/// Both preconditioners solve the same linear systems: one step from rest at a tight
+/// CG tolerance (1e-10) lands on the same positions. Bound: each solve's error is
+/// ≤ κ·1e-10 of the correction with κ ≲ 1e4 for this block, so 1e-5 of the largest
+/// displacement separates agreement from a wrong preconditioner (which would stop
+/// CG at a different point, or not converge: an O(1) difference).
+#[test]
+fn block_jacobi_and_gauss_seidel_reach_the_same_step() {
+    link();
+    let step = |preconditioner: CgPreconditioner| {
+        let mut sys = soft_block().build().unwrap();
+        let mut be = BackwardEuler::with_settings(ImplicitSettings {
+            cg_tolerance: 1e-10,
+            preconditioner,
+            ..ImplicitSettings::default()
+        });
+        let stats = be.step(&mut sys, 0.01).unwrap();
+        assert!(sys.warnings().is_empty(), "{:?}", sys.warnings());
+        (sys.displacements(), stats.cg_iterations)
+    };
+    let (uj, itj) = step(CgPreconditioner::BlockJacobi);
+    let (ug, itg) = step(CgPreconditioner::SymmetricGaussSeidel);
+    let err = relative_error(&ug, &uj);
+    assert!(err < 1e-5, "relative difference {err:e}");
+    // the stronger preconditioner needs fewer iterations
+    assert!(itg < itj, "Gauss–Seidel {itg} vs block-Jacobi {itj} iterations");
+}
+
+/// The interactive preset (CG capped at 30 iterations to 1e-3, warm-started) keeps
+/// every step within its budget, stays bounded and still settles on the static
+/// solution: each step's residual is the exact one, so the iteration's fixed point is
+/// the equilibrium. Bounds as for `backward_euler_settles_on_the_static_solution`.
+#[test]
+fn interactive_preset_settles_on_the_static_solution() {
+    link();
+    let mut stat = soft_block().build().unwrap();
+    stat.solve_static(&StaticOptions {
+        tol: 1e-8,
+        ..StaticOptions::default()
+    })
+    .unwrap();
+    let u_static = stat.displacements();
+    let sag = u_static.iter().map(|u| u.norm()).fold(0.0, f64::max);
+    let mut sys = soft_block().build().unwrap();
+    let mut be = BackwardEuler::with_settings(ImplicitSettings::interactive());
+    let mut max_u = 0.0f64;
+    for _ in 0..300 {
+        let stats = be.step(&mut sys, 0.01).unwrap();
+        assert!(stats.cg_iterations <= 30, "{stats:?}");
+        max_u = sys.displacements().iter().map(|u| u.norm()).fold(max_u, f64::max);
+    }
+    assert!(
+        sys.warnings().is_empty(),
+        "capped solves continue silently: {:?}",
+        sys.warnings()
+    );
+    assert!(max_u < 2.0 * sag, "bounded: max |u| = {max_u} vs static {sag}");
+    let err = relative_error(&sys.displacements(), &u_static);
+    assert!(err < 1e-3, "relative displacement error {err:e}");
 }
 
 /// The 20k-tet kidney of `../shared` (searched upwards from this crate: worktrees sit

@@ -57,6 +57,15 @@ pub struct BenchArgs {
     /// compute time and period p50/p99/max.
     #[arg(long)]
     pub haptic: bool,
+    /// Instead of the usual table: backward Euler at dt = 10 ms on these meshes
+    /// (liver-like tissue, ν = 0.49) against the best explicit integrator at its stable
+    /// step on the same scene, at 1 and --threads threads.
+    #[arg(long, num_args = 1.., value_name = "MESH")]
+    pub implicit: Vec<PathBuf>,
+    /// Scale of the --implicit meshes to metres (default 1e-3: millimetre files, as
+    /// the generated organ meshes).
+    #[arg(long, default_value_t = 1e-3)]
+    pub implicit_scale: f64,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -209,6 +218,9 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     };
     if args.haptic {
         return super::haptic::run(args.mesh.as_ref(), &pool(threads)?, threads);
+    }
+    if !args.implicit.is_empty() {
+        return super::bench_implicit::run(&args.implicit, args.implicit_scale, threads, placement);
     }
     if args.scaling {
         outln!(

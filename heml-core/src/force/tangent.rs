@@ -20,11 +20,13 @@
 //! **Definiteness.** The exact K is indefinite for compressed or inverted tets (and
 //! for link springs under compression), which a conjugate-gradient solve cannot
 //! accept. With `project_psd` each tet's 12×12 matrix is replaced by its projection
-//! onto the positive semi-definite cone (symmetric eigen-decomposition, negative
-//! eigenvalues clamped to 0). The projected matrix keeps the six rigid-body null
-//! modes (they are eigenvectors of eigenvalue 0) and equals K wherever K is already
-//! semi-definite, e.g. near the rest state; it costs one 12×12 eigen-decomposition
-//! per tet and update. The implicit integrators project by default.
+//! onto the positive semi-definite cone in the translation-free coordinates (the
+//! 9×9 Hessian in the edge vectors from node 0, symmetric eigen-decomposition,
+//! negative eigenvalues clamped to 0; see [`project_psd`]). The projected matrix
+//! keeps the translations as null modes (and the rotations at rest) and equals K
+//! wherever K is already semi-definite, e.g. near the rest state; it costs one 9×9
+//! eigen-decomposition per indefinite tet and update. The implicit integrators
+//! project by default.
 //!
 //! The per-tet matrices are computed once per [`TangentOperator::update`] (in
 //! parallel) and stored (144 numbers per tet); the product y += K·dx gathers, per
@@ -260,26 +262,49 @@ impl<M: LinkLaw> TetHessian for LinkHessian<M> {
     }
 }
 
-/// Projects a symmetric matrix onto the positive semi-definite cone (negative
-/// eigenvalues clamped to 0).
+/// Projects a tet stiffness to positive semi-definite in the translation-free
+/// coordinates: the stiffness of any law is invariant under translations, so
+/// K = Bᵀ K₉ B exactly, with B: x ↦ (x_1 − x_0, x_2 − x_0, x_3 − x_0) and K₉ the
+/// lower-right 9×9 block of K (the Hessian in the edge vectors from node 0); the
+/// result is Bᵀ (K₉)₊ B, (K₉)₊ the eigen-projection (negative eigenvalues clamped
+/// to 0). It is semi-definite, keeps the translations as null modes, and equals K
+/// exactly when K is already semi-definite (K is semi-definite iff K₉ is); a 9×9
+/// eigen-decomposition costs about 0.4 of a 12×12 one.
 ///
-/// Most tets of a simulation are semi-definite already: a Cholesky factorisation of
-/// K + εI (ε = 1e-12 × the largest diagonal entry, far above the round-off of the
-/// rigid-body zero eigenvalues) detects them at ~1/50 of the cost of the eigen-
-/// decomposition, and they are returned unchanged (eigenvalues ≥ −ε are kept).
+/// Most tets of a simulation near rest are semi-definite already: a Cholesky
+/// factorisation of K₉ + εI (ε = 1e-12 × the largest diagonal entry, far above the
+/// round-off of the rotational zero eigenvalues at rest) detects them at a small
+/// fraction of the cost of the eigen-decomposition, and they are returned unchanged.
 pub fn project_psd(k: &TetStiffness) -> TetStiffness {
     let sym = (k + k.transpose()) * 0.5;
-    let shift = 1e-12 * sym.diagonal().amax();
-    if (sym + TetStiffness::identity() * shift).cholesky().is_some() {
+    let k9: SMatrix<f64, 9, 9> = sym.fixed_view::<9, 9>(3, 3).into_owned();
+    let shift = 1e-12 * k9.diagonal().amax();
+    if (k9 + SMatrix::<f64, 9, 9>::identity() * shift).cholesky().is_some() {
         return sym;
     }
-    let eig = SymmetricEigen::new(sym);
+    let eig = SymmetricEigen::new(k9);
     if eig.eigenvalues.iter().all(|&e| e >= 0.0) {
         return sym;
     }
     let d = eig.eigenvalues.map(|e| e.max(0.0));
     let q = &eig.eigenvectors;
-    q * TetStiffness::from_diagonal(&d) * q.transpose()
+    let p9 = q * SMatrix::<f64, 9, 9>::from_diagonal(&d) * q.transpose();
+    // K = Bᵀ P₉ B: rows/columns of node 0 are minus the sums over nodes 1..3
+    let mut out = TetStiffness::zeros();
+    out.fixed_view_mut::<9, 9>(3, 3).copy_from(&p9);
+    for c in 3..12 {
+        for r in 0..3 {
+            let v = -(p9[(r, c - 3)] + p9[(r + 3, c - 3)] + p9[(r + 6, c - 3)]);
+            out[(r, c)] = v;
+            out[(c, r)] = v;
+        }
+    }
+    for r in 0..3 {
+        for c in 0..3 {
+            out[(r, c)] = -(out[(r, 3 + c)] + out[(r, 6 + c)] + out[(r, 9 + c)]);
+        }
+    }
+    out
 }
 
 /// The tangent operator of a law over (a region of) a mesh: per-tet stiffness

@@ -87,7 +87,7 @@ pub use adaptive::{AdaptiveStep, DeformedEstimate, DtReason, DEFAULT_ADAPT_EVERY
 pub use builder::SystemBuilder;
 pub use constraints::{Constraints, Prescribed, Ramp};
 pub use energy::{Energies, StepStats};
-pub use implicit::{CgFailure, ImplicitScheme, ImplicitSettings, ImplicitSolver};
+pub use implicit::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings, ImplicitSolver, PhaseTimes};
 pub use integrator::{find_integrator, integrators, Integrator, IntegratorEntry};
 pub use prony::{relaxation, validate_prony, PronyTerm};
 pub use stability::{

@@ -193,11 +193,5 @@ impl ToolSet {
             blocks[c.node] += c.normal * c.normal.transpose() * (c.stiffness + c.damping * cv);
         }
     }
-
-    /// out += (k + c·c_v)·n (n·p) on every active contact node.
-    pub(crate) fn add_product(&self, cv: f64, p: &[Vec3], out: &mut [Vec3]) {
-        for c in &self.contacts {
-            out[c.node] += c.normal * ((c.stiffness + c.damping * cv) * c.normal.dot(&p[c.node]));
-        }
     }
 }

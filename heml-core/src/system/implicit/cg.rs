@@ -1,5 +1,5 @@
-//! Preconditioned conjugate gradients, matrix-free: the linear solver of the
-//! implicit integrators' Newton iterations.
+//! Preconditioned conjugate gradients, given the operator and preconditioner as
+//! products: the linear solver of the implicit integrators' Newton iterations.
 
 /// What a conjugate-gradient solve reached.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -15,7 +15,8 @@ pub struct CgReport {
     pub breakdown: bool,
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+/// The dot product of two vectors (sequential: the same bits for any thread count).
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 

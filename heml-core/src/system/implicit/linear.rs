@@ -1,16 +1,19 @@
 //! The tangent linear solve both Newton problems share when no direct factorisation
-//! is used: (c_k K + c_m M + K_g + K_contact) dx = rhs over the free coordinates of a [`DofMap`], by
-//! conjugate gradients with a block-Jacobi preconditioner, K the matrix-free
-//! generated tangent of every region and K_g the diagonal of the grasp springs and
-//! dampers.
+//! is used: (c_k K + c_m M + K_g + K_contact) dx = rhs over the free coordinates of a
+//! [`DofMap`], by preconditioned conjugate gradients on the system matrix assembled in
+//! 3×3 blocks ([`BlockMatrix`]) from the generated per-tet tangents, K_g the diagonal
+//! of the grasp springs and dampers and K_contact the tool contacts' n nᵀ blocks.
 
-use super::cg::{pcg, CgReport};
+use nalgebra::Matrix3;
+use super::cg::{dot, pcg, CgReport};
+use super::matrix::BlockMatrix;
+use super::settings::CgPreconditioner;
+use super::timings::PhaseTimes;
 use crate::error::Result;
 use crate::force::TangentOperator;
 use crate::system::statics::dofs::DofMap;
 use crate::system::System;
-use crate::Vec3;
-use nalgebra::Matrix3;
+use std::time::Instant;
 
 /// Coefficients and stopping rule of one tangent solve.
 pub(in crate::system) struct TangentSolve {
@@ -26,110 +29,106 @@ pub(in crate::system) struct TangentSolve {
     pub tol: f64,
     /// CG iteration cap.
     pub max_iterations: usize,
+    /// CG preconditioner.
+    pub preconditioner: CgPreconditioner,
 }
 
-/// The per-node inverse of the system matrix's 3×3 diagonal block restricted to the
-/// node's free coordinates (zero rows and columns on held ones); a block that cannot
-/// be inverted falls back to the inverse of its diagonal (or 1 on a zero one).
-fn preconditioner(blocks: &mut [Matrix3<f64>], free: impl Fn(usize, usize) -> bool) {
-    for (i, b) in blocks.iter_mut().enumerate() {
-        let f = [free(i, 0), free(i, 1), free(i, 2)];
-        let all = f.iter().all(|&x| x);
-        let inv = if all { b.try_inverse() } else { None };
-        *b = inv.unwrap_or_else(|| {
-            Matrix3::from_fn(|r, c| {
-                if r == c && f[r] {
-                    let d = b[(r, r)];
-                    if d > 0.0 {
-                        1.0 / d
-                    } else {
-                        1.0
-                    }
-                } else {
-                    0.0
-                }
-            })
-        });
-        if !all {
-            for r in 0..3 {
-                for c in 0..3 {
-                    if !(f[r] && f[c]) {
-                        b[(r, c)] = 0.0;
-                    }
-                }
-            }
-        }
+/// What a tangent solve keeps between calls: the assembled matrix (its pattern is
+/// built once per set of operators) and the wall-clock time of its phases.
+#[derive(Debug, Default)]
+pub(in crate::system) struct SolveCache {
+    matrix: Option<BlockMatrix>,
+    /// Phase times accumulated since the owner last reset them.
+    pub times: PhaseTimes,
+}
+
+impl SolveCache {
+    /// Forgets the assembled matrix (e.g. after the mesh lost tets).
+    pub(in crate::system) fn invalidate(&mut self) {
+        self.matrix = None;
     }
 }
 
 impl TangentSolve {
-    /// Updates `tangents` at the system's positions and solves for `rhs` (by degree
-    /// of freedom) in place.
+    /// Updates `tangents` at the system's positions, assembles the system matrix and
+    /// solves for `rhs` (by degree of freedom) in place, starting CG from `guess`
+    /// (by degree of freedom; zero when `None`).
     pub(in crate::system) fn solve(
         &self,
         sys: &System,
         tangents: &mut [Box<dyn TangentOperator>],
+        cache: &mut SolveCache,
         dofs: &DofMap,
         rhs: &mut [f64],
+        guess: Option<&[f64]>,
     ) -> Result<CgReport> {
+        let n = sys.state.x.len();
+        let t0 = Instant::now();
         for t in tangents.iter_mut() {
             t.update(&sys.state.x)?;
         }
-        let n = sys.state.x.len();
-        let (ck, cm) = (self.ck, self.cm);
-        let mut blocks = vec![Matrix3::zeros(); n];
-        for t in tangents.iter() {
-            t.add_diagonal_blocks(&mut blocks)?;
-        }
-        for (b, m) in blocks.iter_mut().zip(&sys.model.mass) {
-            *b = *b * ck + Matrix3::identity() * (cm * m);
-        }
-        // grasp springs and dampers: (k + c c_v) I on their nodes
-        let grasps = sys.model.grasps.diagonal(n, self.cv);
-        if let Some(g) = &grasps {
-            for (b, d) in blocks.iter_mut().zip(g) {
-                *b += Matrix3::identity() * *d;
-            }
-        }
-        sys.model.tools.add_diagonal_blocks(self.cv, &mut blocks);
-        preconditioner(&mut blocks, |i, a| dofs.get(i, a).is_some());
-        let mut px = vec![Vec3::zeros(); n];
-        let mut kp = vec![Vec3::zeros(); n];
-        let mut failure = None;
+        let t1 = Instant::now();
         let tangents = &*tangents;
-        let apply = |p: &[f64], out: &mut [f64]| {
-            dofs.scatter(p, &mut px);
-            kp.fill(Vec3::zeros());
-            for t in tangents {
-                if let Err(e) = t.add_product(&px, &mut kp) {
-                    failure = Some(e);
-                }
-            }
-            for ((k, p), m) in kp.iter_mut().zip(&px).zip(&sys.model.mass) {
-                *k = *k * ck + p * (cm * m);
-            }
-            if let Some(g) = &grasps {
-                for ((k, p), d) in kp.iter_mut().zip(&px).zip(g) {
-                    *k += p * *d;
-                }
-            }
-            sys.model.tools.add_product(self.cv, &px, &mut kp);
-            out.copy_from_slice(&dofs.gather(&kp));
-        };
-        let precond = |r: &[f64], out: &mut [f64]| {
-            let mut nodal = vec![Vec3::zeros(); n];
-            dofs.scatter(r, &mut nodal);
-            for (v, b) in nodal.iter_mut().zip(&blocks) {
-                *v = b * *v;
-            }
-            out.copy_from_slice(&dofs.gather(&nodal));
-        };
-        let mut x = vec![0.0; rhs.len()];
-        let report = pcg(apply, precond, rhs, &mut x, self.tol, self.max_iterations);
-        if let Some(e) = failure {
-            return Err(e);
+        if !cache.matrix.as_ref().is_some_and(|m| m.fits(n, tangents)) {
+            cache.matrix = Some(BlockMatrix::new(n, sys.model.mesh.tets(), tangents));
         }
-        rhs.copy_from_slice(&x);
+        let matrix = cache.matrix.as_mut().expect("assembled");
+        // grasp springs and dampers ((k + c c_v) I) and tool contacts ((k + c c_v) n nᵀ)
+        // sit on the diagonal blocks of their nodes
+        let grasps = sys.model.grasps.diagonal(n, self.cv);
+        let extra = (grasps.is_some() || !sys.model.tools.contacts().is_empty()).then(|| {
+            let mut blocks = vec![Matrix3::zeros(); n];
+            if let Some(g) = &grasps {
+                for (b, d) in blocks.iter_mut().zip(g) {
+                    *b += Matrix3::identity() * *d;
+                }
+            }
+            sys.model.tools.add_diagonal_blocks(self.cv, &mut blocks);
+            blocks
+        });
+        matrix.fill(tangents, self.ck, self.cm, &sys.model.mass, extra.as_deref(), |i, a| {
+            dofs.get(i, a).is_some()
+        });
+        let matrix = &*matrix;
+        let t2 = Instant::now();
+        // CG on nodal vectors (3 per node, zero on held coordinates)
+        let to_nodal = |v: &[f64]| {
+            let mut out = vec![0.0; 3 * n];
+            dofs.scatter(v, &mut out);
+            out
+        };
+        let b = to_nodal(rhs);
+        let mut x = vec![0.0; 3 * n];
+        if let Some(g) = guess {
+            // the guess scaled to minimise the quadratic model ½xᵀAx − bᵀx along it:
+            // the model then starts below its value at 0, so CG's result stays a
+            // descent direction of the line-search merit, however few iterations
+            let g = to_nodal(g);
+            let mut ag = vec![0.0; 3 * n];
+            matrix.apply(&g, &mut ag);
+            let (bg, gag) = (dot(&b, &g), dot(&g, &ag));
+            if bg > 0.0 && gag > 0.0 && (bg / gag).is_finite() {
+                let alpha = bg / gag;
+                x.iter_mut().zip(&g).for_each(|(x, g)| *x = alpha * g);
+            }
+        }
+        let precond: fn(&BlockMatrix, &[f64], &mut [f64]) = match self.preconditioner {
+            CgPreconditioner::BlockJacobi => BlockMatrix::block_jacobi,
+            CgPreconditioner::SymmetricGaussSeidel => BlockMatrix::symmetric_gauss_seidel,
+        };
+        let report = pcg(
+            |p, out| matrix.apply(p, out),
+            |r, out| precond(matrix, r, out),
+            &b,
+            &mut x,
+            self.tol,
+            self.max_iterations,
+        );
+        dofs.gather_flat(&x, rhs);
+        let t3 = Instant::now();
+        cache.times.tangent += (t1 - t0).as_secs_f64();
+        cache.times.assembly += (t2 - t1).as_secs_f64();
+        cache.times.cg += (t3 - t2).as_secs_f64();
         Ok(report)
     }
 }

@@ -1,25 +1,32 @@
 //! Implicit time integration: backward Euler and Newmark (average acceleration) on
-//! the Newton core the static solver uses, with matrix-free preconditioned conjugate
-//! gradients on the exact tangent stiffness generated from each law's second
-//! derivatives ([`crate::force::tangent`]).
+//! the Newton core the static solver uses, with preconditioned conjugate gradients
+//! on the exact tangent stiffness generated from each law's second derivatives
+//! ([`crate::force::tangent`]).
 //!
 //! Per step, Newton iterations (by default one, as SOFA's EulerImplicit) in the
 //! end-of-step positions solve r(x⁺) = f(x⁺, v⁺) − M a⁺ = 0 (see `problem.rs` for
 //! both schemes' a⁺ and v⁺); each linear system (1 + β c_v) K + (c_a + α c_v) M,
 //! restricted to the free nodes (fixed and prescribed nodes are imposed by the
-//! system and excluded), is solved by conjugate gradients with a 3×3 block-Jacobi
-//! preconditioner. Each tet's stiffness is projected to positive semi-definite by
-//! default ([`ImplicitSettings::project_psd`]), so the system matrix is positive
-//! definite and CG cannot break down; unprojected, an indefinite tangent stops CG
-//! with a warning (or an error, by [`CgFailure`]). A damped Newton line search on
-//! the incremental potential keeps large steps robust. Non-finite states roll back
-//! exactly as for the explicit integrators.
+//! system and excluded), is assembled in 3×3 blocks by node pairs (`matrix.rs`:
+//! pattern built once per mesh, values refilled in parallel, the same bits for any
+//! thread count) and solved by conjugate gradients with a symmetric block
+//! Gauss–Seidel or a 3×3 block-Jacobi preconditioner ([`CgPreconditioner`]),
+//! warm-started from the previous step's correction. Each tet's stiffness is
+//! projected to positive semi-definite by default ([`ImplicitSettings::project_psd`]),
+//! so the system matrix is positive definite and CG cannot break down; unprojected,
+//! an indefinite tangent stops CG with a warning (or an error, by [`CgFailure`]). A
+//! damped Newton line search on the incremental potential keeps large steps robust.
+//! Non-finite states roll back exactly as for the explicit integrators.
+//! [`ImplicitSettings::interactive`] caps the work per step for real-time use.
 
 pub mod cg;
 pub(super) mod linear;
+mod matrix;
 mod problem;
 mod settings;
 mod solver;
+mod timings;
 
-pub use settings::{CgFailure, ImplicitScheme, ImplicitSettings};
+pub use settings::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings};
 pub use solver::ImplicitSolver;
+pub use timings::PhaseTimes;

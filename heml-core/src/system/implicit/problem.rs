@@ -12,10 +12,10 @@
 //! contacts' (k + c c_v) n nᵀ on every penetrating surface node (`system::contact`:
 //! their forces depend on x⁺ and v⁺, and the residual includes them). The line-search
 //! merit is the incremental potential W(x⁺) + gravity, load, grasp and contact
-//! potentials + ½ c_a |d − â/c_a|²_M, whose gradient is −r
-//! without damping (with damping, a decreasing residual norm is accepted too).
+//! potentials + ½ c_a |d − â/c_a|²_M + α/(2 c_v)·|v⁺|²_M, whose gradient is −r with
+//! mass damping (with stiffness damping, a decreasing residual norm is accepted too).
 
-use super::linear::TangentSolve;
+use super::linear::{SolveCache, TangentSolve};
 use super::settings::{CgFailure, ImplicitSettings};
 use crate::error::{HemlError, Result};
 use crate::force::TangentOperator;
@@ -35,6 +35,15 @@ pub(super) struct NewtonOutcome {
 pub(super) struct ImplicitStep<'a> {
     pub settings: &'a ImplicitSettings,
     pub tangents: &'a mut [Box<dyn TangentOperator>],
+    /// The assembled matrix and phase times.
+    pub cache: &'a mut SolveCache,
+    /// CG's starting guess for the step's first Newton correction (by degree of
+    /// freedom), taken (once) by the first solve.
+    pub guess: Option<Vec<f64>>,
+    /// The step's first Newton correction (the next step's guess).
+    pub first_dx: Option<Vec<f64>>,
+    /// Seconds spent in [`NewtonProblem::merit`] (a `&self` method).
+    pub merit_time: std::cell::Cell<f64>,
     /// Positions, velocities and â at the start of the step.
     pub x0: &'a [Vec3],
     pub v0: &'a [Vec3],
@@ -101,18 +110,10 @@ impl NewtonProblem for ImplicitStep<'_> {
     type Report = NewtonOutcome;
 
     fn evaluate(&mut self, sys: &mut System) -> Result<()> {
-        self.set_velocities(sys);
-        sys.invalidate();
-        // no rollback here: a failed line-search trial must leave the step going
-        sys.compute_forces_inner()?;
-        let a = self.accelerations(sys);
-        for (i, r) in self.r.iter_mut().enumerate() {
-            *r = sys.eval.force[i] - a[i] * sys.model.mass[i];
-            if sys.model.inv_mass[i] == 0.0 {
-                *r = Vec3::zeros();
-            }
-        }
-        Ok(())
+        let t0 = std::time::Instant::now();
+        let out = self.evaluate_inner(sys);
+        self.cache.times.forces += t0.elapsed().as_secs_f64();
+        out
     }
 
     fn residual<'s>(&'s self, _: &'s System) -> &'s [Vec3] {
@@ -132,7 +133,8 @@ impl NewtonProblem for ImplicitStep<'_> {
     }
 
     fn solve_linear(&mut self, sys: &System, dofs: &DofMap, rhs: &mut [f64]) -> Result<bool> {
-        if self.r0.is_none() {
+        let first = self.r0.is_none();
+        if first {
             self.r0 = Some(norm(&self.r));
         }
         let (cm, ck) = self.coefficients(sys);
@@ -143,10 +145,15 @@ impl NewtonProblem for ImplicitStep<'_> {
             cv: self.cv,
             tol: s.cg_tolerance,
             max_iterations: s.cg_max_iterations,
+            preconditioner: s.preconditioner,
         };
-        let report = solve.solve(sys, self.tangents, dofs, rhs)?;
+        let guess = self.guess.take().filter(|g| first && g.len() == rhs.len());
+        let report = solve.solve(sys, self.tangents, self.cache, dofs, rhs, guess.as_deref())?;
+        if first {
+            self.first_dx = Some(rhs.to_vec());
+        }
         self.cg_iterations += report.iterations;
-        if !report.converged {
+        if !report.converged && (report.breakdown || s.cg_failure != CgFailure::Continue) {
             let msg = format!(
                 "step {}: conjugate gradients stopped at relative residual {:.2e} after {} iterations \
                  (tolerance {:.1e}, cap {}){}",
@@ -163,21 +170,46 @@ impl NewtonProblem for ImplicitStep<'_> {
             );
             match s.cg_failure {
                 CgFailure::Refuse => return Err(HemlError::Numerical(msg)),
-                CgFailure::Warn => self.warnings.push(msg),
+                CgFailure::Warn | CgFailure::Continue => self.warnings.push(msg),
             }
         }
         Ok(report.iterations > 0 || report.converged)
     }
 
     fn merit(&self, sys: &System) -> Result<f64> {
-        let e = sys.energies()?;
+        let t0 = std::time::Instant::now();
+        let e = sys.energies();
+        self.merit_time.set(self.merit_time.get() + t0.elapsed().as_secs_f64());
+        let e = e?;
+        let alpha = sys.model.damping.alpha;
         let inertia: f64 = (0..sys.state.x.len())
             .filter(|&i| sys.model.inv_mass[i] > 0.0)
             .map(|i| {
-                let a = self.d(sys, i) * self.ca - self.a0[i];
-                0.5 * sys.model.mass[i] * a.norm_squared() / self.ca
+                let d = self.d(sys, i);
+                let a = d * self.ca - self.a0[i];
+                // mass damping −α M v⁺ is the gradient of α/(2 c_v)·|v⁺|²_M too
+                let v = self.v0[i] + d * self.cv;
+                0.5 * sys.model.mass[i] * (a.norm_squared() / self.ca + alpha * v.norm_squared() / self.cv)
             })
             .sum();
         Ok(e.elastic + e.gravity + e.loads + sys.model.tools.energy() + inertia)
+    }
+}
+
+impl ImplicitStep<'_> {
+    /// [`NewtonProblem::evaluate`] without the timing.
+    fn evaluate_inner(&mut self, sys: &mut System) -> Result<()> {
+        self.set_velocities(sys);
+        sys.invalidate();
+        // no rollback here: a failed line-search trial must leave the step going
+        sys.compute_forces_inner()?;
+        let a = self.accelerations(sys);
+        for (i, r) in self.r.iter_mut().enumerate() {
+            *r = sys.eval.force[i] - a[i] * sys.model.mass[i];
+            if sys.model.inv_mass[i] == 0.0 {
+                *r = Vec3::zeros();
+            }
+        }
+        Ok(())
     }
 }

@@ -1,8 +1,10 @@
 //! [`ImplicitSolver`]: the state an implicit integrator keeps between steps (tangent
 //! operators, numbering of the unknowns, Newmark's acceleration) and its step.
 
+use super::linear::SolveCache;
 use super::problem::ImplicitStep;
 use super::settings::{ImplicitScheme, ImplicitSettings};
+use super::timings::PhaseTimes;
 use crate::error::{HemlError, Result};
 use crate::force::TangentOperator;
 use crate::system::statics::dofs::DofMap;
@@ -20,8 +22,8 @@ struct Shape {
 }
 
 /// An implicit time stepper: backward Euler or Newmark on the shared Newton core
-/// (`statics::newton`, the static solver's) with matrix-free preconditioned
-/// conjugate gradients on the generated tangent. The integrators `backward_euler`
+/// (`statics::newton`, the static solver's) with preconditioned conjugate gradients
+/// on the assembled generated tangent. The integrators `backward_euler`
 /// and `newmark` of `heml-integrators` wrap it.
 pub struct ImplicitSolver {
     scheme: ImplicitScheme,
@@ -34,6 +36,12 @@ pub struct ImplicitSolver {
     /// grasps between steps makes it stale).
     accel: Vec<Vec3>,
     accel_at: Option<(u64, f64, u64)>,
+    /// The assembled system matrix and the phase times of the current step.
+    cache: SolveCache,
+    /// The last step's first Newton correction (CG's warm start), by degree of freedom.
+    last_dx: Option<Vec<f64>>,
+    /// Phase times of the last step.
+    times: PhaseTimes,
 }
 
 impl std::fmt::Debug for ImplicitSolver {
@@ -56,7 +64,15 @@ impl ImplicitSolver {
             dofs: None,
             accel: Vec::new(),
             accel_at: None,
+            cache: SolveCache::default(),
+            last_dx: None,
+            times: PhaseTimes::default(),
         }
+    }
+
+    /// Where the time of the last step went (wall clock; zero before the first step).
+    pub fn last_phase_times(&self) -> PhaseTimes {
+        self.times
     }
 
     /// The scheme.
@@ -115,6 +131,8 @@ impl ImplicitSolver {
         self.dofs = Some(DofMap::new(&held, sys.model.mesh.tets()));
         self.tangents = tangents;
         self.shape = Some(shape);
+        self.cache.invalidate();
+        self.last_dx = None;
         Ok(())
     }
 
@@ -131,12 +149,15 @@ impl ImplicitSolver {
             Err(e) => {
                 sys.rollback();
                 self.accel_at = None;
+                self.last_dx = None;
                 Err(e)
             }
         }
     }
 
     fn step_inner(&mut self, sys: &mut System, h: f64) -> Result<StepStats> {
+        let start = std::time::Instant::now();
+        self.cache.times = PhaseTimes::default();
         self.prepare(sys)?;
         let n = sys.state.x.len();
         let (ca, cv) = match self.scheme {
@@ -182,6 +203,10 @@ impl ImplicitSolver {
         let mut problem = ImplicitStep {
             settings: &settings,
             tangents: &mut self.tangents,
+            cache: &mut self.cache,
+            guess: if settings.warm_start { self.last_dx.take() } else { None },
+            first_dx: None,
+            merit_time: std::cell::Cell::new(0.0),
             x0: &x0,
             v0: &v0,
             a0: &a0,
@@ -205,6 +230,8 @@ impl ImplicitSolver {
         }
         let newton_iterations = outcome.map_or(settings.newton_iterations, |o| o.iterations);
         let cg_iterations = problem.cg_iterations;
+        self.last_dx = problem.first_dx.take();
+        let merit_time = problem.merit_time.get();
         if self.scheme == ImplicitScheme::Newmark {
             self.accel = problem.accelerations(sys);
         }
@@ -215,6 +242,11 @@ impl ImplicitSolver {
         stats.newton_iterations = newton_iterations;
         stats.cg_iterations = cg_iterations;
         self.accel_at = Some((sys.state.step, sys.state.t, sys.model.revision));
+        self.times = PhaseTimes {
+            forces: self.cache.times.forces + merit_time,
+            total: start.elapsed().as_secs_f64(),
+            ..self.cache.times
+        };
         Ok(stats)
     }
 }

@@ -75,12 +75,24 @@ impl DofMap {
         out
     }
 
-    /// The nodal vector field with the free components taken from `v` (by degree of
-    /// freedom) and zeros on the held ones: the inverse of [`DofMap::gather`].
-    pub(in crate::system) fn scatter(&self, v: &[f64], out: &mut [Vec3]) {
-        for (o, d) in out.iter_mut().zip(&self.dof) {
+    /// The nodal vector field, flat (3 numbers per node), with the free components
+    /// taken from `v` (by degree of freedom) and zeros on the held ones.
+    pub(in crate::system) fn scatter(&self, v: &[f64], out: &mut [f64]) {
+        for (o, d) in out.chunks_exact_mut(3).zip(&self.dof) {
             for a in 0..3 {
                 o[a] = if d[a] != HELD { v[d[a]] } else { 0.0 };
+            }
+        }
+    }
+
+    /// The free components of a flat nodal field (3 numbers per node) into `out`, by
+    /// degree of freedom: the inverse of [`DofMap::scatter`].
+    pub(in crate::system) fn gather_flat(&self, field: &[f64], out: &mut [f64]) {
+        for (i, d) in self.dof.iter().enumerate() {
+            for a in 0..3 {
+                if d[a] != HELD {
+                    out[d[a]] = field[3 * i + a];
+                }
             }
         }
     }

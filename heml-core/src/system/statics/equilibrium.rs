@@ -11,7 +11,8 @@ use super::options::{Slider, StaticOptions, StaticReport};
 use super::tangent::Stiffness;
 use crate::error::Result;
 use crate::force::TangentOperator;
-use crate::system::implicit::linear::TangentSolve;
+use crate::system::implicit::linear::{SolveCache, TangentSolve};
+use crate::system::implicit::CgPreconditioner;
 use crate::system::System;
 use crate::Vec3;
 
@@ -19,9 +20,9 @@ use crate::Vec3;
 enum Linear {
     /// Banded LDLᵀ of the assembled stiffness (fits in memory).
     Banded(Stiffness),
-    /// Preconditioned conjugate gradients on the matrix-free generated tangent
+    /// Preconditioned conjugate gradients on the assembled generated tangent
     /// (projected to positive semi-definite per tet).
-    Cg(Vec<Box<dyn TangentOperator>>),
+    Cg(Vec<Box<dyn TangentOperator>>, Box<SolveCache>),
 }
 
 /// CG relative tolerance of the static Newton steps: an inexact Newton step whose
@@ -85,15 +86,16 @@ impl NewtonProblem for Equilibrium<'_> {
                 k.solve(rhs);
                 Ok(true)
             }
-            Linear::Cg(tangents) => {
+            Linear::Cg(tangents, cache) => {
                 let solve = TangentSolve {
                     ck: 1.0,
                     cm: 0.0,
                     cv: 0.0,
                     tol: CG_TOL,
                     max_iterations: CG_MAX_ITERATIONS,
+                    preconditioner: CgPreconditioner::SymmetricGaussSeidel,
                 };
-                let report = solve.solve(sys, tangents, dofs, rhs)?;
+                let report = solve.solve(sys, tangents, cache, dofs, rhs, None)?;
                 if self.opts.progress_every > 0 {
                     log::debug!(
                         "quasi-static Newton: CG {} iterations, relative residual {:.1e}",
@@ -167,7 +169,7 @@ impl System {
                         None => return Ok(None),
                     }
                 }
-                Linear::Cg(tangents)
+                Linear::Cg(tangents, Box::default())
             }
         };
         self.state.v.fill(Vec3::zeros());

@@ -1,0 +1,177 @@
+//! `heml bench --implicit MESH…`: backward Euler at dt = 10 ms against the best
+//! explicit integrator at its stable step on the same soft, nearly incompressible
+//! scene, per mesh and thread count, measured in one run.
+//!
+//! The scene is liver-like tissue (neo-Hookean, E = 3 kPa, ν = 0.49, ρ = 1000 kg/m³)
+//! under gravity with mass damping α = 15/s, the 10 % of the organ at smallest x
+//! clamped. Each implicit case starts from rest and takes [`IMPLICIT_STEPS`] steps
+//! (the sag's transient included); medians and ranges are over all of them.
+
+use crate::threads::{thread_pool, Placement};
+use heml::prelude::*;
+use heml::system::{ImplicitScheme, ImplicitSettings, ImplicitSolver, PhaseTimes, System};
+use heml_validation::fixtures::renumbered_at_load;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Implicit step size.
+const DT: f64 = 0.01;
+/// Timed implicit steps per case (0.12 s simulated).
+const IMPLICIT_STEPS: usize = 12;
+/// Timed explicit steps per case.
+const EXPLICIT_STEPS: usize = 50;
+
+/// The liver-like scene on `mesh` (metres).
+fn scene(mesh: &TetMesh) -> heml::Result<System> {
+    let (lo, hi) = mesh.bounding_box();
+    let cut = lo.x + 0.1 * (hi.x - lo.x);
+    heml::system(mesh.clone())
+        .material("neo_hookean", Params::from([("E", 3e3), ("nu", 0.49)]))?
+        .density(1000.0)
+        .gravity(Vec3::new(0.0, 0.0, -9.81))
+        .fix_where(move |p| p.x < cut)
+        .rayleigh(15.0, 0.0)
+        .energy_every(0)
+        .build()
+}
+
+/// (median, min, max) of `v`.
+fn stats(v: &[f64]) -> (f64, f64, f64) {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    let med = if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    };
+    (med, s[0], s[n - 1])
+}
+
+/// Per-step wall times, CG iterations and phase times of `IMPLICIT_STEPS` steps from rest.
+fn implicit_case(
+    mesh: &TetMesh,
+    settings: ImplicitSettings,
+    pool: &rayon::ThreadPool,
+) -> heml::Result<(Vec<f64>, Vec<f64>, Vec<PhaseTimes>)> {
+    let mut sys = scene(mesh)?;
+    let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, settings);
+    pool.install(|| {
+        let (mut times, mut cgs, mut phases) = (Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..IMPLICIT_STEPS {
+            let t = Instant::now();
+            let s = solver.step(&mut sys, DT)?;
+            times.push(t.elapsed().as_secs_f64());
+            cgs.push(s.cg_iterations as f64);
+            phases.push(solver.last_phase_times());
+        }
+        Ok((times, cgs, phases))
+    })
+}
+
+/// The fastest explicit integrator in simulated seconds per wall second at 0.9× the
+/// stable step: (name, dt, wall times per step).
+fn explicit_case(mesh: &TetMesh, pool: &rayon::ThreadPool) -> heml::Result<(String, f64, Vec<f64>)> {
+    let mut best: Option<(String, f64, Vec<f64>)> = None;
+    for name in ["symplectic_euler", "velocity_verlet"] {
+        let mut sys = scene(mesh)?;
+        let dt = 0.9 * sys.stable_dt();
+        let mut integ = heml::integrator(name)?;
+        let times = pool.install(|| -> heml::Result<Vec<f64>> {
+            for _ in 0..5 {
+                integ.step(&mut sys, dt)?;
+            }
+            (0..EXPLICIT_STEPS)
+                .map(|_| {
+                    let t = Instant::now();
+                    integ.step(&mut sys, dt)?;
+                    Ok(t.elapsed().as_secs_f64())
+                })
+                .collect()
+        })?;
+        let rate = dt / stats(&times).0;
+        if best.as_ref().is_none_or(|(_, d, t)| rate > d / stats(t).0) {
+            best = Some((name.to_string(), dt, times));
+        }
+    }
+    Ok(best.expect("two candidates"))
+}
+
+/// Runs the implicit benchmark on `meshes` (scaled by `scale` to metres) at 1 and
+/// `threads` threads.
+pub fn run(meshes: &[PathBuf], scale: f64, threads: usize, placement: Placement) -> heml::Result<()> {
+    let mut counts = vec![1];
+    if threads != 1 {
+        counts.push(threads);
+    }
+    outln!(
+        "backward Euler at dt = {} ms vs the best explicit integrator at 0.9× its stable dt; \
+         neo-Hookean E = 3 kPa, ν = 0.49, ρ = 1000, gravity, α = 15/s, 10 % clamped",
+        DT * 1e3
+    );
+    outln!("implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]); explicit: {EXPLICIT_STEPS} steps");
+    outln!();
+    outln!(
+        "{:<22} {:>3} {:<11} {:>24} {:>11} {:>30} {:>9} {:>26} {:>8}",
+        "mesh (tets)",
+        "thr",
+        "settings",
+        "ms/step",
+        "CG it./step",
+        "forces/tangent/assembly/CG ms",
+        "sim s/s",
+        "explicit: dt, ms/step, sim s/s",
+        "ratio"
+    );
+    for path in meshes {
+        // nodes renumbered along a Morton curve, as `heml run` loads meshes
+        let mesh = renumbered_at_load(&heml::io::read_mesh(path)?.0.scaled(scale)?)?;
+        let label = format!(
+            "{} ({})",
+            Path::new(path).file_stem().map_or("?".into(), |s| s.to_string_lossy()),
+            mesh.n_tets()
+        );
+        for &n in &counts {
+            let (pool, _) = thread_pool(n, placement)?;
+            let (name, edt, et) = explicit_case(&mesh, &pool)?;
+            let (em, emin, emax) = stats(&et);
+            let explicit_rate = edt / em;
+            for (sname, settings) in [
+                ("default", ImplicitSettings::default()),
+                ("interactive", ImplicitSettings::interactive()),
+            ] {
+                let (times, cgs, phases) = implicit_case(&mesh, settings, &pool)?;
+                let (m, lo, hi) = stats(&times);
+                let (cg, cg_lo, cg_hi) = stats(&cgs);
+                let phase = |f: fn(&PhaseTimes) -> f64| 1e3 * stats(&phases.iter().map(f).collect::<Vec<_>>()).0;
+                let rate = DT / m;
+                outln!(
+                    "{:<22} {:>3} {:<11} {:>7.1} [{:>6.1}–{:>6.1}] {:>4} [{}–{}] {:>6.1}/{:>5.1}/{:>5.1}/{:>6.1} {:>9.3} {:>6}: {:.2e} s, {:.2} [{:.2}–{:.2}], {:.4} {:>7.1}×",
+                    label,
+                    n,
+                    sname,
+                    m * 1e3,
+                    lo * 1e3,
+                    hi * 1e3,
+                    cg,
+                    cg_lo,
+                    cg_hi,
+                    phase(|p| p.forces),
+                    phase(|p| p.tangent),
+                    phase(|p| p.assembly),
+                    phase(|p| p.cg),
+                    rate,
+                    name,
+                    edt,
+                    em * 1e3,
+                    emin * 1e3,
+                    emax * 1e3,
+                    explicit_rate,
+                    rate / explicit_rate
+                );
+            }
+        }
+    }
+    outln!("(wall-clock medians on a shared machine: other processes' load widens the ranges)");
+    Ok(())
+}

@@ -1,0 +1,18 @@
+//! Where the time of an implicit step goes, for benchmarks and tuning.
+
+/// Wall-clock seconds spent in the phases of the last implicit step
+/// ([`super::ImplicitSolver::last_phase_times`]); `total` is the whole step, the
+/// rest of it (line-search bookkeeping, constraints, energies) is not itemised.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PhaseTimes {
+    /// Force (residual) evaluations and line-search merits.
+    pub forces: f64,
+    /// Per-tet tangent stiffness updates (Hessians and PSD projection).
+    pub tangent: f64,
+    /// Filling the assembled system matrix and its preconditioner.
+    pub assembly: f64,
+    /// The conjugate-gradient iterations.
+    pub cg: f64,
+    /// The whole step.
+    pub total: f64,
+}
