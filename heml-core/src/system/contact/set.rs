@@ -193,5 +193,4 @@ impl ToolSet {
             blocks[c.node] += c.normal * c.normal.transpose() * (c.stiffness + c.damping * cv);
         }
     }
-    }
 }

@@ -4,7 +4,6 @@
 //! 3×3 blocks ([`BlockMatrix`]) from the generated per-tet tangents, K_g the diagonal
 //! of the grasp springs and dampers and K_contact the tool contacts' n nᵀ blocks.
 
-use nalgebra::Matrix3;
 use super::cg::{dot, pcg, CgReport};
 use super::matrix::BlockMatrix;
 use super::settings::CgPreconditioner;
@@ -13,6 +12,7 @@ use crate::error::Result;
 use crate::force::TangentOperator;
 use crate::system::statics::dofs::DofMap;
 use crate::system::System;
+use nalgebra::Matrix3;
 use std::time::Instant;
 
 /// Coefficients and stopping rule of one tangent solve.
