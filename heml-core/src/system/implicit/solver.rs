@@ -40,6 +40,10 @@ pub struct ImplicitSolver {
     cache: SolveCache,
     /// The last step's first Newton correction (CG's warm start), by degree of freedom.
     last_dx: Option<Vec<f64>>,
+    /// The model revision `last_dx` belongs to: a runtime change (loads, constraints,
+    /// grasps) drops the warm start, so the step after it is the step of a system
+    /// built with the changed model (the same bits).
+    last_dx_revision: u64,
     /// Phase times of the last step.
     times: PhaseTimes,
 }
@@ -66,6 +70,7 @@ impl ImplicitSolver {
             accel_at: None,
             cache: SolveCache::default(),
             last_dx: None,
+            last_dx_revision: 0,
             times: PhaseTimes::default(),
         }
     }
@@ -199,6 +204,9 @@ impl ImplicitSolver {
                 .sqrt()
         };
         let settings = self.settings;
+        if self.last_dx_revision != sys.model.revision {
+            self.last_dx = None;
+        }
         let dofs = self.dofs.as_ref().expect("prepared");
         let mut problem = ImplicitStep {
             settings: &settings,
@@ -231,6 +239,7 @@ impl ImplicitSolver {
         let newton_iterations = outcome.map_or(settings.newton_iterations, |o| o.iterations);
         let cg_iterations = problem.cg_iterations;
         self.last_dx = problem.first_dx.take();
+        self.last_dx_revision = sys.model.revision;
         let merit_time = problem.merit_time.get();
         if self.scheme == ImplicitScheme::Newmark {
             self.accel = problem.accelerations(sys);
