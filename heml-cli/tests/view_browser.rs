@@ -1,8 +1,9 @@
 //! `heml view` in a real browser: Debian's headless Chromium driven by chromedriver
 //! (WebDriver, the fantoccini crate). The page must draw the organ (WebGL through
 //! SwiftShader), its pause and step buttons must stop and step the simulation, and
-//! its E field must change the server's material, and a drag on the tissue must send
-//! a grasp (refused in this build, and shown so). A screenshot is saved to
+//! its E field must change the server's material, and a drag on the tissue must grasp
+//! it: server side the grasped nodes follow the cursor and the panel shows the force
+//! the hand feels. A screenshot is saved to
 //! `target/view-e2e/screenshot.png`.
 //!
 //! Needs `chromium` and `chromedriver` on PATH (`.ci/run` installs them); without
@@ -199,9 +200,16 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
     let shown = browser.find(Locator::Id("time")).await.unwrap().text().await.unwrap();
     assert!(shown.ends_with(" s"), "panel time {shown:?}");
 
-    // a drag on the tissue: the page picks the surface node under the cursor and
-    // sends grasp_start / grasp_move / grasp_end; this build answers "not available",
-    // the page shows it, and the simulation is untouched
+    // a drag on the tissue, the simulation running: the page picks the surface node
+    // under the cursor and sends grasp_start, then grasp_move as the cursor moves;
+    // server side the grasped nodes follow, and the panel shows the force felt
+    browser.find(Locator::Id("pause")).await.unwrap().click().await.unwrap();
+    assert!(
+        ws.until(WAIT, |c| !c.paused()).await,
+        "the resume button did not resume"
+    );
+    let force_text = || async { browser.find(Locator::Id("force")).await.unwrap().text().await.unwrap() };
+    let force_before = force_text().await;
     let probe = browser.execute("return window.hemlView.probe()", vec![]).await.unwrap();
     let r: Vec<f64> = probe["rect"]
         .as_array()
@@ -210,8 +218,9 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
         .map(|v| v.as_f64().unwrap())
         .collect();
     let (cx, cy) = ((r[0] + r[2]) / 2.0, (r[1] + r[3]) / 2.0);
-    let steps1 = ws.steps();
-    let drag = MouseActions::new("mouse".into())
+    // press and drag, and keep the button down (WebDriver keeps the input state
+    // between action lists until the release below)
+    let press = MouseActions::new("mouse".into())
         .then(PointerAction::MoveTo {
             duration: None,
             x: cx,
@@ -224,31 +233,46 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
             duration: Some(Duration::from_millis(300)),
             x: cx + 60.0,
             y: cy,
-        })
-        .then(PointerAction::Up {
-            button: MOUSE_BUTTON_LEFT,
         });
-    browser.perform_actions(drag).await.unwrap();
+    browser.perform_actions(press).await.unwrap();
+    // the grasped patch moves towards the cursor: 0.1 mm is far above round-off and far
+    // below the ~cm a 60-pixel drag asks of a 10 Hz spring within seconds
+    let moved = |c: &Client| c.status["grasp"]["moved"].as_f64().unwrap_or(0.0);
+    assert!(
+        ws.until(Duration::from_secs(15), |c| moved(c) > 1e-4).await,
+        "the grasped nodes did not follow: {}",
+        ws.status
+    );
+    assert!(ws.status["grasp"]["nodes"].as_u64().unwrap() > 0);
+    let felt: f64 = ws.status["tool_force"]
+        .as_array()
+        .expect("a grasp reports the force felt")
+        .iter()
+        .map(|v| v.as_f64().unwrap().powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(felt > 0.0, "{}", ws.status);
+    // the panel shows it in newtons, where it showed no force before
     let start = Instant::now();
     let shown = loop {
-        let m = browser
-            .find(Locator::Id("message"))
-            .await
-            .unwrap()
-            .text()
-            .await
-            .unwrap();
-        if m.contains("not available") || start.elapsed() > Duration::from_secs(10) {
-            break m;
+        let t = force_text().await;
+        if (t.ends_with(" N") && t != force_before) || start.elapsed() > Duration::from_secs(10) {
+            break t;
         }
         tokio::time::sleep(Duration::from_millis(100)).await;
     };
     assert!(
-        shown.starts_with("grasp_") && shown.contains("not available"),
-        "page message {shown:?}"
+        shown.ends_with(" N") && shown != force_before,
+        "panel force {shown:?} (before {force_before:?})"
     );
-    ws.drain(Duration::from_millis(300)).await;
-    assert_eq!(ws.steps(), steps1, "the refused grasp moved the simulation");
+    let png = browser.screenshot().await.expect("screenshot");
+    std::fs::write(dir.join("grasp.png"), &png).unwrap();
+    // release: the grasp is gone
+    let release = MouseActions::new("mouse".into()).then(PointerAction::Up {
+        button: MOUSE_BUTTON_LEFT,
+    });
+    browser.perform_actions(release).await.unwrap();
+    assert!(ws.until(WAIT, |c| c.status["grasp"].is_null()).await, "{}", ws.status);
 
     browser.close().await.unwrap();
     let _ = std::fs::remove_dir_all(&profile);

@@ -43,7 +43,8 @@ async fn bad_messages_are_ignored_and_change_nothing() {
         r#"{"type":"grasp_move","target":[0,0,1e300]}"#,
         r#"{"type":"set_param","name":"no_such_parameter","value":5}"#,
         r#"{"type":"field","field":"/etc/passwd"}"#,
-        r#"{"type":"cut","blade":[[0,0,0],[1,0,0],[0,1,0]]}"#,
+        // a blade 100 m away meets no tet
+        r#"{"type":"cut","blade":[[100,100,100],[101,100,100],[100,101,100]]}"#,
     ];
     let before = c.replies.len();
     for text in bad_texts {
@@ -59,11 +60,9 @@ async fn bad_messages_are_ignored_and_change_nothing() {
     for r in &c.replies[before..] {
         assert_eq!(r["ok"], false, "{r}");
     }
-    // the cut is refused until the runtime-control API is wired in
-    assert!(c.replies.last().unwrap()["message"]
-        .as_str()
-        .unwrap()
-        .contains("not available"));
+    // the cut that meets nothing says so
+    let last = c.replies.last().unwrap()["message"].as_str().unwrap().to_string();
+    assert!(last.contains("meets no tet"), "{last}");
     c.drain(Duration::from_millis(300)).await;
     assert!(c.paused());
     assert_eq!(

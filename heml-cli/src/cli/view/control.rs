@@ -3,58 +3,15 @@
 //! The page's requests arrive here already parsed and checked
 //! ([`super::protocol::parse_request`]); this module turns them into calls on a
 //! [`Controls`] implementation, choosing the grasped node patch, the grasp's spring
-//! constants and the target poses. The runtime-control API of the library (grasps,
-//! rigid tools, cutting) is not in this build: [`Unavailable`] answers every such
-//! command with [`NOT_AVAILABLE`], which the page shows. Wiring the real API is one
-//! `impl Controls` whose methods call `System::grasp`, `move_grasp`,
-//! `release_grasp`, `set_tool_pose`, `tool_wrench` and `cut`, and one line in
-//! `run::controls()` returning it. A sketch, names as announced for that API:
-//!
-//! ```text
-//! #[derive(Default)]
-//! pub struct Runtime { grasp: Option<GraspId>, tool: Option<ToolId> }
-//!
-//! impl Controls for Runtime {
-//!     fn grasp(&mut self, sys: &mut System, nodes: &[usize], target: Pose, k: f64, c: f64) -> Result<(), String> {
-//!         self.grasp = Some(sys.grasp(nodes, target, k, c).map_err(|e| e.to_string())?);
-//!         Ok(())
-//!     }
-//!     fn move_grasp(&mut self, sys: &mut System, target: Pose) -> Result<(), String> {
-//!         sys.move_grasp(self.grasp.ok_or("no grasp")?, target).map_err(|e| e.to_string())
-//!     }
-//!     fn release_grasp(&mut self, sys: &mut System) -> Result<(), String> {
-//!         sys.release_grasp(self.grasp.take().ok_or("no grasp")?).map_err(|e| e.to_string())
-//!     }
-//!     fn move_tool(&mut self, sys: &mut System, pose: Pose) -> Result<(), String> {
-//!         // first use: a capsule (e.g. 5 mm radius, 10 cm long) along the pose's z axis
-//!         let id = match self.tool { Some(id) => id, None => *self.tool.insert(sys.add_tool(Tool::capsule(..))) };
-//!         sys.set_tool_pose(id, pose).map_err(|e| e.to_string())
-//!     }
-//!     fn cut(&mut self, sys: &mut System, blade: [Vec3; 3]) -> Result<bool, String> {
-//!         sys.cut(Blade::triangle(blade)).map(|removed| removed > 0).map_err(|e| e.to_string())
-//!     }
-//!     fn tool_force(&self, sys: &System) -> Option<Vec3> {
-//!         self.tool.map(|id| sys.tool_wrench(id).force)
-//!     }
-//!     fn tool_view(&self, sys: &System) -> Option<ToolView> { /* tip, axis, radius, length of the tool */ }
-//!     fn forget(&mut self) { *self = Runtime::default(); }
-//! }
-//! ```
-//!
-//! After a cut that returns `true`, the live loop rebuilds its surface data from
-//! `System::surface()` and re-sends the mesh (its min J runs over `sys.mesh().tets()`:
-//! if a cut keeps removed tets in the mesh, skip them there).
+//! constants and the target poses. [`super::runtime::Runtime`] implements them on the
+//! library's runtime control.
 
 use heml::mesh::surface::BoundarySurface;
 use heml::system::control::Pose;
 use heml::system::System;
 use heml::Vec3;
 
-use super::protocol::{Ray, ToolView};
-
-/// The reply to grasp, tool and cut commands in this build.
-pub const NOT_AVAILABLE: &str =
-    "not available in this build: grasping, tools and cutting need the library's runtime-control API";
+use super::protocol::{GraspView, Ray, ToolView};
 
 /// Natural frequency (Hz) of a grasped node on its spring: stiff enough to follow the
 /// cursor within a few frames, soft enough to stay stable at explicit time steps
@@ -65,8 +22,7 @@ pub const GRASP_FREQUENCY_HZ: f64 = 10.0;
 /// bounding-box diagonal.
 pub const GRASP_RADIUS_FRACTION: f64 = 0.04;
 
-/// What the live view needs of the library's runtime control. One implementation per
-/// build: [`Unavailable`] until the API exists.
+/// What the live view needs of the library's runtime control.
 pub trait Controls: Send {
     /// Ties `nodes` to `target` (their current placement is the identity pose) by
     /// springs of `stiffness` (N/m per node) and `damping` (N·s/m per node).
@@ -88,38 +44,16 @@ pub trait Controls: Send {
     fn cut(&mut self, sys: &mut System, blade: [Vec3; 3]) -> Result<bool, String>;
     /// The force the tissue applies to the tool (N), when there is a tool.
     fn tool_force(&self, sys: &System) -> Option<Vec3>;
+    /// The grasp in progress, when there is one.
+    fn grasp_view(&self, _sys: &System) -> Option<GraspView> {
+        None
+    }
     /// The tool's placement and size for drawing, when there is a tool.
     fn tool_view(&self, _sys: &System) -> Option<ToolView> {
         None
     }
     /// Forgets grasp and tool ids after the system was rebuilt (reset, new parameter).
     fn forget(&mut self) {}
-}
-
-/// The controls of a build without the runtime-control API: every command is refused
-/// with [`NOT_AVAILABLE`].
-#[derive(Debug, Default, Clone, Copy)]
-pub struct Unavailable;
-
-impl Controls for Unavailable {
-    fn grasp(&mut self, _: &mut System, _: &[usize], _: Pose, _: f64, _: f64) -> Result<(), String> {
-        Err(NOT_AVAILABLE.into())
-    }
-    fn move_grasp(&mut self, _: &mut System, _: Pose) -> Result<(), String> {
-        Err(NOT_AVAILABLE.into())
-    }
-    fn release_grasp(&mut self, _: &mut System) -> Result<(), String> {
-        Err(NOT_AVAILABLE.into())
-    }
-    fn move_tool(&mut self, _: &mut System, _: Pose) -> Result<(), String> {
-        Err(NOT_AVAILABLE.into())
-    }
-    fn cut(&mut self, _: &mut System, _: [Vec3; 3]) -> Result<bool, String> {
-        Err(NOT_AVAILABLE.into())
-    }
-    fn tool_force(&self, _: &System) -> Option<Vec3> {
-        None
-    }
 }
 
 /// A grasp in progress: where it was taken, to turn cursor targets into poses.
@@ -235,6 +169,11 @@ impl Adapter {
         self.controls.tool_view(sys)
     }
 
+    /// The grasp for the status.
+    pub fn grasp_view(&self, sys: &System) -> Option<GraspView> {
+        self.controls.grasp_view(sys)
+    }
+
     /// After a rebuild of the system: no grasp or tool survives.
     pub fn forget(&mut self) {
         self.held = None;
@@ -290,31 +229,5 @@ mod tests {
         };
         let i = nearest_to_ray(sys.surface(), sys.positions(), &ray).unwrap();
         assert!((sys.positions()[i] - Vec3::new(0.1, 0.1, 0.1)).norm() < 1e-12);
-    }
-
-    #[test]
-    fn without_the_api_grasps_tools_and_cuts_are_refused_and_change_nothing() {
-        let mut sys = block(0.1, true);
-        let before = sys.positions().to_vec();
-        let mut a = Adapter::new(Box::new(Unavailable));
-        let top = *sys.surface().nodes().last().unwrap();
-        assert_eq!(a.grasp_start(&mut sys, Some(top), None).unwrap_err(), NOT_AVAILABLE);
-        // the refused grasp left nothing held
-        assert!(a.grasp_move(&mut sys, &[0.0; 3]).unwrap_err().contains("no grasp"));
-        assert_eq!(
-            a.tool_move(&mut sys, &[0.0; 3], Some(&[0.0, 0.0, -1.0])).unwrap_err(),
-            NOT_AVAILABLE
-        );
-        assert_eq!(a.cut(&mut sys, &[[0.0; 3]; 3]).unwrap_err(), NOT_AVAILABLE);
-        assert!(a.tool_force(&sys).is_none());
-        assert_eq!(sys.positions(), &before[..]);
-        // a node inside the block is not a surface node
-        let inner = (0..sys.mesh().n_nodes())
-            .find(|i| sys.surface().nodes().binary_search(&(*i as u32)).is_err())
-            .unwrap();
-        assert!(a
-            .grasp_start(&mut sys, Some(inner as u32), None)
-            .unwrap_err()
-            .contains("not a node of the boundary surface"));
     }
 }

@@ -168,14 +168,16 @@ impl SurfaceFields {
         }
     }
 
-    /// The smallest volume ratio J = det(Ds) / det(Dm) over all the tets.
+    /// The smallest volume ratio J = det(Ds) / det(Dm) over the tets a cut left.
     pub fn min_j(&self, sys: &System) -> f64 {
         let x = sys.positions();
         sys.mesh()
             .tets()
             .iter()
             .zip(&self.inv_six_vol)
-            .map(|(t, inv)| edges(x, t).determinant() * inv)
+            .enumerate()
+            .filter(|(k, _)| sys.tet_alive(*k))
+            .map(|(_, (t, inv))| edges(x, t).determinant() * inv)
             .fold(f64::INFINITY, f64::min)
     }
 }

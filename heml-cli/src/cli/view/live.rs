@@ -377,6 +377,7 @@ impl Live {
         s.min_j = self.fields.min_j(sys);
         s.tool_force = self.adapter.tool_force(sys).map(|f| [f.x, f.y, f.z]);
         s.tool = self.adapter.tool_view(sys);
+        s.grasp = self.adapter.grasp_view(sys);
         if let Some(r) = sys.regions().first() {
             let law = r.material();
             s.law = law.name().into();

@@ -9,6 +9,7 @@ pub mod live;
 pub mod playback;
 pub mod protocol;
 pub mod run;
+pub mod runtime;
 pub mod server;
 
 pub use run::{run, ViewArgs};

@@ -277,8 +277,11 @@ pub struct Status {
     pub dt: f64,
     /// Smallest volume ratio J over the tets.
     pub min_j: f64,
-    /// Force on the tool (N), when a tool exists.
+    /// Force the tissue applies to the hand (N): to the grasp while one is held, else
+    /// to the tool, when a tool exists.
     pub tool_force: Option<[f64; 3]>,
+    /// The grasp in progress, if any.
+    pub grasp: Option<GraspView>,
     /// Where the tool is, to draw it, when a tool exists.
     pub tool: Option<ToolView>,
     /// The law of the first material and its parameters as the law holds them.
@@ -291,6 +294,15 @@ pub struct Status {
     pub field: Option<FieldKind>,
     /// Last error of the simulation (a blow-up), if it stopped on one.
     pub error: Option<String>,
+}
+
+/// A grasp in progress, as the status reports it.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct GraspView {
+    /// Number of grasped nodes.
+    pub nodes: usize,
+    /// Mean distance of the grasped nodes from where they were when grasped (m).
+    pub moved: f64,
 }
 
 /// A capsule tool as the page draws it.

@@ -7,9 +7,10 @@ use std::sync::Arc;
 use heml::scene::Scene;
 use heml::{HemlError, Result};
 
-use super::control::{Controls, Unavailable};
+use super::control::Controls;
 use super::hub::Hub;
 use super::playback::Recording;
+use super::runtime::Runtime;
 use super::{live, playback, server};
 use crate::cli::demo::DEMO_SCENE;
 
@@ -92,10 +93,10 @@ pub fn run(args: ViewArgs) -> Result<()> {
     served.map_err(|e| HemlError::Invalid(format!("cannot serve on {}:{}: {e}", args.host, args.port)))
 }
 
-/// The grasp, tool and cut controls of this build (see [`super::control`]): the
-/// one line to change when the library's runtime-control API is wired in.
+/// The grasp, tool and cut controls: the library's runtime control
+/// ([`super::runtime::Runtime`]).
 fn controls() -> Box<dyn Controls> {
-    Box::new(Unavailable)
+    Box::new(Runtime::default())
 }
 
 /// Asks the desktop to open `url` (failure is not an error: the URL is printed).
