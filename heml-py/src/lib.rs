@@ -6,6 +6,7 @@
 
 mod arrays;
 mod bench;
+mod control;
 mod errors;
 mod field;
 mod materials;

@@ -133,7 +133,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &StepStats) -> PyResult<Bound<'py, PyDict
 /// `HemlError` with the library's message.
 #[pyclass(module = "heml")]
 pub struct System {
-    sys: heml::prelude::System,
+    pub(crate) sys: heml::prelude::System,
     /// The integrator of the last `step` call, kept so that its state (e.g. an
     /// implicit solver's buffers) carries over between calls with the same name.
     integrator: Mutex<Option<Box<dyn Integrator>>>,

@@ -11,6 +11,7 @@ __version__: str
 _F64 = npt.NDArray[np.float64]
 _ArrayLike = npt.ArrayLike
 _Path = str | PathLike[str]
+_Selection = _ArrayLike  # node or tet ids, or a boolean mask
 
 class HemlError(Exception):
     """An error reported by the library (bad mesh, unknown law, malformed file, NaN step…)."""
@@ -244,6 +245,56 @@ class System:
         """kinetic, elastic, gravity, loads, total (J)."""
     def surface(self, padded: bool = False) -> tuple[_F64, npt.NDArray[np.int64]]:
         """(current points, boundary faces)."""
+    # runtime control between steps (errors raise HemlError, the system unchanged)
+    def set_gravity(self, g: Sequence[float]) -> None:
+        """Sets gravity (m/s²) from the next step on."""
+    def fix_nodes(self, nodes: _Selection) -> None:
+        """Fixes nodes where they are now."""
+    def release_nodes(self, nodes: _Selection) -> None:
+        """Frees fixed or prescribed nodes."""
+    def prescribe_pose(
+        self, nodes: _Selection, translation: Sequence[float], rotation: Sequence[float] | None = None
+    ) -> None:
+        """Moves a node group rigidly from rest to the pose and holds it."""
+    def grasp(
+        self,
+        nodes: _Selection,
+        stiffness: float,
+        damping: float = 0.0,
+        translation: Sequence[float] | None = None,
+        rotation: Sequence[float] | None = None,
+    ) -> int:
+        """Ties nodes to a target pose by springs; returns the grasp id."""
+    def move_grasp(self, grasp: int, translation: Sequence[float], rotation: Sequence[float] | None = None) -> None:
+        """Moves a grasp's target (relative to where its nodes were grasped)."""
+    def release_grasp(self, grasp: int) -> None:
+        """Lets go of a grasp."""
+    def grasp_force(self, grasp: int) -> list[float]:
+        """Force (N) the tissue applies to the grasp."""
+    def add_tool(
+        self,
+        shape: str,
+        stiffness: float,
+        radius: float = 0.0,
+        half_length: float = 0.0,
+        damping: float = 0.0,
+        translation: Sequence[float] | None = None,
+        rotation: Sequence[float] | None = None,
+    ) -> int:
+        """Adds a sphere, capsule or half_space tool; returns its id."""
+    def set_tool_pose(self, tool: int, translation: Sequence[float], rotation: Sequence[float] | None = None) -> None:
+        """Places a tool for the next step."""
+    def tool_wrench(self, tool: int) -> tuple[list[float], list[float]]:
+        """(force N, torque N·m) the tissue applied to the tool."""
+    def remove_tool(self, tool: int) -> None:
+        """Removes a tool."""
+    def cut(self, blade: npt.ArrayLike) -> dict[str, Any]:
+        """Removes the tets a blade ((3, 3) triangle or (4, 3) swept edge) meets."""
+    def remove_tets(self, tets: _Selection) -> dict[str, Any]:
+        """Removes the given tets."""
+    @property
+    def n_tets(self) -> int:
+        """Tets left by cuts."""
 
 class Scene:
     """A scene file, run to its duration."""

@@ -19,6 +19,13 @@ use crate::Vec3;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct GraspId(pub(crate) u64);
 
+impl GraspId {
+    /// Its number (bindings and logs name grasps by it; never reused in a system).
+    pub fn index(self) -> u64 {
+        self.0
+    }
+}
+
 impl std::fmt::Display for GraspId {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "grasp #{}", self.0)
