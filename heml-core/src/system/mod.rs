@@ -89,6 +89,7 @@ pub use constraints::{Constraints, Prescribed, Ramp};
 pub use energy::{Energies, StepStats};
 pub use implicit::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings, ImplicitSolver, PhaseTimes};
 pub use integrator::{find_integrator, integrators, Integrator, IntegratorEntry};
+pub use passes::{parallel_pass_threshold, set_parallel_pass_threshold, DEFAULT_PARALLEL_PASS_THRESHOLD};
 pub use prony::{relaxation, validate_prony, PronyTerm};
 pub use stability::{
     lame_at_rest, power_iteration_time_step, stable_time_step, wave_speed_time_step, TimeStepPolicy, DEFAULT_SAFETY,
