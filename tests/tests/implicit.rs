@@ -51,7 +51,7 @@ fn run_backward_euler(sys: &mut System, dt: f64, steps: usize) -> (f64, f64) {
     (max_u, cg as f64 / steps as f64)
 }
 
-/// Backward Euler at dt = 10 ms (about 9× the explicit stable step of this block)
+/// Backward Euler at dt = 10 ms (about 7.5× the explicit stable step of this block)
 /// stays bounded and settles on the static solution of the same scene.
 ///
 /// Bounds: a damped sag from rest overshoots the static sag by less than a factor 2
@@ -75,7 +75,7 @@ fn backward_euler_settles_on_the_static_solution() {
 
     let mut sys = soft_block().time_step_policy(TimeStepPolicy::Refuse).build().unwrap();
     let dt = 0.01;
-    assert!(dt > 8.0 * sys.stable_dt(), "stable dt {}", sys.stable_dt());
+    assert!(dt > 5.0 * sys.stable_dt(), "stable dt {}", sys.stable_dt());
     let (max_u, cg) = run_backward_euler(&mut sys, dt, 300);
     assert!(max_u < 2.0 * sag, "bounded: max |u| = {max_u} vs static {sag}");
     let err = relative_error(&sys.displacements(), &u_static);

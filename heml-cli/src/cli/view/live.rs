@@ -8,13 +8,18 @@
 //! value (the built system has no way to swap its laws): positions, velocities, the
 //! time and the step count are carried over (so prescribed motions continue), the
 //! integrator starts afresh and a Prony series' internal state restarts from zero.
+//!
+//! An explicit integrator steps with the adaptive step ([`AdaptiveStep`], as
+//! `dt_policy = "adapt"` in `heml run`) whatever the scene's policy: a person
+//! grasping, pressing and cutting deforms the tissue in ways no scene foresees, and
+//! the scene's step (at most the rest-state estimate) is only safe near rest.
 
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use heml::scene::{Scene, Simulation};
-use heml::system::TimeStepPolicy;
+use heml::system::{AdaptiveStep, TimeStepPolicy};
 
 use super::control::{Adapter, Controls};
 use super::fields::SurfaceFields;
@@ -63,6 +68,9 @@ pub fn percentile(sorted: &[f64], q: f64) -> f64 {
 struct Live {
     scene: Scene,
     sim: Simulation,
+    /// The adaptive step of an explicit integrator (`None` for implicit ones, which
+    /// take the scene's step).
+    adapt: Option<AdaptiveStep>,
     pool: rayon::ThreadPool,
     fields: SurfaceFields,
     adapter: Adapter,
@@ -91,13 +99,15 @@ pub fn spawn(
     commands: Receiver<Envelope>,
     controls: Box<dyn Controls>,
 ) -> heml::Result<std::thread::JoinHandle<()>> {
-    let sim = build(&scene)?;
+    let mut sim = build(&scene)?;
     let (pool, _) = thread_pool(threads, Placement::Pinned)?;
     let fields = SurfaceFields::new(&sim.system);
     let now = Instant::now();
+    let adapt = adaptive_step(&mut sim);
     let mut live = Live {
         scene,
         sim,
+        adapt,
         pool,
         fields,
         adapter: Adapter::new(controls),
@@ -120,6 +130,12 @@ pub fn spawn(
         .name("heml-view-sim".into())
         .spawn(move || live.run(commands))
         .map_err(|e| heml::HemlError::Invalid(format!("cannot start the simulation thread: {e}")))
+}
+
+/// The adaptive step for `sim`'s explicit integrator, from the scene's step.
+fn adaptive_step(sim: &mut Simulation) -> Option<AdaptiveStep> {
+    let explicit = sim.integrator.implicit_settings_mut().is_none();
+    explicit.then(|| AdaptiveStep::new(&sim.system, sim.dt, sim.adapt_every))
 }
 
 /// The scene built, its step policy relaxed as `heml run` does for a warned dt.
@@ -187,7 +203,11 @@ impl Live {
         let Simulation {
             integrator, system, dt, ..
         } = &mut self.sim;
-        let result = self.pool.install(|| integrator.step(system, *dt));
+        let dt = match &mut self.adapt {
+            Some(adapt) => adapt.next(system).0,
+            None => *dt,
+        };
+        let result = self.pool.install(|| integrator.step(system, dt));
         self.step_ms.push(start.elapsed().as_secs_f64() * 1e3);
         if let Err(e) = result {
             log::error!("view: the simulation stopped: {e}");
@@ -317,6 +337,7 @@ impl Live {
             self.fields = SurfaceFields::new(&sim.system);
             self.mesh_version += 1;
         }
+        self.adapt = adaptive_step(&mut sim);
         self.sim = sim;
         self.adapter.forget();
         self.error = None;
@@ -373,7 +394,7 @@ impl Live {
         s.frame = self.frame;
         s.paused = self.paused;
         s.integrator = self.sim.integrator.name().into();
-        s.dt = self.sim.dt;
+        s.dt = self.adapt.as_ref().map_or(self.sim.dt, AdaptiveStep::dt);
         s.min_j = self.fields.min_j(sys);
         s.tool_force = self.adapter.tool_force(sys).map(|f| [f.x, f.y, f.z]);
         s.tool = self.adapter.tool_view(sys);
