@@ -27,7 +27,7 @@ normal = {}
 for node in m["resolve"]["nodes"]:
     normal[node["id"]] = [d["pkg"] for d in node["deps"]
                           if any(k["kind"] in (None, "build") for k in d["dep_kinds"])]
-roots = [p["id"] for p in m["packages"] if p["name"] in ("heml", "heml-core", "heml-derive", "heml-materials", "heml-integrators") and p["source"] is None]
+roots = [p["id"] for p in m["packages"] if p["name"] in ("heml", "heml-core", "heml-derive", "heml-symbolic", "heml-materials", "heml-integrators") and p["source"] is None]
 seen, todo = set(), list(roots)
 while todo:
     i = todo.pop()
@@ -42,7 +42,7 @@ print(f"rust-version {msrv}: {len(seen)} crates in the published graph, the most
 
 # 3. The published crates package cleanly (metadata, licence files, readme): any
 #    warning fails. Verification (building each package) is left to the test build.
-out=$(cargo package --locked --no-verify --allow-dirty -p heml-core -p heml-derive -p heml-materials -p heml-integrators -p heml 2>&1)
+out=$(cargo package --locked --no-verify --allow-dirty -p heml-core -p heml-symbolic -p heml-derive -p heml-materials -p heml-integrators -p heml 2>&1)
 if echo "$out" | grep -q '^warning'; then
   echo "$out" >&2
   echo "error: cargo package warns" >&2

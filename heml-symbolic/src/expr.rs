@@ -98,7 +98,7 @@ impl Graph {
 
     /// Number of distinct nodes created so far.
     #[cfg(test)]
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.nodes.len()
     }
 
@@ -481,7 +481,6 @@ impl Graph {
     }
 
     /// Evaluates `id` numerically (the reference interpreter of the unit tests).
-    #[cfg(test)]
     pub fn eval(&self, id: Id, vars: &dyn Fn(Var) -> f64, params: &[f64]) -> f64 {
         let mut values = Vec::with_capacity(id + 1);
         for node in &self.nodes[..=id] {
