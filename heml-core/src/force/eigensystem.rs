@@ -13,7 +13,8 @@
 //!   invariants' Hessians restricted to the pair (F̂_ij, F̂_ji) at F̂ = diag σ; no
 //!   division, so equal singular values need no special case);
 //! - three scaling modes Q = U diag(e) Vᵀ, (λ, e) the eigenpairs of the 3×3
-//!   ∂²Ψ/∂σ² (one 3×3 symmetric eigen-decomposition).
+//!   ∂²Ψ/∂σ² (a 3×3 symmetric eigen-decomposition, needed only when that block is
+//!   indefinite: otherwise it is kept as it is on the span of the U E_aa Vᵀ).
 //!
 //! With F = D_s D_m⁻¹ (D_s the edge vectors from node 0, D_m their rest values) the
 //! Hessian in the edge vectors is K₉ = Vol·Σ λ g gᵀ, g = vec(Q D_m⁻ᵀ): a congruence
@@ -30,10 +31,23 @@ pub(crate) type EdgeHessian = SMatrix<f64, 9, 9>;
 /// The pairs (i, j, k) of the twist and flip modes, k the third index.
 const PAIRS: [(usize, usize, usize); 3] = [(0, 1, 2), (1, 2, 0), (0, 2, 1)];
 
-/// The nine eigenvalues and F-space eigenvectors (3×3 each) of ∂²Ψ/∂F² at `f`, for
-/// the law derivatives `d` = (w₁, w₂, w_J) and `h` = ∂²w/∂(I1, I2, J)² (entries of
-/// unused invariants zero). `None` when the SVD does not converge.
-pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Option<[(f64, Matrix3<f64>); 9]> {
+/// The closed-form part of the eigensystem of ∂²Ψ/∂F² at one F: the six twist and
+/// flip eigenpairs and the 3×3 scaling block ∂²Ψ/∂σ² on the modes U E_aa Vᵀ (its
+/// eigen-decomposition is needed only when it is indefinite).
+#[derive(Debug, Clone)]
+pub(crate) struct Modes {
+    /// (λ, Q) of the twist and flip modes, Q unit in the Frobenius norm.
+    pub pairs: [(f64, Matrix3<f64>); 6],
+    /// ∂²Ψ/∂σ², acting on the coefficients of the scaling modes.
+    pub scaling: Matrix3<f64>,
+    /// The scaling modes U E_aa Vᵀ = u_a v_aᵀ.
+    pub diagonal: [Matrix3<f64>; 3],
+}
+
+/// The eigensystem of ∂²Ψ/∂F² at `f` (see the module doc), for the law derivatives
+/// `d` = (w₁, w₂, w_J) and `h` = ∂²w/∂(I1, I2, J)² (entries of unused invariants
+/// zero). `None` when the SVD does not converge.
+pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Option<Modes> {
     let svd = f.svd(true, true);
     let (mut u, vt) = (svd.u?, svd.v_t?);
     let mut s = svd.singular_values;
@@ -51,7 +65,7 @@ pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Op
         Vector3::from_fn(|i, _| 2.0 * s[i] * (sq[(i + 1) % 3] + sq[(i + 2) % 3])),
         Vector3::new(s[1] * s[2], s[0] * s[2], s[0] * s[1]),
     ];
-    let mut a = Matrix3::from_fn(|i, j| {
+    let mut scaling = Matrix3::from_fn(|i, j| {
         if i == j {
             2.0 * w1 + 2.0 * w2 * (sq[(i + 1) % 3] + sq[(i + 2) % 3])
         } else {
@@ -61,57 +75,78 @@ pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Op
     for p in 0..3 {
         for q in 0..3 {
             if h[p][q] != 0.0 {
-                a += g[p] * g[q].transpose() * h[p][q];
+                scaling += g[p] * g[q].transpose() * h[p][q];
             }
         }
     }
-    let eig = a.symmetric_eigen();
     let v = vt.transpose();
     let r = std::f64::consts::FRAC_1_SQRT_2;
-    let mut out = [(0.0, Matrix3::zeros()); 9];
-    for m in 0..3 {
-        let e = eig.eigenvectors.column(m);
-        out[m] = (eig.eigenvalues[m], u * Matrix3::from_diagonal(&e.into_owned()) * vt);
-    }
+    let diagonal = std::array::from_fn(|a| u.column(a) * v.column(a).transpose());
+    let mut pairs = [(0.0, Matrix3::zeros()); 6];
     for (n, &(i, j, k)) in PAIRS.iter().enumerate() {
         let (ui, uj, vi, vj) = (u.column(i), u.column(j), v.column(i), v.column(j));
         let (uv, vu) = (ui * vj.transpose(), uj * vi.transpose());
         let twist = 2.0 * w1 + 2.0 * w2 * (sq[k] + s[i] * s[j]) + wj * s[k];
         let flip = 2.0 * w1 + 2.0 * w2 * (sq[k] - s[i] * s[j]) - wj * s[k];
-        out[3 + 2 * n] = (twist, (uv - vu) * r);
-        out[4 + 2 * n] = (flip, (uv + vu) * r);
+        pairs[2 * n] = (twist, (uv - vu) * r);
+        pairs[2 * n + 1] = (flip, (uv + vu) * r);
     }
-    Some(out)
+    Some(Modes {
+        pairs,
+        scaling,
+        diagonal,
+    })
 }
 
-/// Vol·Σ max(λ, 0) g gᵀ over the eigenpairs of [`eigensystem`] (`clamp` false: the
-/// exact Hessian, for tests), g = vec(Q D_m⁻ᵀ) in the edge vectors; `dm_inv_t` is
-/// D_m⁻ᵀ.
-pub(crate) fn edge_hessian(
-    modes: &[(f64, Matrix3<f64>); 9],
-    dm_inv_t: &Matrix3<f64>,
-    vol: f64,
-    clamp: bool,
-) -> EdgeHessian {
+/// The 3×3 scaling block with its negative eigenvalues clamped to 0 (unchanged when
+/// a Cholesky factorisation shows it semi-definite, the common case: no 3×3
+/// eigen-decomposition then).
+fn clamped_scaling(a: &Matrix3<f64>) -> Matrix3<f64> {
+    let shift = 1e-12 * a.diagonal().amax();
+    if (a + Matrix3::identity() * shift).cholesky().is_some() {
+        return *a;
+    }
+    let eig = a.symmetric_eigen();
+    let q = &eig.eigenvectors;
+    q * Matrix3::from_diagonal(&eig.eigenvalues.map(|l| l.max(0.0))) * q.transpose()
+}
+
+/// Vol·(Σ max(λ, 0) g gᵀ over the pair modes + Bᵀ A₊ B over the scaling modes)
+/// (`clamp` false: the exact Hessian, for tests), g = vec(Q D_m⁻ᵀ) the gradient in
+/// the edge vectors of mode Q; `dm_inv_t` is D_m⁻ᵀ.
+pub(crate) fn edge_hessian(modes: &Modes, dm_inv_t: &Matrix3<f64>, vol: f64, clamp: bool) -> EdgeHessian {
+    // column i of Q D_m⁻ᵀ is the gradient with respect to edge vector i
+    let grad = |q: &Matrix3<f64>| SMatrix::<f64, 9, 1>::from_column_slice((q * dm_inv_t).as_slice());
     let mut k9 = EdgeHessian::zeros();
-    for (lambda, q) in modes {
+    for (lambda, q) in &modes.pairs {
         let l = if clamp { lambda.max(0.0) } else { *lambda };
-        if l == 0.0 {
-            continue;
+        if l != 0.0 {
+            let g = grad(q);
+            k9.syger(vol * l, &g, &g, 1.0);
         }
-        // column i of Q D_m⁻ᵀ is the gradient with respect to edge vector i
-        let gm = q * dm_inv_t;
-        let g = SMatrix::<f64, 9, 1>::from_column_slice(gm.as_slice());
-        k9.syger(vol * l, &g, &g, 1.0);
     }
     k9.fill_upper_triangle_with_lower_triangle();
-    k9
+    let a = if clamp {
+        clamped_scaling(&modes.scaling)
+    } else {
+        modes.scaling
+    };
+    let b = SMatrix::<f64, 9, 3>::from_columns(&modes.diagonal.map(|q| grad(&q)));
+    k9 + b * (a * vol) * b.transpose()
 }
 
-/// Whether any eigenvalue lies below −`rel`·(the largest |λ|).
-pub(crate) fn has_negative(modes: &[(f64, Matrix3<f64>); 9], rel: f64) -> bool {
-    let scale = modes.iter().fold(0.0f64, |m, (l, _)| m.max(l.abs()));
-    modes.iter().any(|(l, _)| *l < -rel * scale)
+/// Whether ∂²Ψ/∂F² is indefinite: a pair eigenvalue below −`rel`·(the largest
+/// |λ|), or a scaling block that a Cholesky factorisation rejects.
+#[cfg(test)]
+pub(crate) fn has_negative(modes: &Modes, rel: f64) -> bool {
+    let scale = modes
+        .pairs
+        .iter()
+        .fold(modes.scaling.amax(), |m, (l, _)| m.max(l.abs()));
+    modes.pairs.iter().any(|(l, _)| *l < -rel * scale)
+        || (modes.scaling + Matrix3::identity() * (rel * scale))
+            .cholesky()
+            .is_none()
 }
 
 #[cfg(test)]
@@ -141,7 +176,7 @@ mod tests {
         f * (2.0 * w[0]) + (f * inv[0] - f * (f.transpose() * f)) * (2.0 * w[1]) + cof * w[2]
     }
 
-    /// The nine modes are orthonormal and Σ λ vec(Q) vec(Q)ᵀ reproduces ∂²Ψ/∂F² (the
+    /// The nine modes (six pairs, three scaling) are orthonormal and Σ λ vec(Q) vec(Q)ᵀ reproduces ∂²Ψ/∂F² (the
     /// central difference of the exact gradient) for random F, inverted ones included,
     /// and random law derivatives; clamping leaves a semi-definite matrix that
     /// exceeds the exact one by a semi-definite matrix.
@@ -187,8 +222,9 @@ mod tests {
             let back = edge_hessian(&modes, &Matrix3::identity(), 1.0, false);
             let err = (back - exact).amax();
             assert!(err <= 1e-7 * scale, "case {case}: |Σλqqᵀ − H| = {err:e} of {scale:e}");
-            for (a, (_, qa)) in modes.iter().enumerate() {
-                for (b, (_, qb)) in modes.iter().enumerate() {
+            let all: Vec<Matrix3<f64>> = modes.pairs.iter().map(|p| p.1).chain(modes.diagonal).collect();
+            for (a, qa) in all.iter().enumerate() {
+                for (b, qb) in all.iter().enumerate() {
                     let dot = qa.dot(qb);
                     let want = f64::from(u8::from(a == b));
                     assert!((dot - want).abs() < 1e-12, "case {case}: modes {a}, {b}: {dot}");
