@@ -21,11 +21,14 @@
 //! for link springs under compression), which a conjugate-gradient solve cannot
 //! accept. With `project_psd` each tet's 12×12 matrix is replaced by its projection
 //! onto the positive semi-definite cone in the translation-free coordinates (the
-//! 9×9 Hessian in the edge vectors from node 0, symmetric eigen-decomposition,
-//! negative eigenvalues clamped to 0; see [`project_psd`]). The projected matrix
-//! keeps the translations as null modes (and the rotations at rest) and equals K
-//! wherever K is already semi-definite, e.g. near the rest state; it costs one 9×9
-//! eigen-decomposition per indefinite tet and update. The implicit integrators
+//! 9×9 Hessian in the edge vectors from node 0, negative eigenvalues clamped to 0).
+//! The projected matrix keeps the translations as null modes (and the rotations at
+//! rest) and equals K wherever K is already semi-definite, e.g. near the rest state
+//! (detected by a Cholesky factorisation). Invariant laws are isotropic, so their
+//! indefinite tets are projected through the closed-form eigensystem of ∂²Ψ/∂F²
+//! (from the 3×3 SVD of F, `force/eigensystem.rs`: several times cheaper than the
+//! 9×9 eigen-decomposition); link laws, and a tet whose SVD fails, through the
+//! numerical eigen-decomposition of K₉ ([`project_psd`]). The implicit integrators
 //! project by default.
 //!
 //! The per-tet matrices are computed once per [`TangentOperator::update`] (in
@@ -37,13 +40,14 @@
 // chains over several arrays would obscure the formulas.
 #![allow(clippy::needless_range_loop)]
 
+use super::eigensystem::{edge_hessian, eigensystem, EdgeHessian};
 use super::field::{check_sizes, selection};
 use super::heml::{invariant_terms, volume_terms};
 use super::ForceOptions;
 use crate::error::{HemlError, Result};
 use crate::law::{InvariantLaw, LinkLaw};
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, mtr_index, RestTet, EDGES};
+use crate::rest::{edge_vectors, mtr_index, rest_edge_matrix, RestTet, EDGES};
 use crate::Vec3;
 use nalgebra::{Matrix3, SMatrix, SymmetricEigen};
 use rayon::prelude::*;
@@ -75,6 +79,18 @@ pub trait TangentOperator: Send + Sync {
 pub trait TetHessian: Send + Sync {
     /// ∂²W/∂x² of the `k`-th tet of the operator at vertex positions `p`.
     fn hessian(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness;
+    /// The stiffness projected to positive semi-definite (equal to
+    /// [`TetHessian::hessian`] where that already is). The default projects the
+    /// finite stiffness with [`project_psd`]; kernels with a cheaper exact projection
+    /// override it.
+    fn projected(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
+        let h = self.hessian(k, p);
+        if h.iter().all(|c| c.is_finite()) {
+            project_psd(&h)
+        } else {
+            h
+        }
+    }
 }
 
 /// ∇l_e of the six squared edge lengths: 2 v_e on the head, −2 v_e on the tail.
@@ -152,10 +168,44 @@ pub struct InvariantHessian<M: InvariantLaw> {
     law: M,
     opts: ForceOptions,
     rest: Vec<RestTet>,
+    /// D_m⁻ᵀ per tet (the inverse transposed rest edge matrix), for the analytic
+    /// projection.
+    dm_inv_t: Vec<Matrix3<f64>>,
 }
+
+/// The law's derivatives (w₁, w₂, w_J) and second derivatives at one tet, zero for
+/// the invariants the law does not use.
+type LawDerivatives = ([f64; 3], [[f64; 3]; 3]);
 
 impl<M: InvariantLaw> TetHessian for InvariantHessian<M> {
     fn hessian(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
+        self.hessian_and_derivatives(k, p).0
+    }
+
+    /// Semi-definite tets (a Cholesky factorisation of K₉ + εI succeeds, as in
+    /// [`project_psd`]) are returned unchanged (symmetrised); the others through
+    /// the analytic eigensystem of ∂²Ψ/∂F² with its negative eigenvalues clamped.
+    fn projected(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
+        let (h, (d, d2)) = self.hessian_and_derivatives(k, p);
+        if !h.iter().all(|c| c.is_finite()) {
+            return h;
+        }
+        let sym = (h + h.transpose()) * 0.5;
+        if is_semi_definite(&sym) {
+            return sym;
+        }
+        let v = edge_vectors(p);
+        let f = Matrix3::from_columns(&[v[0], v[1], v[2]]) * self.dm_inv_t[k].transpose();
+        match eigensystem(&f, d, d2) {
+            Some(modes) => expand_translation_free(&edge_hessian(&modes, &self.dm_inv_t[k], self.rest[k].vol, true)),
+            None => project_psd(&h),
+        }
+    }
+}
+
+impl<M: InvariantLaw> InvariantHessian<M> {
+    /// The exact stiffness of the `k`-th tet and the law's derivatives there.
+    fn hessian_and_derivatives(&self, k: usize, p: &[Vec3; 4]) -> (TetStiffness, LawDerivatives) {
         let r = &self.rest[k];
         let (vtr, vol) = (r.vtr, r.vol);
         let v = edge_vectors(p);
@@ -230,7 +280,10 @@ impl<M: InvariantLaw> TetHessian for InvariantHessian<M> {
             // W = Vol·w with J = vol/Vol: the Vol cancels in ∂W/∂J · ∇²J
             add_volume_curvature(&mut k, &v, wj);
         }
-        k
+        let used = [true, M::USES_I2, M::USES_J];
+        let d = std::array::from_fn(|a| if used[a] { d.d[a] } else { 0.0 });
+        let h = std::array::from_fn(|a| std::array::from_fn(|b| if used[a] && used[b] { h[a][b] } else { 0.0 }));
+        (k, (d, h))
     }
 }
 
@@ -277,21 +330,33 @@ impl<M: LinkLaw> TetHessian for LinkHessian<M> {
 /// fraction of the cost of the eigen-decomposition, and they are returned unchanged.
 pub fn project_psd(k: &TetStiffness) -> TetStiffness {
     let sym = (k + k.transpose()) * 0.5;
-    let k9: SMatrix<f64, 9, 9> = sym.fixed_view::<9, 9>(3, 3).into_owned();
-    let shift = 1e-12 * k9.diagonal().amax();
-    if (k9 + SMatrix::<f64, 9, 9>::identity() * shift).cholesky().is_some() {
+    if is_semi_definite(&sym) {
         return sym;
     }
+    let k9: SMatrix<f64, 9, 9> = sym.fixed_view::<9, 9>(3, 3).into_owned();
     let eig = SymmetricEigen::new(k9);
     if eig.eigenvalues.iter().all(|&e| e >= 0.0) {
         return sym;
     }
     let d = eig.eigenvalues.map(|e| e.max(0.0));
     let q = &eig.eigenvectors;
-    let p9 = q * SMatrix::<f64, 9, 9>::from_diagonal(&d) * q.transpose();
-    // K = Bᵀ P₉ B: rows/columns of node 0 are minus the sums over nodes 1..3
+    expand_translation_free(&(q * SMatrix::<f64, 9, 9>::from_diagonal(&d) * q.transpose()))
+}
+
+/// Whether the symmetric tet stiffness `sym` is semi-definite: a Cholesky
+/// factorisation of its K₉ + εI succeeds (ε = 1e-12 × the largest diagonal entry,
+/// far above the round-off of the rotational zero eigenvalues at rest).
+fn is_semi_definite(sym: &TetStiffness) -> bool {
+    let k9: SMatrix<f64, 9, 9> = sym.fixed_view::<9, 9>(3, 3).into_owned();
+    let shift = 1e-12 * k9.diagonal().amax();
+    (k9 + SMatrix::<f64, 9, 9>::identity() * shift).cholesky().is_some()
+}
+
+/// K = Bᵀ P₉ B for a 9×9 Hessian P₉ in the edge vectors from node 0: the rows and
+/// columns of node 0 are minus the sums over nodes 1..3.
+fn expand_translation_free(p9: &EdgeHessian) -> TetStiffness {
     let mut out = TetStiffness::zeros();
-    out.fixed_view_mut::<9, 9>(3, 3).copy_from(&p9);
+    out.fixed_view_mut::<9, 9>(3, 3).copy_from(p9);
     for c in 3..12 {
         for r in 0..3 {
             let v = -(p9[(r, c - 3)] + p9[(r + 3, c - 3)] + p9[(r + 6, c - 3)]);
@@ -370,7 +435,20 @@ impl<M: InvariantLaw> TangentField<InvariantHessian<M>> {
         opts.validate()?;
         let ids = selection(mesh.n_tets(), tets)?;
         let rest = ids.iter().map(|&t| RestTet::new(&mesh.tet_points(t))).collect();
-        Ok(Self::build(InvariantHessian { law, opts, rest }, mesh, ids, project))
+        let dm_inv_t = ids
+            .iter()
+            .map(|&t| {
+                let dm = rest_edge_matrix(&mesh.tet_points(t));
+                dm.try_inverse().unwrap_or_else(Matrix3::zeros).transpose()
+            })
+            .collect();
+        let kernel = InvariantHessian {
+            law,
+            opts,
+            rest,
+            dm_inv_t,
+        };
+        Ok(Self::build(kernel, mesh, ids, project))
     }
 }
 
@@ -405,11 +483,10 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
         let (kernel, tets, project) = (&self.kernel, &self.tets, self.project);
         self.k.par_iter_mut().enumerate().with_min_len(64).for_each(|(k, out)| {
             let p = tets[k].map(|i| x[i as usize]);
-            let h = kernel.hessian(k, &p);
-            *out = if project && h.iter().all(|c| c.is_finite()) {
-                project_psd(&h)
+            *out = if project {
+                kernel.projected(k, &p)
             } else {
-                h
+                kernel.hessian(k, &p)
             };
         });
         if let Some(k) = self.k.iter().position(|m| !m.iter().all(|c| c.is_finite())) {
