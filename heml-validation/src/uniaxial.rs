@@ -52,28 +52,37 @@ pub(crate) fn nh_uniaxial(eps: f64) -> (f64, f64) {
     (a, mu * (eps - 1.0 / eps) + lambda * (a * a * eps).ln() / eps)
 }
 
-struct Sweep {
-    eps: Vec<f64>,
-    pzz: Vec<f64>,
-    lateral: Vec<f64>,
+/// The top-face stress and lateral stretch of a uniaxial sweep, by stretch.
+pub(crate) struct Sweep {
+    pub eps: Vec<f64>,
+    pub pzz: Vec<f64>,
+    pub lateral: Vec<f64>,
 }
 
-fn sweep(law: &str, stretches: &[f64], cells: usize, report: &mut CaseReport, worst: &mut f64) -> Result<Sweep> {
-    let (mu, lambda) = lame();
+/// Quasi-static sweep of the cube with law `law` and parameters `params` over
+/// `stretches`, `cells` per side; `modulus` (Pa) sets the solver's absolute
+/// tolerance.
+pub(crate) fn sweep(
+    law: &str,
+    params: &Params,
+    modulus: f64,
+    stretches: &[f64],
+    cells: usize,
+    report: &mut CaseReport,
+    worst: &mut f64,
+) -> Result<Sweep> {
     let mesh = box_mesh([1.0; 3], [cells; 3], HexSplit::Six)?;
     let nodes = mesh.nodes().to_vec();
     let on = |i: usize, axis: usize, v: f64| (nodes[i][axis] - v).abs() < 1e-9;
     let top: Vec<usize> = (0..nodes.len()).filter(|&i| on(i, 2, 1.0)).collect();
     let corner_x: Vec<usize> = (0..nodes.len()).filter(|&i| on(i, 0, 1.0)).collect();
-    let mut sys = heml::system(mesh)
-        .material(law, Params::from([("mu", mu), ("lambda", lambda)]))?
-        .build()?;
+    let mut sys = heml::system(mesh).material(law, params.clone())?.build()?;
     // abs_tol: the unloaded state (stretch 1) has no load scale; 1e-12 of the nodal
     // force of a unit strain is round-off level.
     let h = 1.0 / cells as f64;
     let opts = StaticOptions {
         tol: 1e-9,
-        abs_tol: 1e-12 * E * h * h,
+        abs_tol: 1e-12 * modulus * h * h,
         ..StaticOptions::default()
     };
     let mut out = Sweep {
@@ -138,7 +147,7 @@ fn sweep(law: &str, stretches: &[f64], cells: usize, report: &mut CaseReport, wo
 }
 
 /// Worst error of `heml` vs `reference` relative to max |reference|, and where.
-fn worst(heml: &[f64], reference: &[f64]) -> (usize, f64) {
+pub(crate) fn worst(heml: &[f64], reference: &[f64]) -> (usize, f64) {
     let scale = reference.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
     let mut w = (0, 0.0);
     for (k, (a, b)) in heml.iter().zip(reference).enumerate() {
@@ -169,8 +178,26 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
         .filter(|e| (e - 1.0).abs() > 1e-9) // the unloaded state has no stress to compare
         .collect();
     let mut worst_res = 0.0;
-    let svk = sweep("saint_venant_kirchhoff", &stretches, cells, report, &mut worst_res)?;
-    let nh = sweep("neo_hookean", &stretches, cells, report, &mut worst_res)?;
+    let (mu, lambda) = lame();
+    let lame_params = Params::from([("mu", mu), ("lambda", lambda)]);
+    let svk = sweep(
+        "saint_venant_kirchhoff",
+        &lame_params,
+        E,
+        &stretches,
+        cells,
+        report,
+        &mut worst_res,
+    )?;
+    let nh = sweep(
+        "neo_hookean",
+        &lame_params,
+        E,
+        &stretches,
+        cells,
+        report,
+        &mut worst_res,
+    )?;
     report.notes.push(format!(
         "unit cube, {cells}^3 cells x 6 tets, E = {E} Pa, nu = {NU}, {} stretches 0.3..1.5",
         stretches.len()
