@@ -10,8 +10,8 @@
 //! condition. The kernel's route — C from the edge lengths, its eigenvalues in closed
 //! form, the spectral gradient — shares nothing with it.
 
-use super::uniaxial::{sweep, worst};
-use super::{fmt_num, CaseReport, Options, Row};
+use super::uniaxial::{closed_form_rows, sweep};
+use super::{fmt_num, CaseReport, Options};
 use heml::{Params, Result};
 
 /// Treloar's rubber (Ogden 1972): (μ_p in Pa, α_p).
@@ -33,7 +33,7 @@ pub fn params(terms: &[(f64, f64); 3], kappa: f64) -> Params {
 }
 
 /// ∂w/∂λ_k of the compressible Ogden law w = Σ_p μ_p/α_p (J^(−α_p/3) Σ_i λ_i^α_p − 3)
-/// + κ/2 (ln J)² at principal stretches `l` (J = λ₁λ₂λ₃):
+/// plus κ/2 (ln J)², at principal stretches `l` (J = λ₁λ₂λ₃):
 /// Σ_p μ_p J^(−α_p/3)(λ_k^(α_p−1) − Σ_i λ_i^α_p/(3λ_k)) + κ ln J/λ_k.
 pub fn principal_stress(terms: &[(f64, f64)], kappa: f64, l: [f64; 3], k: usize) -> f64 {
     let j = l[0] * l[1] * l[2];
@@ -95,25 +95,6 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
         s.eps[s.eps.len() - 1]
     ));
     let reference: Vec<(f64, f64)> = s.eps.iter().map(|&e| uniaxial(&TRELOAR, kappa, e)).collect();
-    // Tolerance as in `uniaxial`: the solves stop at max|f_free| <= 1e-9 x the largest
-    // reaction, far below 1e-6 of the stress, while a wrong gradient is off by O(1).
-    let p: Vec<f64> = reference.iter().map(|r| r.1).collect();
-    let (k, err) = worst(&s.pzz, &p);
-    report.rows.push(Row::check(
-        format!("Ogden P_zz (Pa), worst of {}: at {:.2}", s.eps.len(), s.eps[k]),
-        fmt_num(s.pzz[k]),
-        fmt_num(p[k]),
-        err,
-        1e-6,
-    ));
-    let t: Vec<f64> = reference.iter().map(|r| r.0).collect();
-    let (k, err) = worst(&s.lateral, &t);
-    report.rows.push(Row::check(
-        format!("Ogden lateral stretch, worst: at {:.2}", s.eps[k]),
-        format!("{:.6}", s.lateral[k]),
-        format!("{:.6}", t[k]),
-        err,
-        1e-6,
-    ));
+    closed_form_rows(report, "Ogden", &s, &reference);
     Ok(())
 }

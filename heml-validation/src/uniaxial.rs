@@ -147,7 +147,7 @@ pub(crate) fn sweep(
 }
 
 /// Worst error of `heml` vs `reference` relative to max |reference|, and where.
-pub(crate) fn worst(heml: &[f64], reference: &[f64]) -> (usize, f64) {
+fn worst(heml: &[f64], reference: &[f64]) -> (usize, f64) {
     let scale = reference.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
     let mut w = (0, 0.0);
     for (k, (a, b)) in heml.iter().zip(reference).enumerate() {
@@ -157,6 +157,31 @@ pub(crate) fn worst(heml: &[f64], reference: &[f64]) -> (usize, f64) {
         }
     }
     w
+}
+
+/// The two rows of a sweep against its closed form `reference` = (lateral stretch,
+/// P_zz) per stretch: the worst P_zz and lateral-stretch errors. Tolerance 1e-6: the
+/// solves stop at max|f_free| <= 1e-9 x the largest reaction, far below it, while a
+/// wrong kernel or stress measure is off by O(1).
+pub(crate) fn closed_form_rows(report: &mut CaseReport, law: &str, s: &Sweep, reference: &[(f64, f64)]) {
+    let p: Vec<f64> = reference.iter().map(|r| r.1).collect();
+    let (k, err) = worst(&s.pzz, &p);
+    report.rows.push(Row::check(
+        format!("{law} P_zz (Pa), worst of {}: at {:.2}", s.eps.len(), s.eps[k]),
+        fmt_num(s.pzz[k]),
+        fmt_num(p[k]),
+        err,
+        1e-6,
+    ));
+    let a: Vec<f64> = reference.iter().map(|r| r.0).collect();
+    let (k, err) = worst(&s.lateral, &a);
+    report.rows.push(Row::check(
+        format!("{law} lateral stretch, worst: at {:.2}", s.eps[k]),
+        format!("{:.6}", s.lateral[k]),
+        format!("{:.6}", a[k]),
+        err,
+        1e-6,
+    ));
 }
 
 /// Stretch of the vertex of the parabola through the sampled minimum and its neighbours.
@@ -231,24 +256,7 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
         0.01,
     ));
     let nh_ref: Vec<(f64, f64)> = nh.eps.iter().map(|&e| nh_uniaxial(e)).collect();
-    let nh_p: Vec<f64> = nh_ref.iter().map(|r| r.1).collect();
-    let (k, err) = worst(&nh.pzz, &nh_p);
-    report.rows.push(Row::check(
-        format!("neo-Hookean P_zz (Pa), worst of {}: at {:.2}", nh.eps.len(), nh.eps[k]),
-        fmt_num(nh.pzz[k]),
-        fmt_num(nh_p[k]),
-        err,
-        1e-6,
-    ));
-    let nh_a: Vec<f64> = nh_ref.iter().map(|r| r.0).collect();
-    let (k, err) = worst(&nh.lateral, &nh_a);
-    report.rows.push(Row::check(
-        format!("neo-Hookean lateral stretch, worst: at {:.2}", nh.eps[k]),
-        format!("{:.6}", nh.lateral[k]),
-        format!("{:.6}", nh_a[k]),
-        err,
-        1e-6,
-    ));
+    closed_form_rows(report, "neo-Hookean", &nh, &nh_ref);
 
     if let Some(path) = opts.plot_path("uniaxial")? {
         let fine: Vec<f64> = (0..=240).map(|k| 0.3 + 1.2 * k as f64 / 240.0).collect();

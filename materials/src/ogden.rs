@@ -200,8 +200,8 @@ impl StretchLaw for Ogden {
             let c = mu / alpha;
             out.w += c * (f * s - 3.0);
             out.dj += c * f1 * s;
-            for i in 0..3 {
-                out.de[i] += 0.5 * mu * f * pm[i];
+            for (de, p) in out.de.iter_mut().zip(pm) {
+                *de += 0.5 * mu * f * p;
             }
         }
         out

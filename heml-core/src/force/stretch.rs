@@ -201,6 +201,40 @@ fn lane_by_lane(
     }
 }
 
+/// The [`TetKernel`] of a stretch formulation whose `eval(rest, lane, p, f)` gives
+/// (energy, J) and the forces: the two formulations differ only in `eval`.
+macro_rules! stretch_tet_kernel {
+    ($kernel:ident) => {
+        impl<M: StretchLaw> TetKernel for $kernel<M> {
+            type Batch = StretchBatch;
+            const PAD: StretchBatch = PAD;
+
+            fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut StretchBatch, lane: usize) {
+                store(mesh, t, batch, lane);
+            }
+
+            #[inline(always)]
+            fn tet(&self, rest: &StretchBatch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
+                let mut f = [Vec3::zeros(); 4];
+                let (e, _) = self.eval(rest, lane, p, &mut f);
+                for (a, fa) in f.into_iter().enumerate() {
+                    add(a, fa);
+                }
+                e
+            }
+
+            fn tet_state(&self, rest: &StretchBatch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
+                let (e, j) = self.eval(rest, lane, p, &mut [Vec3::zeros(); 4]);
+                (j, e / rest.vol[lane])
+            }
+
+            fn batch(&self, r: &StretchBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+                lane_by_lane(p, f, en, |l, pts, fl| self.eval(r, l, pts, fl).0);
+            }
+        }
+    };
+}
+
 impl<M: StretchLaw> StretchHemlKernel<M> {
     /// Energy and J of the tet in lane `lane`; forces into `f`.
     #[inline(always)]
@@ -224,33 +258,7 @@ impl<M: StretchLaw> StretchHemlKernel<M> {
     }
 }
 
-impl<M: StretchLaw> TetKernel for StretchHemlKernel<M> {
-    type Batch = StretchBatch;
-    const PAD: StretchBatch = PAD;
-
-    fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut StretchBatch, lane: usize) {
-        store(mesh, t, batch, lane);
-    }
-
-    #[inline(always)]
-    fn tet(&self, rest: &StretchBatch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
-        let mut f = [Vec3::zeros(); 4];
-        let (e, _) = self.eval(rest, lane, p, &mut f);
-        for (a, fa) in f.into_iter().enumerate() {
-            add(a, fa);
-        }
-        e
-    }
-
-    fn tet_state(&self, rest: &StretchBatch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
-        let (e, j) = self.eval(rest, lane, p, &mut [Vec3::zeros(); 4]);
-        (j, e / rest.vol[lane])
-    }
-
-    fn batch(&self, r: &StretchBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
-        lane_by_lane(p, f, en, |l, pts, fl| self.eval(r, l, pts, fl).0);
-    }
-}
+stretch_tet_kernel!(StretchHemlKernel);
 
 impl<M: StretchLaw> StretchP1Kernel<M> {
     /// Energy and J of the tet in lane `lane`; forces into `f`.
@@ -270,30 +278,4 @@ impl<M: StretchLaw> StretchP1Kernel<M> {
     }
 }
 
-impl<M: StretchLaw> TetKernel for StretchP1Kernel<M> {
-    type Batch = StretchBatch;
-    const PAD: StretchBatch = PAD;
-
-    fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut StretchBatch, lane: usize) {
-        store(mesh, t, batch, lane);
-    }
-
-    #[inline(always)]
-    fn tet(&self, rest: &StretchBatch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
-        let mut f = [Vec3::zeros(); 4];
-        let (e, _) = self.eval(rest, lane, p, &mut f);
-        for (a, fa) in f.into_iter().enumerate() {
-            add(a, fa);
-        }
-        e
-    }
-
-    fn tet_state(&self, rest: &StretchBatch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
-        let (e, j) = self.eval(rest, lane, p, &mut [Vec3::zeros(); 4]);
-        (j, e / rest.vol[lane])
-    }
-
-    fn batch(&self, r: &StretchBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
-        lane_by_lane(p, f, en, |l, pts, fl| self.eval(r, l, pts, fl).0);
-    }
-}
+stretch_tet_kernel!(StretchP1Kernel);
