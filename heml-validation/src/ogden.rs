@@ -10,7 +10,7 @@
 //! condition. The kernel's route — C from the edge lengths, its eigenvalues in closed
 //! form, the spectral gradient — shares nothing with it.
 
-use super::uniaxial::{closed_form_rows, sweep};
+use super::uniaxial::{bisect, closed_form_rows, sweep};
 use super::{fmt_num, CaseReport, Options};
 use heml::{Params, Result};
 
@@ -49,17 +49,7 @@ pub fn principal_stress(terms: &[(f64, f64)], kappa: f64, l: [f64; 3], k: usize)
 /// stretch t solving ∂w/∂λ₂(λ, t, t) = 0 (bisection on [0.05, 20], where it changes
 /// sign for any stable parameters and λ in [0.1, 10]), and P₁₁ = ∂w/∂λ₁(λ, t, t).
 pub fn uniaxial(terms: &[(f64, f64)], kappa: f64, lambda: f64) -> (f64, f64) {
-    let g = |t: f64| principal_stress(terms, kappa, [lambda, t, t], 1);
-    let (mut lo, mut hi) = (0.05, 20.0);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if g(mid) > 0.0 {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    let t = 0.5 * (lo + hi);
+    let t = bisect(|t: f64| principal_stress(terms, kappa, [lambda, t, t], 1), 0.05, 20.0);
     (t, principal_stress(terms, kappa, [lambda, t, t], 0))
 }
 

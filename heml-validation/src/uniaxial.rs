@@ -38,8 +38,13 @@ pub(crate) fn svk_pzz(eps: f64) -> f64 {
 pub(crate) fn nh_uniaxial(eps: f64) -> (f64, f64) {
     let (mu, lambda) = lame();
     // g(a) = μ(a² − 1) + λ ln(a² ε) is increasing in a > 0
-    let g = |a: f64| mu * (a * a - 1.0) + lambda * (a * a * eps).ln();
-    let (mut lo, mut hi) = (1e-6, 1e3);
+    let a = bisect(|a: f64| mu * (a * a - 1.0) + lambda * (a * a * eps).ln(), 1e-6, 1e3);
+    (a, mu * (eps - 1.0 / eps) + lambda * (a * a * eps).ln() / eps)
+}
+
+/// The root of `g`, increasing on [`lo`, `hi`] and changing sign there, by 200
+/// bisections (to the last bit).
+pub(crate) fn bisect(g: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
         if g(mid) > 0.0 {
@@ -48,8 +53,7 @@ pub(crate) fn nh_uniaxial(eps: f64) -> (f64, f64) {
             lo = mid;
         }
     }
-    let a = 0.5 * (lo + hi);
-    (a, mu * (eps - 1.0 / eps) + lambda * (a * a * eps).ln() / eps)
+    0.5 * (lo + hi)
 }
 
 /// The top-face stress and lateral stretch of a uniaxial sweep, by stretch.
