@@ -38,6 +38,8 @@ pub enum LawKind {
     Invariant,
     /// Energy w(l, L) of each tetrahedron edge ([`LinkLaw`]).
     Link,
+    /// Energy density in the principal stretches of C and J ([`StretchLaw`]).
+    Stretch,
 }
 
 /// What every law knows about itself, whatever its kind.
@@ -200,4 +202,72 @@ pub trait LinkLaw: MaterialInfo {
     fn dw(&self, l: f64, rest_l: f64) -> (f64, f64);
     /// ∂²w/∂l².
     fn d2w(&self, l: f64, rest_l: f64) -> f64;
+}
+
+/// The rest state of a principal-stretch law with parameter values `values` (see
+/// [`rest_state_invariant`]): w and the factor of P(I) = (2 ∂w/∂e₁ + ∂w/∂J)·I at
+/// e = (1, 1, 1), J = 1.
+pub fn rest_state_stretch<M: StretchLaw>(values: &[f64]) -> RestState {
+    let d = M::from_params(values).dw([1.0; 3], 1.0, None);
+    RestState {
+        energy: d.w,
+        stress: 2.0 * d.de[0] + d.dj,
+    }
+}
+
+/// Value and gradient of a principal-stretch energy density (see [`StretchLaw`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StretchDerivs {
+    /// w(e, J).
+    pub w: f64,
+    /// ∂w/∂e_i, holding J (e_i = λ_i², the eigenvalues of C).
+    pub de: [f64; 3],
+    /// ∂w/∂J, holding the e_i.
+    pub dj: f64,
+}
+
+/// Second derivatives of a principal-stretch energy density (see [`StretchLaw`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StretchSecond {
+    /// ∂²w/∂e_i∂e_j (symmetric).
+    pub dee: [[f64; 3]; 3],
+    /// The divided differences (∂w/∂e_i − ∂w/∂e_j)/(e_i − e_j) of the pairs
+    /// (0, 1), (1, 2), (0, 2) ([`STRETCH_PAIRS`]), with their limit ∂²w/∂e_i² −
+    /// ∂²w/∂e_i∂e_j where e_i = e_j. The law forms them without cancellation: this is
+    /// what keeps the tangent exact and finite at repeated eigenvalues (the rest state,
+    /// equibiaxial and uniaxial states).
+    pub dd: [f64; 3],
+    /// ∂²w/∂e_i∂J.
+    pub dej: [f64; 3],
+    /// ∂²w/∂J².
+    pub djj: f64,
+}
+
+/// The eigenvalue pairs of [`StretchSecond::dd`], in its order.
+pub const STRETCH_PAIRS: [(usize, usize); 3] = [(0, 1), (1, 2), (0, 2)];
+
+/// A hyperelastic law written in the principal stretches: an energy density per unit
+/// rest volume w(e₁, e₂, e₃, J), symmetric in e = (λ₁², λ₂², λ₃²) (the eigenvalues of
+/// C), with the signed volume ratio J as a separate argument (so that an inverted tet
+/// is seen, as in [`InvariantLaw`]; isochoric stretches are λ̄_i = J^(−1/3) λ_i).
+///
+/// The law supplies derivatives in the squared stretches e_i, the quantities the
+/// kernels get without square roots, and the divided differences of its gradient,
+/// which only the law can form without cancellation near coincident stretches. The
+/// kernels ([`crate::force::StretchHemlKernel`], [`crate::force::StretchP1Kernel`],
+/// the tangent) take C's eigen-decomposition in closed form and do the rest:
+/// ∂w/∂C = Σ_i ∂w/∂e_i n_i n_iᵀ and the Daleckii–Krein second derivative.
+///
+/// `ext = Some(j0)` asks for the second-order Taylor extension of w in J about `j0`,
+/// holding the e_i (DESIGN §1 "Inversion"), used below `j0` when
+/// [`Self::INVERSION_FIX`] is set.
+pub trait StretchLaw: MaterialInfo {
+    /// Whether the J0 extension applies (see [`InvariantLaw::INVERSION_FIX`]).
+    const INVERSION_FIX: bool;
+    /// Operation count of [`Self::dw`] (value and gradient), per tet.
+    const OPS: OpCount;
+    /// w and its gradient at squared stretches `e` and volume ratio `j`.
+    fn dw(&self, e: [f64; 3], j: f64, ext: Option<f64>) -> StretchDerivs;
+    /// The second derivatives at `e`, `j`.
+    fn d2w(&self, e: [f64; 3], j: f64, ext: Option<f64>) -> StretchSecond;
 }

@@ -4,8 +4,11 @@
 
 use crate::error::Result;
 use crate::force::p1::energy_and_piola;
-use crate::force::{ElasticForces, ForceOptions, HemlField, LinkField, P1Field, TangentField, TangentOperator};
-use crate::law::{InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo};
+use crate::force::{
+    energy_and_piola_stretch, ElasticForces, ForceOptions, HemlField, LinkField, P1Field, StretchHemlField,
+    StretchP1Field, TangentField, TangentOperator,
+};
+use crate::law::{InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo, StretchLaw};
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
 
@@ -62,6 +65,15 @@ pub struct Invariant<M>(pub M);
 /// Wraps a link law as a [`Material`].
 #[derive(Debug, Clone, Copy)]
 pub struct Link<M>(pub M);
+
+/// Wraps a principal-stretch law as a [`Material`].
+#[derive(Debug, Clone, Copy)]
+pub struct Stretch<M>(pub M);
+
+/// Registry constructor for principal-stretch laws.
+pub fn build_stretch<M: StretchLaw>(values: &[f64]) -> Box<dyn Material> {
+    Box::new(Stretch(M::from_params(values)))
+}
 
 /// Registry constructor for invariant laws (named by `#[heml::material]`'s output).
 pub fn build_invariant<M: InvariantLaw>(values: &[f64]) -> Box<dyn Material> {
@@ -170,5 +182,61 @@ impl<M: LinkLaw> Material for Link<M> {
     ) -> Result<Option<Box<dyn TangentOperator>>> {
         opts.validate()?;
         Ok(Some(Box::new(TangentField::link(self.0, mesh, tets, project_psd)?)))
+    }
+}
+
+impl<M: StretchLaw> Material for Stretch<M> {
+    fn name(&self) -> &'static str {
+        M::NAME
+    }
+    fn kind(&self) -> LawKind {
+        LawKind::Stretch
+    }
+    fn param_info(&self) -> &'static [ParamInfo] {
+        M::PARAMS
+    }
+    fn param_values(&self) -> Vec<f64> {
+        self.0.to_params()
+    }
+    fn ops(&self) -> OpCount {
+        <M as StretchLaw>::OPS
+    }
+    /// (uses I2, uses J): a stretch law depends on all of C and on J.
+    fn uses(&self) -> (bool, bool) {
+        (true, true)
+    }
+    fn force_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Box<dyn ElasticForces>> {
+        Ok(Box::new(StretchHemlField::on_tets(self.0, mesh, tets, *opts)?))
+    }
+    fn fem_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Option<Box<dyn ElasticForces>>> {
+        Ok(Some(Box::new(StretchP1Field::on_tets(self.0, mesh, tets, *opts)?)))
+    }
+    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
+        Some(energy_and_piola_stretch(&self.0, f, opts))
+    }
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>> {
+        Ok(Some(Box::new(TangentField::stretch(
+            self.0,
+            mesh,
+            tets,
+            *opts,
+            project_psd,
+        )?)))
     }
 }

@@ -16,12 +16,13 @@ fn kind_name(kind: LawKind) -> &'static str {
     match kind {
         LawKind::Invariant => "invariant",
         LawKind::Link => "link",
+        LawKind::Stretch => "stretch",
     }
 }
 
 /// Every registered law, sorted by name, as a list of dicts with keys `name`,
 /// `parameters` (list of names, in declaration order), `parameter_docs`,
-/// `energy` (the expression as declared), `kind` (`"invariant"` or `"link"`),
+/// `energy` (the expression as declared), `kind` (`"invariant"`, `"link"` or `"stretch"`),
 /// `young_poisson` (whether `E` and `nu` are accepted) and `doc`.
 #[pyfunction]
 pub fn materials(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
@@ -88,7 +89,7 @@ impl Material {
         self.law.name()
     }
 
-    /// `"invariant"` (w(I1, I2, J)) or `"link"` (per-edge energy).
+    /// `"invariant"` (w(I1, I2, J)), `"link"` (per-edge energy) or `"stretch"` (principal stretches).
     #[getter]
     fn kind(&self) -> &'static str {
         kind_name(self.law.kind())

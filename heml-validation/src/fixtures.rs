@@ -15,7 +15,8 @@ use heml::{Params, Result, TetMesh, Vec3};
 /// parameters, plus its shape parameters at moderate soft-tissue values — Mooney–
 /// Rivlin gives 30 % of the shear modulus to c01, Fung–Demiray and Veronda–Westmann
 /// stiffen with exponent 1, Yeoh softens then stiffens (c2 = −μ/20, c3 = μ/40), Gent
-/// locks at Jm = 50, Arruda–Boyce at λm = 3. `None` for laws without a mapping (link
+/// locks at Jm = 50, Arruda–Boyce at λm = 3, Ogden takes Treloar's exponents (1.3, 5,
+/// −2) and moduli ratios (μ2 = 0.0028 μ, μ3 = −0.0237 μ; Ogden 1972). `None` for laws without a mapping (link
 /// laws: a spring stiffness depends on the mesh) or that need shape parameters this
 /// table does not know.
 ///
@@ -36,6 +37,13 @@ pub fn soft_tissue_params(law: &str, e: f64, nu: f64) -> Option<Params> {
         "yeoh" => &[("c2", -mu / 20.0), ("c3", mu / 40.0)],
         "gent" => &[("jm", 50.0)],
         "arruda_boyce" => &[("lm", 3.0)],
+        "ogden" => &[
+            ("alpha1", 1.3),
+            ("mu2", 0.0028 * mu),
+            ("alpha2", 5.0),
+            ("mu3", -0.0237 * mu),
+            ("alpha3", -2.0),
+        ],
         _ => &[],
     };
     let params = shape

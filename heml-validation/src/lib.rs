@@ -16,6 +16,7 @@
 //! | `prony` | Prony relaxation of a held step strain vs α(t) |
 //! | `inversion` | an organ crushed through itself, held, released: min J, NaN count, return to rest |
 //! | `energy` | undamped long runs per integrator: relative energy drift |
+//! | `ogden` | unconstrained uniaxial loading of a cube, Ogden with Treloar's parameters vs the closed form |
 //!
 //! ```no_run
 //! use heml_validation::{run_case, Options, Status};
@@ -35,6 +36,7 @@ mod equivalence;
 pub mod fixtures;
 mod inversion;
 mod mass_spring;
+pub mod ogden;
 pub mod plot;
 mod prony;
 mod uniaxial;
@@ -259,6 +261,11 @@ pub const CASES: &[CaseInfo] = &[
         name: "energy",
         title: "undamped long runs per integrator: energy drift",
         run: energy::run,
+    },
+    CaseInfo {
+        name: "ogden",
+        title: "uniaxial tension/compression of a cube, Ogden (Treloar's rubber) vs closed form",
+        run: ogden::run,
     },
 ];
 

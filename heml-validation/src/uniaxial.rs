@@ -38,8 +38,13 @@ pub(crate) fn svk_pzz(eps: f64) -> f64 {
 pub(crate) fn nh_uniaxial(eps: f64) -> (f64, f64) {
     let (mu, lambda) = lame();
     // g(a) = μ(a² − 1) + λ ln(a² ε) is increasing in a > 0
-    let g = |a: f64| mu * (a * a - 1.0) + lambda * (a * a * eps).ln();
-    let (mut lo, mut hi) = (1e-6, 1e3);
+    let a = bisect(|a: f64| mu * (a * a - 1.0) + lambda * (a * a * eps).ln(), 1e-6, 1e3);
+    (a, mu * (eps - 1.0 / eps) + lambda * (a * a * eps).ln() / eps)
+}
+
+/// The root of `g`, increasing on [`lo`, `hi`] and changing sign there, by 200
+/// bisections (to the last bit).
+pub(crate) fn bisect(g: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
         if g(mid) > 0.0 {
@@ -48,32 +53,40 @@ pub(crate) fn nh_uniaxial(eps: f64) -> (f64, f64) {
             lo = mid;
         }
     }
-    let a = 0.5 * (lo + hi);
-    (a, mu * (eps - 1.0 / eps) + lambda * (a * a * eps).ln() / eps)
+    0.5 * (lo + hi)
 }
 
-struct Sweep {
-    eps: Vec<f64>,
-    pzz: Vec<f64>,
-    lateral: Vec<f64>,
+/// The top-face stress and lateral stretch of a uniaxial sweep, by stretch.
+pub(crate) struct Sweep {
+    pub eps: Vec<f64>,
+    pub pzz: Vec<f64>,
+    pub lateral: Vec<f64>,
 }
 
-fn sweep(law: &str, stretches: &[f64], cells: usize, report: &mut CaseReport, worst: &mut f64) -> Result<Sweep> {
-    let (mu, lambda) = lame();
+/// Quasi-static sweep of the cube with law `law` and parameters `params` over
+/// `stretches`, `cells` per side; `modulus` (Pa) sets the solver's absolute
+/// tolerance.
+pub(crate) fn sweep(
+    law: &str,
+    params: &Params,
+    modulus: f64,
+    stretches: &[f64],
+    cells: usize,
+    report: &mut CaseReport,
+    worst: &mut f64,
+) -> Result<Sweep> {
     let mesh = box_mesh([1.0; 3], [cells; 3], HexSplit::Six)?;
     let nodes = mesh.nodes().to_vec();
     let on = |i: usize, axis: usize, v: f64| (nodes[i][axis] - v).abs() < 1e-9;
     let top: Vec<usize> = (0..nodes.len()).filter(|&i| on(i, 2, 1.0)).collect();
     let corner_x: Vec<usize> = (0..nodes.len()).filter(|&i| on(i, 0, 1.0)).collect();
-    let mut sys = heml::system(mesh)
-        .material(law, Params::from([("mu", mu), ("lambda", lambda)]))?
-        .build()?;
+    let mut sys = heml::system(mesh).material(law, params.clone())?.build()?;
     // abs_tol: the unloaded state (stretch 1) has no load scale; 1e-12 of the nodal
     // force of a unit strain is round-off level.
     let h = 1.0 / cells as f64;
     let opts = StaticOptions {
         tol: 1e-9,
-        abs_tol: 1e-12 * E * h * h,
+        abs_tol: 1e-12 * modulus * h * h,
         ..StaticOptions::default()
     };
     let mut out = Sweep {
@@ -150,6 +163,31 @@ fn worst(heml: &[f64], reference: &[f64]) -> (usize, f64) {
     w
 }
 
+/// The two rows of a sweep against its closed form `reference` = (lateral stretch,
+/// P_zz) per stretch: the worst P_zz and lateral-stretch errors. Tolerance 1e-6: the
+/// solves stop at max|f_free| <= 1e-9 x the largest reaction, far below it, while a
+/// wrong kernel or stress measure is off by O(1).
+pub(crate) fn closed_form_rows(report: &mut CaseReport, law: &str, s: &Sweep, reference: &[(f64, f64)]) {
+    let p: Vec<f64> = reference.iter().map(|r| r.1).collect();
+    let (k, err) = worst(&s.pzz, &p);
+    report.rows.push(Row::check(
+        format!("{law} P_zz (Pa), worst of {}: at {:.2}", s.eps.len(), s.eps[k]),
+        fmt_num(s.pzz[k]),
+        fmt_num(p[k]),
+        err,
+        1e-6,
+    ));
+    let a: Vec<f64> = reference.iter().map(|r| r.0).collect();
+    let (k, err) = worst(&s.lateral, &a);
+    report.rows.push(Row::check(
+        format!("{law} lateral stretch, worst: at {:.2}", s.eps[k]),
+        format!("{:.6}", s.lateral[k]),
+        format!("{:.6}", a[k]),
+        err,
+        1e-6,
+    ));
+}
+
 /// Stretch of the vertex of the parabola through the sampled minimum and its neighbours.
 fn vertex(eps: &[f64], p: &[f64]) -> f64 {
     let k = (1..eps.len() - 1).min_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap_or(1);
@@ -169,8 +207,26 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
         .filter(|e| (e - 1.0).abs() > 1e-9) // the unloaded state has no stress to compare
         .collect();
     let mut worst_res = 0.0;
-    let svk = sweep("saint_venant_kirchhoff", &stretches, cells, report, &mut worst_res)?;
-    let nh = sweep("neo_hookean", &stretches, cells, report, &mut worst_res)?;
+    let (mu, lambda) = lame();
+    let lame_params = Params::from([("mu", mu), ("lambda", lambda)]);
+    let svk = sweep(
+        "saint_venant_kirchhoff",
+        &lame_params,
+        E,
+        &stretches,
+        cells,
+        report,
+        &mut worst_res,
+    )?;
+    let nh = sweep(
+        "neo_hookean",
+        &lame_params,
+        E,
+        &stretches,
+        cells,
+        report,
+        &mut worst_res,
+    )?;
     report.notes.push(format!(
         "unit cube, {cells}^3 cells x 6 tets, E = {E} Pa, nu = {NU}, {} stretches 0.3..1.5",
         stretches.len()
@@ -204,24 +260,7 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
         0.01,
     ));
     let nh_ref: Vec<(f64, f64)> = nh.eps.iter().map(|&e| nh_uniaxial(e)).collect();
-    let nh_p: Vec<f64> = nh_ref.iter().map(|r| r.1).collect();
-    let (k, err) = worst(&nh.pzz, &nh_p);
-    report.rows.push(Row::check(
-        format!("neo-Hookean P_zz (Pa), worst of {}: at {:.2}", nh.eps.len(), nh.eps[k]),
-        fmt_num(nh.pzz[k]),
-        fmt_num(nh_p[k]),
-        err,
-        1e-6,
-    ));
-    let nh_a: Vec<f64> = nh_ref.iter().map(|r| r.0).collect();
-    let (k, err) = worst(&nh.lateral, &nh_a);
-    report.rows.push(Row::check(
-        format!("neo-Hookean lateral stretch, worst: at {:.2}", nh.eps[k]),
-        format!("{:.6}", nh.lateral[k]),
-        format!("{:.6}", nh_a[k]),
-        err,
-        1e-6,
-    ));
+    closed_form_rows(report, "neo-Hookean", &nh, &nh_ref);
 
     if let Some(path) = opts.plot_path("uniaxial")? {
         let fine: Vec<f64> = (0..=240).map(|k| 0.3 + 1.2 * k as f64 / 240.0).collect();

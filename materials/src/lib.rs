@@ -16,6 +16,7 @@
 //! | `arruda_boyce` | [`ArrudaBoyce`] |
 //! | `veronda_westmann` | [`VerondaWestmann`] |
 //! | `stable_neo_hookean` | [`StableNeoHookean`] |
+//! | `ogden` | [`Ogden`] (principal stretches) |
 //! | `mass_spring` | [`MassSpring`] |
 
 #![warn(missing_docs)]
@@ -26,6 +27,7 @@ mod gent;
 mod mass_spring;
 mod mooney_rivlin;
 mod neo_hookean;
+mod ogden;
 mod saint_venant_kirchhoff;
 mod stable_neo_hookean;
 mod veronda_westmann;
@@ -37,6 +39,7 @@ pub use gent::Gent;
 pub use mass_spring::MassSpring;
 pub use mooney_rivlin::MooneyRivlin;
 pub use neo_hookean::NeoHookean;
+pub use ogden::Ogden;
 pub use saint_venant_kirchhoff::SaintVenantKirchhoff;
 pub use stable_neo_hookean::StableNeoHookean;
 pub use veronda_westmann::VerondaWestmann;

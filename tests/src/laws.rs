@@ -52,8 +52,8 @@ pub fn all_laws(rng: &mut impl Rng) -> Vec<(&'static str, Box<dyn Material>)> {
         .map(|e| (e.name, e.instantiate(&sample_params(e, rng)).unwrap()))
         .collect();
     assert!(
-        laws.len() >= 11,
-        "expected the 10 built-in laws and test_quartic, got {}",
+        laws.len() >= 12,
+        "expected the 11 built-in laws and test_quartic, got {}",
         laws.len()
     );
     laws

@@ -12,13 +12,14 @@ use rand::Rng;
 pub use laws::{all_laws, sample_params, TestQuartic};
 
 /// The laws of the `materials` crate, by registry name, sorted.
-pub const BUILT_IN: [&str; 10] = [
+pub const BUILT_IN: [&str; 11] = [
     "arruda_boyce",
     "fung_demiray",
     "gent",
     "mass_spring",
     "mooney_rivlin",
     "neo_hookean",
+    "ogden",
     "saint_venant_kirchhoff",
     "stable_neo_hookean",
     "veronda_westmann",

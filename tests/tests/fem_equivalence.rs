@@ -1,5 +1,6 @@
 //! HEML forces are exactly P1 finite-element forces: the link kernel and the
-//! independent F = Ds·Dm⁻¹ path agree to round-off for every invariant law.
+//! independent F = Ds·Dm⁻¹ path agree to round-off for every invariant and
+//! principal-stretch law.
 
 use heml::law::*;
 use heml::prelude::*;
@@ -35,14 +36,26 @@ fn compare(mesh: &TetMesh, x: &[Vec3], rng: &mut TestRng) -> usize {
             continue;
         }
         let scale = max_norm(&ff);
+        // A principal-stretch law (Ogden) reads the smallest eigenvalue e_min of C,
+        // which any route (C from lengths, or FᵀF) knows only to ε·tr C absolutely: its
+        // forces carry a relative error ~ε·tr C/e_min, and e_min ∝ J² as a tet
+        // flattens (one stretch → 0, the others fixed). So its bound grows as 1/J²
+        // of the flattest tet (the invariant laws are polynomial in C: no such loss).
+        // Measured: 7e-12 relative at J = 0.03, within 1e-12/J² = 1.1e-9.
+        let rel = if law.kind() == LawKind::Stretch {
+            let j_min = fem.tet_states(x).unwrap().iter().fold(1.0f64, |m, s| m.min(s.0.abs()));
+            REL / j_min.max(1e-3).powi(2)
+        } else {
+            REL
+        };
         assert!(
-            max_diff(&fh, &ff) <= REL * scale,
+            max_diff(&fh, &ff) <= rel * scale,
             "{}: forces differ by {:e} (scale {scale:e})",
             entry.name,
             max_diff(&fh, &ff)
         );
         assert!(
-            (eh - ef).abs() <= REL * ef.abs().max(1e-300),
+            (eh - ef).abs() <= rel * ef.abs().max(1e-300),
             "{}: energies {eh} vs {ef}",
             entry.name
         );
@@ -62,7 +75,8 @@ proptest! {
         if invert {
             invert_first_tet(&mesh, &mut x, 0.7);
         }
-        // ten invariant laws are registered here; at most Gent can leave its domain
-        prop_assert!(compare(&mesh, &x, &mut rng) >= 9);
+        // ten invariant laws and Ogden are registered here; at most Gent can leave
+        // its domain
+        prop_assert!(compare(&mesh, &x, &mut rng) >= 10);
     }
 }

@@ -22,6 +22,11 @@ fn uniaxial_cube_matches_svk_and_neo_hookean_closed_forms() {
 }
 
 #[test]
+fn ogden_cube_matches_the_closed_form_with_treloar_parameters() {
+    check("ogden");
+}
+
+#[test]
 fn cantilever_converges_to_euler_bernoulli() {
     check("cantilever");
 }

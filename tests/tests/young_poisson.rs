@@ -21,6 +21,11 @@ const SHAPE: &[(&str, &str, f64)] = &[
     ("arruda_boyce", "lm", 3.0),
     ("fung_demiray", "b", 1.0),
     ("veronda_westmann", "c2", 1.0),
+    ("ogden", "alpha1", 1.3),
+    ("ogden", "mu2", 100.0),
+    ("ogden", "alpha2", 5.0),
+    ("ogden", "mu3", -800.0),
+    ("ogden", "alpha3", -2.0),
 ];
 
 /// (μ, K) of `law`, measured on its first Piola–Kirchhoff stress (from its generated
@@ -29,7 +34,11 @@ const SHAPE: &[(&str, &str, f64)] = &[
 /// μ = (P₁₂(γ=h) − P₁₂(−h))/(2h),  K = (P₁₁((1+h)I) − P₁₁((1−h)I))/(6h).
 fn measured_moduli(law: &dyn Material) -> (f64, f64) {
     let opts = ForceOptions::default();
-    let p = |f: Matrix3<f64>| law.stress(&f, &opts).expect("an invariant law has a stress").1;
+    let p = |f: Matrix3<f64>| {
+        law.stress(&f, &opts)
+            .expect("an invariant or stretch law has a stress")
+            .1
+    };
     let h = 1e-6;
     let shear = |g: f64| {
         let mut f = Matrix3::identity();

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 #[derive(clap::Args, Debug)]
 pub struct ValidateArgs {
     /// Run only this case (uniaxial, cantilever, p1_equivalence, op_count, mass_spring,
-    /// prony, inversion, energy).
+    /// prony, inversion, energy, ogden).
     #[arg(long, value_name = "NAME")]
     pub case: Option<String>,
     /// Folder for the PNG plots.

@@ -14,6 +14,9 @@ pub(crate) mod lanes;
 mod link;
 mod options;
 pub mod p1;
+pub mod spectral;
+mod stretch;
+mod stretch_tangent;
 pub mod tangent;
 
 pub use assembly::SimdLevel;
@@ -23,4 +26,6 @@ pub use heml::{HemlField, HemlKernel};
 pub use link::{LinkField, LinkKernel};
 pub use options::ForceOptions;
 pub use p1::{P1Field, P1Kernel};
+pub use stretch::{energy_and_piola_stretch, StretchHemlField, StretchHemlKernel, StretchP1Field, StretchP1Kernel};
+pub use stretch_tangent::StretchHessian;
 pub use tangent::{TangentField, TangentOperator, TetStiffness};

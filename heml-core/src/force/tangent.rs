@@ -250,24 +250,6 @@ impl<M: InvariantLaw> InvariantHessian<M> {
         if M::USES_J {
             hq[(6, 6)] = vol * h[2][2];
         }
-        let gl = length_gradients(&v);
-        let mut g = SMatrix::<f64, 12, 7>::zeros();
-        for e in 0..6 {
-            for i in 0..12 {
-                g[(i, e)] = gl[e][i];
-            }
-        }
-        if M::USES_J {
-            // ∇J = ∇vol/Vol: crosses/6 on nodes 1..3, minus their sum on node 0
-            let s = 1.0 / (6.0 * vol);
-            for (c, cross) in crosses.iter().enumerate() {
-                for ax in 0..3 {
-                    g[(3 * (c + 1) + ax, 6)] = cross[ax] * s;
-                    g[(ax, 6)] -= cross[ax] * s;
-                }
-            }
-        }
-        let mut k = g * hq * g.transpose();
         let ge: [f64; 6] = std::array::from_fn(|e| {
             let mut s = w1 * vtr[e];
             if M::USES_I2 {
@@ -275,16 +257,50 @@ impl<M: InvariantLaw> InvariantHessian<M> {
             }
             vol * s
         });
-        add_length_curvature(&mut k, &ge);
-        if M::USES_J {
-            // W = Vol·w with J = vol/Vol: the Vol cancels in ∂W/∂J · ∇²J
-            add_volume_curvature(&mut k, &v, wj);
-        }
+        let vol_terms = M::USES_J.then_some((crosses, wj));
+        let k = stiffness_from_q(&hq, &ge, &v, vol, vol_terms);
         let used = [true, M::USES_I2, M::USES_J];
         let d = std::array::from_fn(|a| if used[a] { d.d[a] } else { 0.0 });
         let h = std::array::from_fn(|a| std::array::from_fn(|b| if used[a] && used[b] { h[a][b] } else { 0.0 }));
         (k, (d, h))
     }
+}
+
+/// K = G H Gᵀ + Σ_e g_e ∇²l_e + w_J ∇²vol of a tet whose energy is a function of
+/// q = (l_1..l_6, J): `hq` = ∂²W/∂q², `ge` = ∂W/∂l_e, `v` the edge vectors, `vol`
+/// the rest volume, and `volume` = (the cross products of [`volume_terms`], ∂W/∂J)
+/// when W depends on J. Shared by the invariant and principal-stretch tangents.
+pub(super) fn stiffness_from_q(
+    hq: &SMatrix<f64, 7, 7>,
+    ge: &[f64; 6],
+    v: &[Vec3; 6],
+    vol: f64,
+    volume: Option<([Vec3; 3], f64)>,
+) -> TetStiffness {
+    let gl = length_gradients(v);
+    let mut g = SMatrix::<f64, 12, 7>::zeros();
+    for e in 0..6 {
+        for i in 0..12 {
+            g[(i, e)] = gl[e][i];
+        }
+    }
+    if let Some((crosses, _)) = volume {
+        // ∇J = ∇vol/Vol: crosses/6 on nodes 1..3, minus their sum on node 0
+        let s = 1.0 / (6.0 * vol);
+        for (c, cross) in crosses.iter().enumerate() {
+            for ax in 0..3 {
+                g[(3 * (c + 1) + ax, 6)] = cross[ax] * s;
+                g[(ax, 6)] -= cross[ax] * s;
+            }
+        }
+    }
+    let mut k = g * hq * g.transpose();
+    add_length_curvature(&mut k, ge);
+    if let Some((_, wj)) = volume {
+        // W = Vol·w with J = vol/Vol: the Vol cancels in ∂W/∂J · ∇²J
+        add_volume_curvature(&mut k, v, wj);
+    }
+    k
 }
 
 /// The stiffness of a link law's tets: the rest squared lengths of each tet's edges.
@@ -389,7 +405,7 @@ pub struct TangentField<H: TetHessian> {
 }
 
 impl<H: TetHessian> TangentField<H> {
-    fn build(kernel: H, mesh: &TetMesh, ids: Vec<usize>, project: bool) -> Self {
+    pub(super) fn build(kernel: H, mesh: &TetMesh, ids: Vec<usize>, project: bool) -> Self {
         let tets: Vec<[u32; 4]> = ids.iter().map(|&t| mesh.tets()[t]).collect();
         let n = mesh.n_nodes();
         let mut start = vec![0usize; n + 1];

@@ -134,7 +134,7 @@ impl DeformedEstimate {
             .regions()
             .iter()
             .enumerate()
-            .filter(|(_, r)| r.material.kind() == LawKind::Invariant)
+            .filter(|(_, r)| r.material.kind() != LawKind::Link)
             .map(|(region, r)| {
                 let ids = r.field.tet_ids();
                 let tets: Vec<[u32; 4]> = ids.iter().map(|&t| all[t]).collect();

@@ -109,7 +109,7 @@ pub(crate) fn min_height(sys: &System, tets: &[usize]) -> f64 {
 /// The wave-speed part of the estimate for one region: `Some(WAVE_FACTOR·h_min/c)`,
 /// or `None` when the law gives no positive modulus (link laws).
 fn region_wave_dt(sys: &System, r: &Region, opts: &ForceOptions) -> Option<f64> {
-    if r.material.kind() != LawKind::Invariant {
+    if r.material.kind() == LawKind::Link {
         return None;
     }
     let (mu, lambda) = lame_at_rest(&*r.material, opts)?;

@@ -21,7 +21,7 @@ class MaterialInfo(TypedDict):
     parameters: list[str]
     parameter_docs: list[str]
     energy: str
-    kind: Literal["invariant", "link"]
+    kind: Literal["invariant", "link", "stretch"]
     young_poisson: bool
     doc: str
 
@@ -52,7 +52,7 @@ class Material:
     def name(self) -> str:
         """Registry name."""
     @property
-    def kind(self) -> Literal["invariant", "link"]:
+    def kind(self) -> Literal["invariant", "link", "stretch"]:
         """Invariant or link law."""
     @property
     def params(self) -> dict[str, float]:

@@ -1,0 +1,281 @@
+//! Laws in the principal stretches ([`StretchLaw`], e.g. Ogden): the HEML kernel and
+//! the standard P1 kernel of the same law, on the generic [`TetField`].
+//!
+//! **HEML.** C = Σ_e l_e C_e is formed from the six squared edge lengths as
+//! C = V⁻ᵀ D(l) V⁻¹ (DESIGN §1; V⁻¹ is the tet's rest data, so the 36 numbers of the
+//! C_e are never stored), its eigen-decomposition taken in closed form
+//! ([`super::spectral`]), and the gradient ∂w/∂C = Σ_i ∂w/∂e_i n_i n_iᵀ
+//! (e_i = λ_i²; equivalently Σ_i (∂w/∂λ_i)/(2λ_i) n_i n_iᵀ) contracted with each C_e:
+//! g_e = ∂W/∂l_e = Vol·C_e : ∂w/∂C = Vol·D_e : (V⁻¹ ∂w/∂C V⁻ᵀ). The forces are the six
+//! link forces −2 g_e v_e plus the volume term of ∂w/∂J, exactly as for invariant laws.
+//! The gradient is a matrix function of C, independent of the basis chosen inside a
+//! repeated eigenspace, so it is exact and finite at the rest state and at uniaxial or
+//! equibiaxial states (where eigenvalues coincide exactly).
+//!
+//! **P1.** F = Ds·Dm⁻¹, C = FᵀF, P = 2F·∂w/∂C + ∂w/∂J·cof F, f = −Vol·P·Dm⁻ᵀ: the
+//! oracle HEML is tested against (same law, same eigensolver, independent path).
+//!
+//! Both batch kernels run the plain kernel lane by lane: the eigensolver branches, so
+//! nothing is gained by writing it across lanes (see the README's benchmark).
+
+use super::assembly::{LaneForces, LanePoints, LANES};
+use super::field::{Formulation, TetField};
+use super::heml::{scatter_links, volume_terms};
+use super::kernel::TetKernel;
+use super::p1::cofactor;
+use super::spectral::sym_eigen;
+use super::ForceOptions;
+use crate::error::Result;
+use crate::law::{StretchDerivs, StretchLaw};
+use crate::mesh::TetMesh;
+use crate::rest::{d_of_lengths, edge_vectors, rest_edge_matrix};
+use crate::Vec3;
+use nalgebra::Matrix3;
+
+/// Rest data of `LANES` consecutive tets: volume and V⁻¹ = Dm⁻¹ (row-major), SoA.
+/// The HEML and P1 stretch kernels share it.
+#[derive(Debug, Clone, Copy)]
+pub struct StretchBatch {
+    vol: [f64; LANES],
+    vinv: [[f64; LANES]; 9],
+}
+
+impl StretchBatch {
+    /// V⁻¹ of lane `l`.
+    #[inline(always)]
+    fn vinv(&self, l: usize) -> Matrix3<f64> {
+        Matrix3::from_fn(|r, c| self.vinv[3 * r + c][l])
+    }
+}
+
+/// Stores the volume and V⁻¹ of tet `t` of `mesh` in lane `lane` of `batch`.
+fn store(mesh: &TetMesh, t: usize, batch: &mut StretchBatch, lane: usize) {
+    let v = rest_edge_matrix(&mesh.tet_points(t));
+    let inv = v.try_inverse().unwrap_or_else(Matrix3::zeros);
+    batch.vol[lane] = v.determinant() / 6.0;
+    for r in 0..3 {
+        for c in 0..3 {
+            batch.vinv[3 * r + c][lane] = inv[(r, c)];
+        }
+    }
+}
+
+const PAD: StretchBatch = StretchBatch {
+    vol: [1.0; LANES],
+    vinv: [[0.0; LANES]; 9],
+};
+
+/// The spectral state of a tet: C's eigenvalues (floored, see [`spectral_state`]),
+/// eigenvectors, and the extension point the law is evaluated with.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Spectral {
+    /// Eigenvalues of C (the squared stretches), floored at [`STRETCH_FLOOR`]·tr C.
+    pub e: [f64; 3],
+    /// Orthonormal eigenvectors of C.
+    pub n: [Vec3; 3],
+    /// `Some(j0)` when the law's J0 extension applies at this J.
+    pub ext: Option<f64>,
+}
+
+/// Relative floor of the squared stretches: terms λ^α with α < 0 (Ogden's third
+/// Treloar term) diverge when a tet is flattened (λ_i → 0, which an inversion passes
+/// through); below 1e-12·tr C — a stretch under 1e-6 of the largest — the law is
+/// evaluated at the floor, so forces stay finite there (and are those of the law
+/// above it).
+pub(crate) const STRETCH_FLOOR: f64 = 1e-12;
+
+/// C's eigen-decomposition, floored, and whether `law` is extended at `j`.
+#[inline(always)]
+pub(crate) fn spectral_state<M: StretchLaw>(c: &Matrix3<f64>, j: f64, opts: &ForceOptions) -> Spectral {
+    let (e, n) = sym_eigen(c);
+    let floor = STRETCH_FLOOR * c.trace().abs();
+    Spectral {
+        e: e.map(|x| x.max(floor)),
+        n,
+        ext: opts.extend(M::INVERSION_FIX, j).then_some(opts.j0),
+    }
+}
+
+/// ∂w/∂C = Σ_i ∂w/∂e_i n_i n_iᵀ.
+#[inline(always)]
+fn gradient_c(s: &Spectral, d: &StretchDerivs) -> Matrix3<f64> {
+    let mut g = Matrix3::zeros();
+    for i in 0..3 {
+        g += s.n[i] * s.n[i].transpose() * d.de[i];
+    }
+    g
+}
+
+/// C = V⁻ᵀ D(l) V⁻¹ from the squared lengths `l` (= Σ_e l_e C_e).
+#[inline(always)]
+pub(crate) fn c_of_lengths(vinv: &Matrix3<f64>, l: &[f64; 6]) -> Matrix3<f64> {
+    let d = d_of_lengths(l);
+    let d = Matrix3::from_fn(|r, c| d[r][c]);
+    vinv.transpose() * d * vinv
+}
+
+/// (C_e : X)_e = D_e : (V⁻¹ X V⁻ᵀ) for a symmetric X, from X̂ = V⁻¹ X V⁻ᵀ: the row
+/// sums of X̂ for the edges from node 0, minus its off-diagonal entries for the edges
+/// 1→2, 2→3, 3→1 (the pattern of the D_e, DESIGN §1).
+#[inline(always)]
+pub(crate) fn edge_contraction(xh: &Matrix3<f64>) -> [f64; 6] {
+    let (x01, x12, x02) = (xh[(0, 1)], xh[(1, 2)], xh[(0, 2)]);
+    [
+        xh[(0, 0)] + x01 + x02,
+        x01 + xh[(1, 1)] + x12,
+        x02 + x12 + xh[(2, 2)],
+        -x01,
+        -x12,
+        -x02,
+    ]
+}
+
+/// Energy density and first Piola–Kirchhoff stress of the stretch law `law` at `f`:
+/// P = 2F·∂w/∂C + ∂w/∂J·cof F, with the J0 extension as in the HEML path.
+pub fn energy_and_piola_stretch<M: StretchLaw>(law: &M, f: &Matrix3<f64>, opts: &ForceOptions) -> (f64, Matrix3<f64>) {
+    let j = f.determinant();
+    let c = f.transpose() * f;
+    let s = spectral_state::<M>(&c, j, opts);
+    let d = law.dw(s.e, j, s.ext);
+    (d.w, f * gradient_c(&s, &d) * 2.0 + cofactor(f) * d.dj)
+}
+
+/// Internal forces of a principal-stretch law, the HEML way.
+pub type StretchHemlField<M> = TetField<StretchHemlKernel<M>>;
+
+/// Internal forces of a principal-stretch law, the standard P1 way (the oracle).
+pub type StretchP1Field<M> = TetField<StretchP1Kernel<M>>;
+
+/// The HEML formulation of a principal-stretch law: the kernel of a
+/// [`StretchHemlField`].
+#[derive(Debug, Clone)]
+pub struct StretchHemlKernel<M: StretchLaw> {
+    law: M,
+    opts: ForceOptions,
+}
+
+/// The standard P1 formulation of a principal-stretch law: the kernel of a
+/// [`StretchP1Field`].
+#[derive(Debug, Clone)]
+pub struct StretchP1Kernel<M: StretchLaw> {
+    law: M,
+    opts: ForceOptions,
+}
+
+impl<M: StretchLaw> Formulation for StretchHemlKernel<M> {}
+impl<M: StretchLaw> Formulation for StretchP1Kernel<M> {}
+
+impl<M: StretchLaw> StretchHemlField<M> {
+    /// The field of `law` over the tets `tets` of `mesh` (all when `None`), stored in
+    /// Morton order.
+    pub fn on_tets(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
+        TetField::build(StretchHemlKernel { law, opts }, mesh, tets, opts, true)
+    }
+}
+
+impl<M: StretchLaw> StretchP1Field<M> {
+    /// The field of `law` over the tets `tets` of `mesh` (all when `None`), stored in
+    /// Morton order.
+    pub fn on_tets(law: M, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
+        TetField::build(StretchP1Kernel { law, opts }, mesh, tets, opts, true)
+    }
+}
+
+/// Runs a plain kernel on every lane of a batch (see the module doc).
+#[inline(always)]
+fn lane_by_lane(
+    p: &LanePoints,
+    f: &mut LaneForces,
+    en: &mut [f64; LANES],
+    mut tet: impl FnMut(usize, &[Vec3; 4], &mut [Vec3; 4]) -> f64,
+) {
+    for (l, e) in en.iter_mut().enumerate() {
+        let pts: [Vec3; 4] = std::array::from_fn(|a| Vec3::new(p[a][0][l], p[a][1][l], p[a][2][l]));
+        let mut fl = [Vec3::zeros(); 4];
+        *e = tet(l, &pts, &mut fl);
+        for (a, fa) in fl.iter().enumerate() {
+            for c in 0..3 {
+                f[a][c][l] = fa[c];
+            }
+        }
+    }
+}
+
+/// The [`TetKernel`] of a stretch formulation whose `eval(rest, lane, p, f)` gives
+/// (energy, J) and the forces: the two formulations differ only in `eval`.
+macro_rules! stretch_tet_kernel {
+    ($kernel:ident) => {
+        impl<M: StretchLaw> TetKernel for $kernel<M> {
+            type Batch = StretchBatch;
+            const PAD: StretchBatch = PAD;
+
+            fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut StretchBatch, lane: usize) {
+                store(mesh, t, batch, lane);
+            }
+
+            #[inline(always)]
+            fn tet(&self, rest: &StretchBatch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
+                let mut f = [Vec3::zeros(); 4];
+                let (e, _) = self.eval(rest, lane, p, &mut f);
+                for (a, fa) in f.into_iter().enumerate() {
+                    add(a, fa);
+                }
+                e
+            }
+
+            fn tet_state(&self, rest: &StretchBatch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
+                let (e, j) = self.eval(rest, lane, p, &mut [Vec3::zeros(); 4]);
+                (j, e / rest.vol[lane])
+            }
+
+            fn batch(&self, r: &StretchBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+                lane_by_lane(p, f, en, |l, pts, fl| self.eval(r, l, pts, fl).0);
+            }
+        }
+    };
+}
+
+impl<M: StretchLaw> StretchHemlKernel<M> {
+    /// Energy and J of the tet in lane `lane`; forces into `f`.
+    #[inline(always)]
+    fn eval(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4], f: &mut [Vec3; 4]) -> (f64, f64) {
+        let v = edge_vectors(p);
+        let l = v.map(|e| e.norm_squared());
+        let vol = r.vol[lane];
+        let vinv = r.vinv(lane);
+        let (j, crosses) = volume_terms(&v, vol);
+        let s = spectral_state::<M>(&c_of_lengths(&vinv, &l), j, &self.opts);
+        let d = self.law.dw(s.e, j, s.ext);
+        let gh = vinv * gradient_c(&s, &d) * vinv.transpose();
+        let g = edge_contraction(&gh).map(|x| vol * x);
+        scatter_links(f, &g, &v);
+        let sj = d.dj / 6.0;
+        for a in 0..3 {
+            f[a + 1] -= crosses[a] * sj;
+            f[0] += crosses[a] * sj;
+        }
+        (vol * d.w, j)
+    }
+}
+
+stretch_tet_kernel!(StretchHemlKernel);
+
+impl<M: StretchLaw> StretchP1Kernel<M> {
+    /// Energy and J of the tet in lane `lane`; forces into `f`.
+    #[inline(always)]
+    fn eval(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4], f: &mut [Vec3; 4]) -> (f64, f64) {
+        let vol = r.vol[lane];
+        let dm_inv = r.vinv(lane);
+        let fm = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * dm_inv;
+        let (w, pk) = energy_and_piola_stretch(&self.law, &fm, &self.opts);
+        let h = -vol * pk * dm_inv.transpose();
+        for a in 0..3 {
+            let fa: Vec3 = h.column(a).into();
+            f[a + 1] += fa;
+            f[0] -= fa;
+        }
+        (vol * w, fm.determinant())
+    }
+}
+
+stretch_tet_kernel!(StretchP1Kernel);
