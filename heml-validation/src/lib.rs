@@ -16,6 +16,7 @@
 //! | `prony` | Prony relaxation of a held step strain vs α(t) |
 //! | `inversion` | an organ crushed through itself, held, released: min J, NaN count, return to rest |
 //! | `energy` | undamped long runs per integrator: relative energy drift |
+//! | `locking` | cantilever over a ν sweep to 0.499, standard vs anti-locking (nodal-J) volumetric term, six-tet split and unstructured bar |
 //!
 //! ```no_run
 //! use heml_validation::{run_case, Options, Status};
@@ -34,6 +35,7 @@ mod energy;
 mod equivalence;
 pub mod fixtures;
 mod inversion;
+pub mod locking;
 mod mass_spring;
 pub mod plot;
 mod prony;
@@ -259,6 +261,11 @@ pub const CASES: &[CaseInfo] = &[
         name: "energy",
         title: "undamped long runs per integrator: energy drift",
         run: energy::run,
+    },
+    CaseInfo {
+        name: "locking",
+        title: "volumetric locking: cantilever over a Poisson-ratio sweep, element vs nodal volumetric term",
+        run: locking::run,
     },
 ];
 
