@@ -304,7 +304,11 @@ impl<M: InvariantLaw> Material for NodalInvariant<M> {
     ) -> Result<Option<Box<dyn TangentOperator>>> {
         let iso = TangentField::invariant(Isochoric::new(self.law, self.c), mesh, tets, *opts, project_psd)?;
         let nodal = NodalVolume::new(self.law, self.c, mesh, tets, *opts)?;
-        Ok(Some(Box::new(NodalVolumeTangent::new(Box::new(iso), nodal, project_psd))))
+        Ok(Some(Box::new(NodalVolumeTangent::new(
+            Box::new(iso),
+            nodal,
+            project_psd,
+        ))))
     }
     fn volumetric(&self) -> Volumetric {
         Volumetric::Nodal {

@@ -14,9 +14,9 @@
 
 use super::plot::{draw, Chart, Mark, Series};
 use super::{fmt_num, shared_mesh, worst_criterion, CaseReport, Options, Row};
+use heml::law::Volumetric;
 use heml::mesh::generate::{beam, HexSplit};
 use heml::system::StaticOptions;
-use heml::law::Volumetric;
 use heml::{Params, Result, TetMesh, Vec3};
 
 /// The Poisson ratios of the sweep.
@@ -39,9 +39,17 @@ pub struct Bar {
 
 impl Bar {
     /// The case's beam, 40 × 4 × 2.
-    pub const BEAM: Bar = Bar { l: 40.0, w: 4.0, h: 2.0 };
+    pub const BEAM: Bar = Bar {
+        l: 40.0,
+        w: 4.0,
+        h: 2.0,
+    };
     /// The `ipc_bar` mesh, 10 × 0.5 × 1.
-    pub const IPC: Bar = Bar { l: 10.0, w: 0.5, h: 1.0 };
+    pub const IPC: Bar = Bar {
+        l: 10.0,
+        w: 0.5,
+        h: 1.0,
+    };
 
     /// Density giving a tip deflection of 0.1 % of L in beam theory.
     fn density(&self) -> f64 {
@@ -94,7 +102,9 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
     let mut worst = 0.0;
     let mut series = Vec::new();
     for (name, mesh, bar) in &meshes {
-        report.notes.push(format!("{name}: {} nodes, {} tets", mesh.n_nodes(), mesh.n_tets()));
+        report
+            .notes
+            .push(format!("{name}: {} nodes, {} tets", mesh.n_nodes(), mesh.n_tets()));
         for (label, v) in [("element", Volumetric::Element), ("nodal", Volumetric::nodal())] {
             let mut pts = Vec::new();
             for &nu in &NUS {
@@ -109,7 +119,13 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
                 // the acceptance criterion of the anti-locking formulation (issue 18):
                 // within 10 % of the nu = 0 value at nu = 0.49 and 0.499
                 if label == "nodal" && nu >= 0.49 {
-                    report.rows.push(Row::check(quantity, fmt_num(ratio), fmt_num(base), (rel - 1.0).abs(), 0.1));
+                    report.rows.push(Row::check(
+                        quantity,
+                        fmt_num(ratio),
+                        fmt_num(base),
+                        (rel - 1.0).abs(),
+                        0.1,
+                    ));
                 } else {
                     report.rows.push(Row::info(quantity, fmt_num(ratio), fmt_num(base)));
                 }

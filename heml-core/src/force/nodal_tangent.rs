@@ -94,7 +94,13 @@ impl<M: InvariantLaw> NodalVolumeTangent<M> {
         (0..self.kn.len())
             .into_par_iter()
             .with_min_len(MIN_LEN)
-            .map(|i| self.inc[self.start[i]..self.start[i + 1]].iter().map(|&(k, _)| s[k as usize]).sum::<f64>() * 0.25)
+            .map(|i| {
+                self.inc[self.start[i]..self.start[i + 1]]
+                    .iter()
+                    .map(|&(k, _)| s[k as usize])
+                    .sum::<f64>()
+                    * 0.25
+            })
             .collect()
     }
 }
@@ -127,8 +133,12 @@ impl<M: InvariantLaw> TangentOperator for NodalVolumeTangent<M> {
     fn update(&mut self, x: &[Vec3]) -> Result<()> {
         self.iso.update(x)?;
         let j = self.nodal.nodal_j(x)?;
-        let (vol, opts, c, project): (_, &ForceOptions, f64, bool) =
-            (self.nodal.dilation(), self.nodal.options(), self.nodal.weight(), self.project);
+        let (vol, opts, c, project): (_, &ForceOptions, f64, bool) = (
+            self.nodal.dilation(),
+            self.nodal.options(),
+            self.nodal.weight(),
+            self.project,
+        );
         let rest_v = self.nodal.rest_volumes();
         let mut p = vec![0.0; j.len()];
         for (i, &ja) in j.iter().enumerate() {

@@ -269,7 +269,10 @@ impl<M: InvariantLaw> NodalVolume<M> {
     pub fn add_forces(&self, x: &[Vec3], f: &mut [Vec3], parallel: bool) -> Result<f64> {
         check_sizes(self.rest.len(), x, Some(f))?;
         let (e, p) = self.pressures(x, parallel);
-        let k = PressureKernel { tets: &self.tets, p: &p };
+        let k = PressureKernel {
+            tets: &self.tets,
+            p: &p,
+        };
         self.layout.add_batched(&k, parallel, x, f)?;
         Ok(e)
     }

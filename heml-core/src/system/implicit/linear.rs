@@ -77,17 +77,19 @@ impl TangentSolve {
         // sit on the diagonal blocks of their nodes
         let grasps = sys.model.grasps.diagonal(n, self.cv);
         let nonlocal = tangents.iter().any(|t| t.has_nonlocal());
-        let extra = (grasps.is_some() || !sys.model.tools.contacts().is_empty() || nonlocal).then(|| {
-            let mut blocks = vec![Matrix3::zeros(); n];
-            // couplings beyond a tet (nodal volumes): their diagonal blocks only in
-            // the matrix (the preconditioner), the rest in the product below
+        // couplings beyond a tet (nodal volumes): their diagonal blocks go into the
+        // matrix (so the preconditioners see them), the rest is added to its product
+        // below (K_nl − D_nl)
+        let nl_diag = nonlocal.then(|| {
             let mut nl = vec![Matrix3::zeros(); n];
             for t in tangents.iter().filter(|t| t.has_nonlocal()) {
                 t.add_nonlocal_diagonal(&mut nl).expect("sizes match the system");
             }
-            for (b, d) in blocks.iter_mut().zip(&nl) {
-                *b += d * self.ck;
-            }
+            nl.iter_mut().for_each(|d| *d *= self.ck);
+            nl
+        });
+        let extra = (grasps.is_some() || !sys.model.tools.contacts().is_empty() || nonlocal).then(|| {
+            let mut blocks = nl_diag.clone().unwrap_or_else(|| vec![Matrix3::zeros(); n]);
             if let Some(g) = &grasps {
                 for (b, d) in blocks.iter_mut().zip(g) {
                     *b += Matrix3::identity() * *d;
@@ -111,8 +113,8 @@ impl TangentSolve {
         let mut x = vec![0.0; 3 * n];
         let apply = |p: &[f64], out: &mut [f64]| {
             matrix.apply(p, out);
-            if nonlocal {
-                add_nonlocal(tangents, matrix, self.ck, p, out);
+            if let Some(d) = &nl_diag {
+                add_nonlocal(tangents, matrix, self.ck, d, p, out);
             }
         };
 
@@ -150,15 +152,26 @@ impl TangentSolve {
     }
 }
 
-/// out += c_k K_nonlocal p on the free coordinates (the couplings of the tangents
-/// that the block matrix does not hold), p and out flat by node.
-fn add_nonlocal(tangents: &[Box<dyn TangentOperator>], matrix: &BlockMatrix, ck: f64, p: &[f64], out: &mut [f64]) {
+/// out += (c_k K_nonlocal − D) p on the free coordinates, with D = `diag` the
+/// diagonal blocks of c_k K_nonlocal the matrix already holds (the couplings of the
+/// tangents that the block matrix does not hold), p and out flat by node.
+fn add_nonlocal(
+    tangents: &[Box<dyn TangentOperator>],
+    matrix: &BlockMatrix,
+    ck: f64,
+    diag: &[Matrix3<f64>],
+    p: &[f64],
+    out: &mut [f64],
+) {
     let dx: Vec<crate::Vec3> = p.chunks_exact(3).map(|c| crate::Vec3::new(c[0], c[1], c[2])).collect();
     let mut y = vec![crate::Vec3::zeros(); dx.len()];
     for t in tangents.iter().filter(|t| t.has_nonlocal()) {
         t.add_nonlocal_product(&dx, &mut y).expect("sizes match the system");
     }
-    for (i, (o, yi)) in out.iter_mut().zip(y.iter().flat_map(|v| v.iter())).enumerate() {
-        *o += ck * yi * matrix.mask(i);
+    for (i, (yi, (d, u))) in y.iter().zip(diag.iter().zip(&dx)).enumerate() {
+        let v = yi * ck - d * u;
+        for a in 0..3 {
+            out[3 * i + a] += v[a] * matrix.mask(3 * i + a);
+        }
     }
 }
