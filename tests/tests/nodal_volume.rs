@@ -284,3 +284,82 @@ fn cantilever_fine_mesh_nodal_at_0499() {
         );
     }
 }
+
+/// Cost of a force evaluation with the nodal term relative to the element one
+/// (printed, not asserted: the README's benchmark; interleaved runs, minimum of
+/// each, which is robust to the load of a shared machine).
+#[test]
+#[ignore = "timing, for the README"]
+fn nodal_cost_ratio() {
+    let mesh = heml::mesh::generate::box_of_about(100_000).unwrap();
+    let x = heml_validation::fixtures::smooth_deformation(&mesh);
+    for name in ["neo_hookean", "mooney_rivlin"] {
+        let entry = heml::registry::find_material(name).unwrap();
+        let law = entry
+            .instantiate(&heml_validation::fixtures::tissue_params(entry, 3e3, 0.49).unwrap())
+            .unwrap();
+        let fields: Vec<_> = [Volumetric::Element, Volumetric::nodal()]
+            .iter()
+            .map(|v| {
+                law.with_volumetric(*v)
+                    .unwrap()
+                    .force_field(&mesh, None, &ForceOptions::default())
+                    .unwrap()
+            })
+            .collect();
+        let mut best = [f64::INFINITY; 2];
+        let mut f = vec![Vec3::zeros(); x.len()];
+        for _ in 0..40 {
+            for (k, field) in fields.iter().enumerate() {
+                f.fill(Vec3::zeros());
+                let t = std::time::Instant::now();
+                field.add_forces(&x, &mut f).unwrap();
+                best[k] = best[k].min(t.elapsed().as_secs_f64());
+            }
+        }
+        eprintln!(
+            "{name}: element {:.2} ms, nodal {:.2} ms per evaluation of {} tets: {:.2}x",
+            best[0] * 1e3,
+            best[1] * 1e3,
+            mesh.n_tets(),
+            best[1] / best[0]
+        );
+    }
+}
+
+/// Where the nodal formulation's time goes (printed): the element part with the
+/// split law, and the nodal passes alone.
+#[test]
+#[ignore = "timing, for the README"]
+fn nodal_cost_breakdown() {
+    use heml::force::{HemlField, Isochoric, NodalVolume};
+    let mesh = heml::mesh::generate::box_of_about(100_000).unwrap();
+    let x = heml_validation::fixtures::smooth_deformation(&mesh);
+    let law = heml::materials::NeoHookean {
+        mu: 1006.7,
+        lambda: 49329.0,
+    };
+    let opts = ForceOptions::default();
+    let plain = HemlField::on_tets(law, &mesh, None, opts).unwrap();
+    let iso = HemlField::on_tets(Isochoric::new(law, 0.99), &mesh, None, opts).unwrap();
+    let nodal = NodalVolume::new(law, 0.99, &mesh, None, opts).unwrap();
+    let mut best = [f64::INFINITY; 3];
+    let mut f = vec![Vec3::zeros(); x.len()];
+    for _ in 0..40 {
+        let t = std::time::Instant::now();
+        plain.add_forces(&x, &mut f).unwrap();
+        best[0] = best[0].min(t.elapsed().as_secs_f64());
+        let t = std::time::Instant::now();
+        iso.add_forces(&x, &mut f).unwrap();
+        best[1] = best[1].min(t.elapsed().as_secs_f64());
+        let t = std::time::Instant::now();
+        nodal.add_forces(&x, &mut f, true).unwrap();
+        best[2] = best[2].min(t.elapsed().as_secs_f64());
+    }
+    eprintln!(
+        "neo_hookean: element {:.2} ms, isochoric element part {:.2} ms, nodal passes {:.2} ms",
+        best[0] * 1e3,
+        best[1] * 1e3,
+        best[2] * 1e3
+    );
+}
