@@ -27,7 +27,7 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 pub use error::{HemlError, Result};
 pub use force::{ElasticForces, ForceOptions, HemlField, LinkField};
 pub use law::{Derivs, InvariantLaw, LawKind, LinkLaw, MaterialInfo, OpCount, ParamInfo};
-pub use material::Material;
+pub use material::{Material, Volumetric};
 pub use mesh::TetMesh;
 pub use params::Params;
 pub use registry::MaterialEntry;

@@ -2,11 +2,12 @@
 //! by name while the per-tet loops stay monomorphised: the dynamic call happens once,
 //! when a force field is built, never per tet.
 
-use crate::error::Result;
+use crate::error::{HemlError, Result};
+use crate::force::nodal_volume::{element_fraction, DEFAULT_STABILIZATION};
 use crate::force::p1::energy_and_piola;
 use crate::force::{
-    energy_and_piola_stretch, ElasticForces, ForceOptions, HemlField, LinkField, P1Field, StretchHemlField,
-    StretchP1Field, TangentField, TangentOperator,
+    energy_and_piola_stretch, Dilation, ElasticForces, ForceOptions, HemlField, Isochoric, LinkField, NodalVolume,
+    NodalVolumeField, NodalVolumeTangent, P1Field, StretchHemlField, StretchP1Field, TangentField, TangentOperator,
 };
 use crate::law::{InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo, StretchLaw};
 use crate::mesh::TetMesh;
@@ -56,6 +57,77 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         opts: &ForceOptions,
         project_psd: bool,
     ) -> Result<Option<Box<dyn TangentOperator>>>;
+
+    /// How the volumetric energy is discretised ([`Volumetric::Element`] unless the
+    /// law was made with [`Self::with_volumetric`]).
+    fn volumetric(&self) -> Volumetric {
+        Volumetric::Element
+    }
+    /// The same law with volumetric formulation `v`. Only invariant laws have a
+    /// volumetric part (see [`crate::force::volumetric`]); the default refuses.
+    fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
+        Err(HemlError::Invalid(format!(
+            "law `{}` has no volumetric part to discretise as {v}: the nodal formulation needs an invariant law w(I1, I2, J), not a link law",
+            self.name()
+        )))
+    }
+}
+
+/// How a law's volumetric energy is discretised on linear tets.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Volumetric {
+    /// Per element, as the law is written (standard P1; locks as ν → ½).
+    #[default]
+    Element,
+    /// At nodal volume ratios, the anti-locking average-nodal-J tetrahedron, with a
+    /// fraction β = min(1, `stabilization`·μ0/K0) of the element energy kept against
+    /// spurious modes (see [`crate::force::nodal_volume`]).
+    Nodal {
+        /// The stabilisation factor s ≥ 0 (default [`DEFAULT_STABILIZATION`]).
+        stabilization: f64,
+    },
+}
+
+impl Volumetric {
+    /// The nodal formulation with the default stabilisation.
+    pub fn nodal() -> Self {
+        Volumetric::Nodal {
+            stabilization: DEFAULT_STABILIZATION,
+        }
+    }
+
+    /// The formulation named `name` (`"element"` or `"nodal"`), with stabilisation
+    /// factor `stabilization` for `"nodal"` (default when `None`; refused for
+    /// `"element"`).
+    pub fn parse(name: &str, stabilization: Option<f64>) -> Result<Self> {
+        match (name, stabilization) {
+            ("element", None) => Ok(Volumetric::Element),
+            ("element", Some(_)) => Err(HemlError::Invalid(
+                "volumetric_stabilization applies to volumetric = \"nodal\" only".into(),
+            )),
+            ("nodal", s) => {
+                let s = s.unwrap_or(DEFAULT_STABILIZATION);
+                if !(s.is_finite() && s >= 0.0) {
+                    return Err(HemlError::Invalid(format!(
+                        "volumetric_stabilization = {s} must be finite and >= 0"
+                    )));
+                }
+                Ok(Volumetric::Nodal { stabilization: s })
+            }
+            (other, _) => Err(HemlError::Invalid(format!(
+                "unknown volumetric formulation `{other}` (expected \"element\" or \"nodal\")"
+            ))),
+        }
+    }
+}
+
+impl std::fmt::Display for Volumetric {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Volumetric::Element => write!(f, "element"),
+            Volumetric::Nodal { stabilization } => write!(f, "nodal (stabilization {stabilization})"),
+        }
+    }
 }
 
 /// Wraps an invariant law as a [`Material`].
@@ -137,6 +209,123 @@ impl<M: InvariantLaw> Material for Invariant<M> {
             *opts,
             project_psd,
         )?)))
+    }
+    fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
+        match v {
+            Volumetric::Element => Ok(Box::new(*self)),
+            Volumetric::Nodal { stabilization } => {
+                // checks the factor
+                Volumetric::parse("nodal", Some(stabilization))?;
+                Ok(Box::new(NodalInvariant::new(self.0, stabilization)))
+            }
+        }
+    }
+}
+
+/// An invariant law with its volumetric energy at nodal volume ratios (the
+/// anti-locking formulation, [`crate::force::nodal_volume`]): the element fields
+/// evaluate [`Isochoric`]`<M>` (the law minus (1 − β) U(J)), and a nodal term adds
+/// (1 − β) Σ_a V_a U(J_a).
+#[derive(Debug, Clone, Copy)]
+pub struct NodalInvariant<M> {
+    law: M,
+    stabilization: f64,
+    /// 1 − β.
+    c: f64,
+}
+
+impl<M: InvariantLaw> NodalInvariant<M> {
+    /// `law` with stabilisation factor `stabilization` (β = min(1, s·μ0/K0)).
+    pub fn new(law: M, stabilization: f64) -> Self {
+        let beta = element_fraction(&Dilation::new(law), stabilization);
+        NodalInvariant {
+            law,
+            stabilization,
+            c: 1.0 - beta,
+        }
+    }
+
+    /// The fraction β of the element volumetric energy kept.
+    pub fn element_fraction(&self) -> f64 {
+        1.0 - self.c
+    }
+
+    fn nodal(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        iso: Box<dyn ElasticForces>,
+    ) -> Result<Box<dyn ElasticForces>> {
+        let nodal = NodalVolume::new(self.law, self.c, mesh, tets, *opts)?;
+        Ok(Box::new(NodalVolumeField::new(iso, nodal)?))
+    }
+}
+
+impl<M: InvariantLaw> Material for NodalInvariant<M> {
+    fn name(&self) -> &'static str {
+        M::NAME
+    }
+    fn kind(&self) -> LawKind {
+        LawKind::Invariant
+    }
+    fn param_info(&self) -> &'static [ParamInfo] {
+        M::PARAMS
+    }
+    fn param_values(&self) -> Vec<f64> {
+        self.law.to_params()
+    }
+    fn ops(&self) -> OpCount {
+        <M as InvariantLaw>::OPS
+    }
+    fn uses(&self) -> (bool, bool) {
+        (M::USES_I2, true)
+    }
+    fn force_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Box<dyn ElasticForces>> {
+        let iso = HemlField::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
+        self.nodal(mesh, tets, opts, Box::new(iso))
+    }
+    /// The same split on the standard P1 element (the oracle of the HEML path).
+    fn fem_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Option<Box<dyn ElasticForces>>> {
+        let iso = P1Field::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
+        Ok(Some(self.nodal(mesh, tets, opts, Box::new(iso))?))
+    }
+    /// The continuum law's stress (the nodal formulation is a discretisation of it).
+    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
+        Some(energy_and_piola(&self.law, f, opts))
+    }
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>> {
+        let iso = TangentField::invariant(Isochoric::new(self.law, self.c), mesh, tets, *opts, project_psd)?;
+        let nodal = NodalVolume::new(self.law, self.c, mesh, tets, *opts)?;
+        Ok(Some(Box::new(NodalVolumeTangent::new(
+            Box::new(iso),
+            nodal,
+            project_psd,
+        ))))
+    }
+    fn volumetric(&self) -> Volumetric {
+        Volumetric::Nodal {
+            stabilization: self.stabilization,
+        }
+    }
+    fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
+        Invariant(self.law).with_volumetric(v)
     }
 }
 

@@ -17,6 +17,7 @@
 //! | `inversion` | an organ crushed through itself, held, released: min J, NaN count, return to rest |
 //! | `energy` | undamped long runs per integrator: relative energy drift |
 //! | `ogden` | unconstrained uniaxial loading of a cube, Ogden with Treloar's parameters vs the closed form |
+//! | `locking` | cantilever over a ν sweep to 0.499, standard vs anti-locking (nodal-J) volumetric term, six-tet split and unstructured bar |
 //!
 //! ```no_run
 //! use heml_validation::{run_case, Options, Status};
@@ -35,6 +36,7 @@ mod energy;
 mod equivalence;
 pub mod fixtures;
 mod inversion;
+pub mod locking;
 mod mass_spring;
 pub mod ogden;
 pub mod plot;
@@ -266,6 +268,11 @@ pub const CASES: &[CaseInfo] = &[
         name: "ogden",
         title: "uniaxial tension/compression of a cube, Ogden (Treloar's rubber) vs closed form",
         run: ogden::run,
+    },
+    CaseInfo {
+        name: "locking",
+        title: "volumetric locking: cantilever over a Poisson-ratio sweep, element vs nodal volumetric term",
+        run: locking::run,
     },
 ];
 

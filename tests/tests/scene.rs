@@ -788,3 +788,43 @@ fn keyframed_prescribed_motion_goes_down_and_back_up_adaptively() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn volumetric_keys_choose_the_nodal_formulation_per_material_or_for_all() {
+    use heml::law::Volumetric;
+    link();
+    let scene = |material: &str, solver: &str| {
+        format!(
+            "[mesh]\ngenerate = {{ kind = \"box\", size = [0.02, 0.01, 0.01], cells = [2, 1, 1] }}\n\
+             [[material]]\nlaw = \"neo_hookean\"\nparams = {{ E = 3e3, nu = 0.49 }}\n{material}\n\
+             [[fix]]\nbox = {{ min = [0, 0, 0], max = [0, 0.01, 0.01] }}\n\
+             [solver]\nduration = 0.001\n{solver}\n"
+        )
+    };
+    let volumetric_of = |text: String| {
+        let sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+        sim.system.regions()[0].material().volumetric()
+    };
+    assert_eq!(volumetric_of(scene("", "")), Volumetric::Element);
+    assert_eq!(volumetric_of(scene("volumetric = \"nodal\"", "")), Volumetric::nodal());
+    assert_eq!(
+        volumetric_of(scene("", "volumetric = \"nodal\"\nvolumetric_stabilization = 0.5")),
+        Volumetric::Nodal { stabilization: 0.5 }
+    );
+    // the material's own key wins over [solver]'s
+    assert_eq!(
+        volumetric_of(scene("volumetric = \"element\"", "volumetric = \"nodal\"")),
+        Volumetric::Element
+    );
+    let e = err_of(&scene("volumetric = \"nodel\"", ""));
+    assert!(e.contains("nodel") && e.contains("\"nodal\""), "{e}");
+    let e = err_of(&scene("volumetric = \"nodal\"\nvolumetric_stabilization = -1.0", ""));
+    assert!(e.contains("volumetric_stabilization = -1"), "{e}");
+    let e = err_of(&scene("volumetric_stabilization = 0.2", ""));
+    assert!(e.contains("volumetric = \"nodal\" is not"), "{e}");
+    let e = err_of(&scene("", "volumetric = \"nodal\"").replace(
+        "law = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.49 }",
+        "law = \"mass_spring\"\nparams = { k = 10.0 }",
+    ));
+    assert!(e.contains("mass_spring") && e.contains("link law"), "{e}");
+}

@@ -57,6 +57,11 @@ fn crushed_organ_inverts_without_nan_and_returns_to_rest() {
 }
 
 #[test]
+fn nodal_volumetric_term_does_not_lock() {
+    check("locking");
+}
+
+#[test]
 fn symplectic_integrators_conserve_energy() {
     check("energy");
 }

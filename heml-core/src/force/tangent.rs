@@ -73,6 +73,26 @@ pub trait TangentOperator: Send + Sync {
     fn tet_stiffness(&self, k: usize) -> &TetStiffness;
     /// Whether each tet's stiffness is projected to positive semi-definite.
     fn projects(&self) -> bool;
+
+    /// Whether K has a part that couples nodes beyond a tet (the nodal volumetric
+    /// term of [`super::NodalVolumeField`]) and so is not held by
+    /// [`Self::tet_stiffness`]: solvers that assemble the per-tet blocks must add it
+    /// with [`Self::add_nonlocal_product`]. False by default.
+    fn has_nonlocal(&self) -> bool {
+        false
+    }
+    /// y += K_nonlocal·dx, the part of K not in the per-tet blocks (none by default;
+    /// [`Self::add_product`] already includes it).
+    fn add_nonlocal_product(&self, dx: &[Vec3], y: &mut [Vec3]) -> Result<()> {
+        let _ = (dx, y);
+        Ok(())
+    }
+    /// Adds the 3×3 diagonal blocks of K_nonlocal to `d` (none by default;
+    /// [`Self::add_diagonal_blocks`] already includes them).
+    fn add_nonlocal_diagonal(&self, d: &mut [Matrix3<f64>]) -> Result<()> {
+        let _ = d;
+        Ok(())
+    }
 }
 
 /// The stiffness of one tet from its current vertex positions.

@@ -8,7 +8,7 @@ use super::plan::{
     frame_bytes, plan, Limits, RunPlan, DEFAULT_MAX_OUTPUT_BYTES, DEFAULT_MAX_STEPS, DEFAULT_WARN_OUTPUT_BYTES,
     DEFAULT_WARN_STEPS,
 };
-use super::schema::{GenerateKind, MaterialSpec, PrescribeSpec};
+use super::schema::{GenerateKind, MaterialSpec, PrescribeSpec, SolverSpec};
 use super::Scene;
 use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
@@ -275,7 +275,7 @@ impl Scene {
                 }
                 untagged = Some(i);
             }
-            b = add_material(b, m).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
+            b = add_material(b, m, s).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         }
         // which entry holds each node (file ids), to name both entries of a conflict
         let mut holder: Vec<Option<(&str, usize)>> = vec![None; mesh.n_nodes()];
@@ -559,7 +559,7 @@ fn registry_hint(empty: bool) -> &'static str {
 
 /// Adds one `[[material]]` to the builder, with a "did you mean" for misspelt
 /// parameter names.
-fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
+fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec) -> Result<SystemBuilder> {
     let entry = find_material(&m.law)
         .map_err(|e| HemlError::Invalid(format!("{e}{}", registry_hint(materials().is_empty()))))?;
     let mut names: Vec<&str> = entry.params.iter().map(|p| p.name).collect();
@@ -576,6 +576,21 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
             .unwrap_or_default();
         HemlError::Invalid(format!("{e}{hint}"))
     })?;
+    // the material's own volumetric keys, else [solver]'s, else the element form
+    let volumetric = match (&m.volumetric, &solver.volumetric) {
+        (Some(v), _) => Some((v, m.volumetric_stabilization.or(solver.volumetric_stabilization))),
+        (None, Some(v)) => Some((v, m.volumetric_stabilization.or(solver.volumetric_stabilization))),
+        (None, None) if m.volumetric_stabilization.is_some() || solver.volumetric_stabilization.is_some() => {
+            return Err(HemlError::Invalid(
+                "volumetric_stabilization is given but volumetric = \"nodal\" is not".into(),
+            ))
+        }
+        (None, None) => None,
+    };
+    let law = match volumetric {
+        Some((v, stab)) => law.with_volumetric(crate::material::Volumetric::parse(v, stab)?)?,
+        None => law,
+    };
     let b = match m.tag {
         None => b.material_law(law),
         Some(tag) => b.region_law(tag, law),

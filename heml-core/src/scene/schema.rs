@@ -132,6 +132,13 @@ pub struct MaterialSpec {
     /// Prony series (visco-hyperelasticity): `[{ alpha = 0.3, tau = 0.1 }, …]`.
     #[serde(default)]
     pub prony: Vec<PronyTerm>,
+    /// Volumetric formulation: `"element"` (standard) or `"nodal"` (anti-locking,
+    /// for nearly incompressible tissue); default: `[solver] volumetric`, else
+    /// `"element"`.
+    pub volumetric: Option<String>,
+    /// Stabilisation factor s of `volumetric = "nodal"` (β = min(1, s·μ0/K0) of the
+    /// element volumetric energy is kept; default 0.1, or `[solver]`'s).
+    pub volumetric_stabilization: Option<f64>,
 }
 
 /// An axis-aligned box `min ≤ X ≤ max` (metres, inclusive up to 1e-9 of the mesh size).
@@ -283,6 +290,12 @@ pub struct SolverSpec {
     /// Implicit integrators: project each tet's stiffness to positive semi-definite
     /// (default true).
     pub project_psd: Option<bool>,
+    /// Volumetric formulation of every material that does not set its own:
+    /// `"element"` (default) or `"nodal"` (anti-locking).
+    pub volumetric: Option<String>,
+    /// Stabilisation factor of `volumetric = "nodal"` for every material that does
+    /// not set its own (default 0.1).
+    pub volumetric_stabilization: Option<f64>,
 }
 
 impl SolverSpec {

@@ -9,7 +9,7 @@ use super::stability::{critical_time_step, damped_safe, TimeStepPolicy, DEFAULT_
 use super::{Rayleigh, Region, System};
 use crate::error::{HemlError, Result};
 use crate::force::ForceOptions;
-use crate::material::Material;
+use crate::material::{Material, Volumetric};
 use crate::mesh::surface::BoundarySurface;
 use crate::mesh::TetMesh;
 use crate::params::Params;
@@ -148,6 +148,22 @@ impl SystemBuilder {
             None => self
                 .problems
                 .push("prony() called before any material or region".into()),
+        }
+        self
+    }
+
+    /// Volumetric formulation of the material or region declared last (e.g.
+    /// [`Volumetric::nodal`] against volumetric locking of nearly incompressible
+    /// tissue; see [`crate::force::nodal_volume`]). Link laws refuse it at `build()`.
+    pub fn volumetric(mut self, v: Volumetric) -> Self {
+        match self.regions.last_mut() {
+            Some(r) => match r.material.with_volumetric(v) {
+                Ok(m) => r.material = m,
+                Err(e) => self.problems.push(e.to_string()),
+            },
+            None => self
+                .problems
+                .push("volumetric() called before any material or region".into()),
         }
         self
     }

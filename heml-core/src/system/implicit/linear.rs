@@ -76,8 +76,20 @@ impl TangentSolve {
         // grasp springs and dampers ((k + c c_v) I) and tool contacts ((k + c c_v) n nᵀ)
         // sit on the diagonal blocks of their nodes
         let grasps = sys.model.grasps.diagonal(n, self.cv);
-        let extra = (grasps.is_some() || !sys.model.tools.contacts().is_empty()).then(|| {
-            let mut blocks = vec![Matrix3::zeros(); n];
+        let nonlocal = tangents.iter().any(|t| t.has_nonlocal());
+        // couplings beyond a tet (nodal volumes): their diagonal blocks go into the
+        // matrix (so the preconditioners see them), the rest is added to its product
+        // below (K_nl − D_nl)
+        let nl_diag = nonlocal.then(|| {
+            let mut nl = vec![Matrix3::zeros(); n];
+            for t in tangents.iter().filter(|t| t.has_nonlocal()) {
+                t.add_nonlocal_diagonal(&mut nl).expect("sizes match the system");
+            }
+            nl.iter_mut().for_each(|d| *d *= self.ck);
+            nl
+        });
+        let extra = (grasps.is_some() || !sys.model.tools.contacts().is_empty() || nonlocal).then(|| {
+            let mut blocks = nl_diag.clone().unwrap_or_else(|| vec![Matrix3::zeros(); n]);
             if let Some(g) = &grasps {
                 for (b, d) in blocks.iter_mut().zip(g) {
                     *b += Matrix3::identity() * *d;
@@ -99,13 +111,20 @@ impl TangentSolve {
         };
         let b = to_nodal(rhs);
         let mut x = vec![0.0; 3 * n];
+        let apply = |p: &[f64], out: &mut [f64]| {
+            matrix.apply(p, out);
+            if let Some(d) = &nl_diag {
+                add_nonlocal(tangents, matrix, self.ck, d, p, out);
+            }
+        };
+
         if let Some(g) = guess {
             // the guess scaled to minimise the quadratic model ½xᵀAx − bᵀx along it:
             // the model then starts below its value at 0, so CG's result stays a
             // descent direction of the line-search merit, however few iterations
             let g = to_nodal(g);
             let mut ag = vec![0.0; 3 * n];
-            matrix.apply(&g, &mut ag);
+            apply(&g, &mut ag);
             let (bg, gag) = (dot(&b, &g), dot(&g, &ag));
             if bg > 0.0 && gag > 0.0 && (bg / gag).is_finite() {
                 let alpha = bg / gag;
@@ -117,7 +136,7 @@ impl TangentSolve {
             CgPreconditioner::SymmetricGaussSeidel => BlockMatrix::symmetric_gauss_seidel,
         };
         let report = pcg(
-            |p, out| matrix.apply(p, out),
+            apply,
             |r, out| precond(matrix, r, out),
             &b,
             &mut x,
@@ -130,5 +149,29 @@ impl TangentSolve {
         cache.times.assembly += (t2 - t1).as_secs_f64();
         cache.times.cg += (t3 - t2).as_secs_f64();
         Ok(report)
+    }
+}
+
+/// out += (c_k K_nonlocal − D) p on the free coordinates, with D = `diag` the
+/// diagonal blocks of c_k K_nonlocal the matrix already holds (the couplings of the
+/// tangents that the block matrix does not hold), p and out flat by node.
+fn add_nonlocal(
+    tangents: &[Box<dyn TangentOperator>],
+    matrix: &BlockMatrix,
+    ck: f64,
+    diag: &[Matrix3<f64>],
+    p: &[f64],
+    out: &mut [f64],
+) {
+    let dx: Vec<crate::Vec3> = p.chunks_exact(3).map(|c| crate::Vec3::new(c[0], c[1], c[2])).collect();
+    let mut y = vec![crate::Vec3::zeros(); dx.len()];
+    for t in tangents.iter().filter(|t| t.has_nonlocal()) {
+        t.add_nonlocal_product(&dx, &mut y).expect("sizes match the system");
+    }
+    for (i, (yi, (d, u))) in y.iter().zip(diag.iter().zip(&dx)).enumerate() {
+        let v = yi * ck - d * u;
+        for a in 0..3 {
+            out[3 * i + a] += v[a] * matrix.mask(3 * i + a);
+        }
     }
 }

@@ -228,6 +228,11 @@ impl BlockMatrix {
             });
     }
 
+    /// 1 on a free coordinate (flat index, 3 per node), 0 on a held one.
+    pub(in crate::system) fn mask(&self, i: usize) -> f64 {
+        self.mask[i]
+    }
+
     /// out = A p on the free coordinates (zero on held ones), p by node (3 per node,
     /// zero on held coordinates).
     pub(in crate::system) fn apply(&self, p: &[f64], out: &mut [f64]) {

@@ -155,7 +155,18 @@ impl System {
             return Ok(None);
         };
         let linear = match stiffness {
-            stiffness if BandLdl::fits(dofs.len(), dofs.band()) => Linear::Banded(stiffness),
+            // the banded stiffness is per element: a nodal volumetric term (which
+            // couples beyond a tet) goes through CG on its own tangent
+            stiffness
+                if BandLdl::fits(dofs.len(), dofs.band())
+                    && self
+                        .model
+                        .regions
+                        .iter()
+                        .all(|r| r.material.volumetric() == crate::material::Volumetric::Element) =>
+            {
+                Linear::Banded(stiffness)
+            }
             _ => {
                 let mut tangents = Vec::with_capacity(self.model.regions.len());
                 for r in &self.model.regions {

@@ -1,0 +1,218 @@
+//! The split of an invariant law into an isochoric part and a volumetric energy
+//! U(J), on which the anti-locking formulation ([`super::NodalVolumeField`]) rests.
+//!
+//! **The split, for every invariant law.** U is the law's own energy along pure
+//! dilations, F = J^(1/3)·I, where I1 = 3J^(2/3), I2 = 3J^(4/3):
+//!
+//! U(J) = w(3J^(2/3), 3J^(4/3), J) − w(3, 3, 1),   w_iso(I1, I2, J) = w(I1, I2, J) − U(J).
+//!
+//! For laws written as an isochoric energy of Ī1, Ī2 plus f(J) (Mooney–Rivlin, Yeoh,
+//! Gent, Fung–Demiray, Veronda–Westmann, Arruda–Boyce) Ī1 = Ī2 = 3 along dilations,
+//! so U = f − f(1) exactly: the natural split. For laws written with I1, I2 and J
+//! (compressible neo-Hookean, Saint Venant–Kirchhoff, stable neo-Hookean) it is
+//! the same construction: w_iso vanishes on every dilation and, since the rest is
+//! stress-free (U′(1) = 0), its Hessian at rest is w's minus U″(1) ∇J∇Jᵀ — the pure
+//! shear part 2μ0 |dev ε|², with U″(1) = K0 the bulk modulus. So the part left on the
+//! element carries no bulk stiffness at small strain, whatever the law, which is
+//! what removes volumetric locking; at finite strain w_iso may still depend on J
+//! (e.g. μ/2·J^(2/3)(Ī1 − 3) for neo-Hookean), which is harmless (an energy).
+//! Link laws (mass–spring) have no invariants and hence no split: asking for a nodal
+//! volumetric term on one is an error.
+//!
+//! Below J0 (the inversion fix, DESIGN §1) U is replaced by its second-order Taylor
+//! extension about J0, on the same rule as the law (`ForceOptions::extend`), so the
+//! element and nodal terms stay finite and the total stays an energy.
+
+use super::fastmath;
+use super::ForceOptions;
+use crate::law::{Derivs, InvariantLaw, MaterialInfo, OpCount, ParamInfo, SmallStrain};
+
+/// U(J), U′(J), U″(J) of a law's dilation energy, and its bulk and shear moduli at
+/// rest.
+#[derive(Debug, Clone, Copy)]
+pub struct Dilation<M> {
+    law: M,
+    /// w(3, 3, 1), subtracted so that U(1) = 0.
+    w0: f64,
+}
+
+impl<M: InvariantLaw> Dilation<M> {
+    /// The dilation energy of `law`.
+    pub fn new(law: M) -> Self {
+        Dilation {
+            law,
+            w0: law.w(3.0, 3.0, 1.0),
+        }
+    }
+
+    /// The law.
+    pub fn law(&self) -> &M {
+        &self.law
+    }
+
+    /// U and U′ at `j` (no extension), with the law's fast functions when `fast`.
+    #[inline(always)]
+    fn d1(&self, j: f64, fast: bool) -> (f64, f64) {
+        let c = if fast { fastmath::cbrt(j) } else { j.cbrt() };
+        let c2 = c * c;
+        let (i1, i2) = (3.0 * c2, 3.0 * c2 * c2);
+        let d = if fast {
+            self.law.dw_fast(i1, i2, j)
+        } else {
+            self.law.dw(i1, i2, j)
+        };
+        // ds/dJ = (2 J^(-1/3), 4 J^(1/3), 1)
+        (d.w - self.w0, d.d[0] * 2.0 / c + d.d[1] * 4.0 * c + d.d[2])
+    }
+
+    /// U, U′, U″ at `j` (no extension).
+    fn d2(&self, j: f64) -> (f64, f64, f64) {
+        let c = j.cbrt();
+        let c2 = c * c;
+        let (i1, i2) = (3.0 * c2, 3.0 * c2 * c2);
+        let d = self.law.dw(i1, i2, j);
+        let h = self.law.d2w(i1, i2, j);
+        let s1 = [2.0 / c, 4.0 * c, 1.0];
+        let s2 = [-2.0 / (3.0 * c2 * c2), 4.0 / (3.0 * c2), 0.0];
+        let mut u2 = 0.0;
+        for a in 0..3 {
+            u2 += d.d[a] * s2[a];
+            for b in 0..3 {
+                u2 += s1[a] * h[a][b] * s1[b];
+            }
+        }
+        (d.w - self.w0, d.d[0] * s1[0] + d.d[1] * s1[1] + d.d[2], u2)
+    }
+
+    /// U and U′ at `j`, extended below J0 as the law is (see the module doc).
+    #[inline(always)]
+    pub fn value_slope(&self, j: f64, opts: &ForceOptions, fast: bool) -> (f64, f64) {
+        if opts.extend(M::INVERSION_FIX, j) {
+            let (u, u1, u2) = self.d2(opts.j0);
+            let dj = j - opts.j0;
+            (u + dj * (u1 + 0.5 * dj * u2), u1 + dj * u2)
+        } else {
+            self.d1(j, fast)
+        }
+    }
+
+    /// U, U′ and U″ at `j`, extended below J0 as the law is.
+    pub fn derivs(&self, j: f64, opts: &ForceOptions) -> (f64, f64, f64) {
+        if opts.extend(M::INVERSION_FIX, j) {
+            let (u, u1, u2) = self.d2(opts.j0);
+            let dj = j - opts.j0;
+            (u + dj * (u1 + 0.5 * dj * u2), u1 + dj * u2, u2)
+        } else {
+            self.d2(j)
+        }
+    }
+
+    /// The bulk modulus at rest, K0 = U″(1).
+    pub fn bulk_modulus(&self) -> f64 {
+        self.d2(1.0).2
+    }
+
+    /// The shear modulus at rest, μ0 = 2(w1 + w2) at (3, 3, 1) (simple shear γ has
+    /// I1 = I2 = 3 + γ², J = 1).
+    pub fn shear_modulus(&self) -> f64 {
+        let d = self.law.dw(3.0, 3.0, 1.0);
+        2.0 * (d.d[0] + d.d[1])
+    }
+}
+
+/// The law `M` minus `c`·U(J): the part of the energy a nodal-volume field leaves on
+/// the element kernels (`c` = 1 − the stabilisation fraction, see
+/// [`super::NodalVolumeField`]). It is itself an invariant law, so the HEML, P1 and
+/// tangent kernels evaluate it unchanged.
+#[derive(Debug, Clone, Copy)]
+pub struct Isochoric<M> {
+    vol: Dilation<M>,
+    c: f64,
+}
+
+impl<M: InvariantLaw> Isochoric<M> {
+    /// `law` − `c`·U(J).
+    pub fn new(law: M, c: f64) -> Self {
+        Isochoric {
+            vol: Dilation::new(law),
+            c,
+        }
+    }
+
+    /// Subtracts c·(U, U′) at `j` (no extension) from `d`.
+    #[inline(always)]
+    fn minus(&self, mut d: Derivs, j: f64, fast: bool) -> Derivs {
+        let (u, u1) = self.vol.d1(j, fast);
+        d.w -= self.c * u;
+        d.d[2] -= self.c * u1;
+        d
+    }
+
+    /// Subtracts c·(U, U′) of the Taylor extension about `j0` at `j` from `d`.
+    #[inline(always)]
+    fn minus_ext(&self, mut d: Derivs, j: f64, j0: f64) -> Derivs {
+        let (u, u1, u2) = self.vol.d2(j0);
+        let dj = j - j0;
+        d.w -= self.c * (u + dj * (u1 + 0.5 * dj * u2));
+        d.d[2] -= self.c * (u1 + dj * u2);
+        d
+    }
+}
+
+impl<M: InvariantLaw> MaterialInfo for Isochoric<M> {
+    const NAME: &'static str = M::NAME;
+    const PARAMS: &'static [ParamInfo] = M::PARAMS;
+    const ENERGY: &'static str = M::ENERGY;
+    const DOC: &'static str = M::DOC;
+    const SMALL_STRAIN: Option<SmallStrain> = M::SMALL_STRAIN;
+    const ALLOW_PRESTRESS: bool = M::ALLOW_PRESTRESS;
+    fn to_params(&self) -> Vec<f64> {
+        self.vol.law.to_params()
+    }
+    /// The whole volumetric part removed (c = 1).
+    fn from_params(values: &[f64]) -> Self {
+        Isochoric::new(M::from_params(values), 1.0)
+    }
+}
+
+impl<M: InvariantLaw> InvariantLaw for Isochoric<M> {
+    const USES_I2: bool = M::USES_I2;
+    const USES_J: bool = true;
+    const INVERSION_FIX: bool = M::INVERSION_FIX;
+    const OPS: OpCount = M::OPS;
+
+    fn w(&self, i1: f64, i2: f64, j: f64) -> f64 {
+        self.vol.law.w(i1, i2, j) - self.c * self.vol.d1(j, false).0
+    }
+    fn dw(&self, i1: f64, i2: f64, j: f64) -> Derivs {
+        self.minus(self.vol.law.dw(i1, i2, j), j, false)
+    }
+    fn d2w(&self, i1: f64, i2: f64, j: f64) -> [[f64; 3]; 3] {
+        let mut h = self.vol.law.d2w(i1, i2, j);
+        h[2][2] -= self.c * self.vol.d2(j).2;
+        h
+    }
+    fn w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> f64 {
+        let d = Derivs {
+            w: self.vol.law.w_ext(i1, i2, j, j0),
+            d: [0.0; 3],
+        };
+        self.minus_ext(d, j, j0).w
+    }
+    fn dw_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        self.minus_ext(self.vol.law.dw_ext(i1, i2, j, j0), j, j0)
+    }
+    fn d2w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> [[f64; 3]; 3] {
+        let mut h = self.vol.law.d2w_ext(i1, i2, j, j0);
+        h[2][2] -= self.c * self.vol.d2(j0).2;
+        h
+    }
+    #[inline(always)]
+    fn dw_fast(&self, i1: f64, i2: f64, j: f64) -> Derivs {
+        self.minus(self.vol.law.dw_fast(i1, i2, j), j, true)
+    }
+    #[inline(always)]
+    fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        self.minus_ext(self.vol.law.dw_ext_fast(i1, i2, j, j0), j, j0)
+    }
+}
