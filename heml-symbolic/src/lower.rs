@@ -257,10 +257,16 @@ impl Lowerer<'_> {
         if args.len() != function.arity() {
             return err(
                 name,
-                format!(
-                    "`{name}` takes {} argument(s) besides the receiver",
-                    function.arity() - 1
-                ),
+                {
+                    let vars = ["x", "y"];
+                    let (all, rest) = (&vars[..function.arity()], &vars[1..function.arity()]);
+                    format!(
+                        "`{name}` takes {} argument(s): `{name}({})` or `x.{name}({})`",
+                        function.arity(),
+                        all.join(", "),
+                        rest.join(", ")
+                    )
+                },
             );
         }
         let a = self.expr(args[0])?;
