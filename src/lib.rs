@@ -90,9 +90,9 @@
 
 #![warn(missing_docs)]
 
+pub use heml_core::RuntimeLaw;
 pub use heml_core::{force, io, mesh, params, registry, rest, HemlError, Params, Result, TetMesh, Vec3};
 pub use heml_derive::material;
-pub use heml_core::RuntimeLaw;
 pub use heml_integrators as integrators;
 pub use heml_materials as materials;
 pub use nalgebra;

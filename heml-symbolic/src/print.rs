@@ -70,7 +70,8 @@ mod tests {
     #[test]
     fn printed_expressions_parse_back_to_the_same_node() {
         let params = ["mu".to_string(), "k".to_string()];
-        let text = "mu*(I1bar - 3.0) - (I2 - J)/(J*J) + k/2.0*ln(J).powi(-2) + sqrt(abs(I1 - I2)) - exp(-J/mu) + I1.powf(k)";
+        let text =
+            "mu*(I1bar - 3.0) - (I2 - J)/(J*J) + k/2.0*ln(J).powi(-2) + sqrt(abs(I1 - I2)) - exp(-J/mu) + I1.powf(k)";
         let mut g = Graph::new();
         let scope = crate::vocab::Scope::Energy(crate::vocab::Kind::Invariant);
         let w = crate::source::lower_text(&mut g, text, scope, &params).unwrap();
@@ -79,6 +80,10 @@ mod tests {
         assert_eq!(w, again, "{printed}");
         let dw = crate::diff::diff(&mut g, w, Var::J);
         let printed = infix(&g, dw, &params);
-        assert_eq!(dw, crate::source::lower_text(&mut g, &printed, scope, &params).unwrap(), "{printed}");
+        assert_eq!(
+            dw,
+            crate::source::lower_text(&mut g, &printed, scope, &params).unwrap(),
+            "{printed}"
+        );
     }
 }

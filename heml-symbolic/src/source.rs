@@ -144,7 +144,11 @@ fn locate(text: &str, e: &syn::Error) -> SourceError {
         let width = if end.line == start.line {
             end.column.saturating_sub(start.column).max(1)
         } else {
-            lines[start.line - 1].chars().count().saturating_sub(start.column).max(1)
+            lines[start.line - 1]
+                .chars()
+                .count()
+                .saturating_sub(start.column)
+                .max(1)
         };
         (start.line, start.column + 1, width)
     };
@@ -191,7 +195,10 @@ mod tests {
         // on the second line
         let e = error("mu*(I1-3)\n + foo");
         assert_eq!((e.line, e.column, e.width), (2, 4, 3), "{e}");
-        assert!(e.to_string().starts_with("line 2, column 4: unknown identifier `foo`"), "{e}");
+        assert!(
+            e.to_string().starts_with("line 2, column 4: unknown identifier `foo`"),
+            "{e}"
+        );
         assert!(e.to_string().ends_with("\n     + foo\n       ^^^"), "{e}");
     }
 
@@ -204,11 +211,19 @@ mod tests {
 
     #[test]
     fn the_text_gives_the_macro_graph() {
-        let k = invariant_kernels("mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)", &["mu".into(), "lambda".into()], true)
-            .unwrap();
+        let k = invariant_kernels(
+            "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)",
+            &["mu".into(), "lambda".into()],
+            true,
+        )
+        .unwrap();
         assert!(k.ext.is_some() && k.uses_j && !k.uses_i2);
         // w_J at rest: −mu + lambda·ln 1 = −mu
-        let wj = k.graph.eval(k.plain.grad[2], &|v| if v == crate::expr::Var::J { 1.0 } else { 3.0 }, &[2.0, 5.0]);
+        let wj = k.graph.eval(
+            k.plain.grad[2],
+            &|v| if v == crate::expr::Var::J { 1.0 } else { 3.0 },
+            &[2.0, 5.0],
+        );
         assert_eq!(wj, -2.0);
     }
 }

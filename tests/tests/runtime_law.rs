@@ -82,8 +82,14 @@ fn check_equal<M: InvariantLaw>(seed: u64) {
         assert!((ec - er).abs() <= TOL * ec.abs(), "{}: energy {ec} vs {er}", M::NAME);
     }
     // the P1 FEM path and the tangent (second derivatives)
-    let (_, fc) = P1Field::new(compiled, &mesh, opts).unwrap().forces(&x).unwrap();
-    let (_, fr) = P1Field::new(runtime, &mesh, opts).unwrap().forces(&x).unwrap();
+    let (_, fc) = P1Field::on_tets(compiled, &mesh, None, opts)
+        .unwrap()
+        .forces(&x)
+        .unwrap();
+    let (_, fr) = P1Field::on_tets(runtime, &mesh, None, opts)
+        .unwrap()
+        .forces(&x)
+        .unwrap();
     let err = max_tet_relative(&fc, &fr);
     assert!(err <= TOL, "{} (P1): forces differ by {err:e}", M::NAME);
     let tets: Vec<usize> = (0..500).collect();
@@ -143,7 +149,11 @@ fn runtime_law_passes_the_property_checks() {
     let rigid: Vec<Vec3> = mesh.nodes().iter().map(|p| r * p + Vec3::new(1.0, 2.0, 3.0)).collect();
     for x in [mesh.nodes(), &rigid[..]] {
         let (e, f) = field.forces(x).unwrap();
-        assert!(e.abs() < 1e-12 && max_norm(&f) < 1e-12, "rest: energy {e:e}, force {:e}", max_norm(&f));
+        assert!(
+            e.abs() < 1e-12 && max_norm(&f) < 1e-12,
+            "rest: energy {e:e}, force {:e}",
+            max_norm(&f)
+        );
     }
     let mut x = random_deformation(&mut rng, &mesh, 0.7, 1.4, 0.05);
     for inverted in [false, true] {
@@ -158,11 +168,18 @@ fn runtime_law_passes_the_property_checks() {
         let g = fd_gradient(&x, 1e-6, |y| field.energy(y).unwrap());
         let minus_g: Vec<Vec3> = g.iter().map(|v| -v).collect();
         let scale = max_norm(&f).max(1.0);
-        assert!(max_diff(&f, &minus_g) <= 1e-6 * scale, "inverted {inverted}: |f + ∇E| too large");
+        assert!(
+            max_diff(&f, &minus_g) <= 1e-6 * scale,
+            "inverted {inverted}: |f + ∇E| too large"
+        );
         // HEML = P1 (same energy, two formulations): round-off of sums of O(10)
         // terms, 1e-10 relative to the largest force
         let (ep, fp) = p1.forces(&x).unwrap();
-        assert!(max_diff(&f, &fp) <= 1e-10 * scale, "HEML vs P1: {:e}", max_diff(&f, &fp));
+        assert!(
+            max_diff(&f, &fp) <= 1e-10 * scale,
+            "HEML vs P1: {:e}",
+            max_diff(&f, &fp)
+        );
         assert!((e - ep).abs() <= 1e-10 * e.abs().max(1.0));
     }
 }
@@ -180,16 +197,25 @@ fn bad_energies_are_clear_errors_with_a_column() {
         e.contains("column 26: unknown identifier `lamda`") && e.contains("did you mean `lambda`"),
         "{e}"
     );
-    assert!(e.contains("\n    mu/2*(I1-3) - mu*ln(J) + lamda/2*ln(J).powi(2)\n"), "{e}");
+    assert!(
+        e.contains("\n    mu/2*(I1-3) - mu*ln(J) + lamda/2*ln(J).powi(2)\n"),
+        "{e}"
+    );
     assert!(e.contains(&format!("\n    {}^^^^^", " ".repeat(25))), "{e}");
     let e = error("mu*(I1-3) + lambda*ln(J)^2");
     assert!(e.contains("column 25: unsupported operator"), "{e}");
     let e = error("mu*(I1-3) + lambda*(ln(J)");
     assert!(e.contains("column 20"), "{e}");
     let e = error("mu*(I1-3) + lambda*ln(J, I1)");
-    assert!(e.contains("column 20: `ln` takes 1 argument(s): `ln(x)` or `x.ln()`"), "{e}");
+    assert!(
+        e.contains("column 20: `ln` takes 1 argument(s): `ln(x)` or `x.ln()`"),
+        "{e}"
+    );
     let e = error("mu*(I1-3) + lambda*J.powi(2.5)");
-    assert!(e.contains("column 29: the exponent of `powi` must be an integer literal"), "{e}");
+    assert!(
+        e.contains("column 27: the exponent of `powi` must be an integer literal"),
+        "{e}"
+    );
     let e = error("mu*(I1-3) + lambda*");
     assert!(e.contains("column 20: unexpected end of input"), "{e}");
     let e = error("mu*(I1-3)");
@@ -210,4 +236,59 @@ fn laws_differing_only_in_values_share_their_compiled_form() {
     assert_eq!((a.dw(4.0, 3.0, 1.0).d[0], b.dw(4.0, 3.0, 1.0).d[0]), (1.0, 2.0));
     assert_eq!(a.param_info()[0].name, "mu");
     assert_eq!(<RuntimeLaw as MaterialInfo>::to_params(&b), vec![2.0]);
+}
+
+const SCENE: &str = r#"
+[mesh]
+generate = { kind = "box", size = [0.02, 0.02, 0.02], cells = [2, 2, 2] }
+
+[[material]]
+MATERIAL
+params = { mu = 1.0e3, lambda = 4.0e3 }
+
+[[fix]]
+box = { min = [0, 0, 0], max = [0, 0.02, 0.02] }
+
+[loads]
+gravity = [0, 0, -9.81]
+
+[solver]
+duration = 0.01
+"#;
+
+/// A scene's `energy = "..."` material steps exactly as the registered law with
+/// the same energy; bad materials are errors naming the material and the column.
+#[test]
+fn scenes_accept_an_energy_in_place_of_a_law() {
+    let _ = heml::materials_list();
+    let run = |material: &str| {
+        let text = SCENE.replace("MATERIAL", material);
+        let mut sim = heml::scene::Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+        sim.run(|_| {}).unwrap();
+        sim.system.positions().to_vec()
+    };
+    let compiled = run("law = \"neo_hookean\"");
+    let runtime = run(&format!("energy = \"{}\"", NeoHookean::ENERGY));
+    let rest = heml::mesh::generate::box_mesh([0.02; 3], [2; 3], heml::mesh::generate::HexSplit::Six).unwrap();
+    let moved = max_diff(&compiled, rest.nodes());
+    assert!(moved > 1e-6, "gravity should move the body: {moved:e}");
+    // the same forces to the bit give the same trajectory; 1e-12 of the motion
+    // would still allow the reassociation margin of `TOL`
+    assert!(max_diff(&compiled, &runtime) <= 1e-12 * moved);
+    let err = |material: &str| {
+        let text = SCENE.replace("MATERIAL", material);
+        match heml::scene::Scene::from_toml_str(&text, ".").and_then(|s| s.build()) {
+            Ok(_) => panic!("expected an error for {material}"),
+            Err(e) => e.to_string(),
+        }
+    };
+    let e = err("energy = \"mu*(I1 - 3) + lambda*ln(J)**2\"");
+    assert!(
+        e.contains("[[material]] #1") && e.contains("column 28") && e.contains("`**` is not one"),
+        "{e}"
+    );
+    let e = err("law = \"neo_hookean\"\nenergy = \"mu*(I1 - 3) + lambda*ln(J)\"");
+    assert!(e.contains("give one of them"), "{e}");
+    let e = err("density = 1000.0");
+    assert!(e.contains("needs `law`"), "{e}");
 }

@@ -177,7 +177,11 @@ impl RuntimeLaw {
     #[inline(always)]
     fn tapes(&self, ext: bool) -> Option<&'static Tapes> {
         let c = self.compiled?;
-        Some(if ext { c.ext.as_ref().unwrap_or(&c.plain) } else { &c.plain })
+        Some(if ext {
+            c.ext.as_ref().unwrap_or(&c.plain)
+        } else {
+            &c.plain
+        })
     }
 
     #[inline(always)]

@@ -113,7 +113,11 @@ impl Tape {
                     next += 1;
                     continue;
                 }
-                Node::Powf(a, b) => (Code::Powf(g.as_const(b).and_then(heml_symbolic::ops::thirds)), a, Some(b)),
+                Node::Powf(a, b) => (
+                    Code::Powf(g.as_const(b).and_then(heml_symbolic::ops::thirds)),
+                    a,
+                    Some(b),
+                ),
             };
             match code {
                 Code::Add | Code::Sub | Code::Neg => ops_count.add += 1,

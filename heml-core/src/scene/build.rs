@@ -560,6 +560,33 @@ fn registry_hint(empty: bool) -> &'static str {
 /// Adds one `[[material]]` to the builder, with a "did you mean" for misspelt
 /// parameter names.
 fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
+    let law = match &m.energy {
+        Some(energy) if m.law.is_empty() => Box::new(crate::RuntimeLaw::from_energy(energy, &m.params)?),
+        Some(_) => {
+            return Err(HemlError::Invalid(format!(
+                "[[material]] gives both law = \"{}\" and energy: give one of them",
+                m.law
+            )))
+        }
+        None if m.law.is_empty() => {
+            return Err(HemlError::Invalid(
+                "[[material]] needs `law` (a registry name, `heml materials` lists them) or \
+                 `energy` (an energy w(I1, I2, J) as text)"
+                    .into(),
+            ))
+        }
+        None => registered_law(m)?,
+    };
+    let b = match m.tag {
+        None => b.material_law(law),
+        Some(tag) => b.region_law(tag, law),
+    };
+    let b = b.region_density(m.density.unwrap_or(1000.0));
+    Ok(if m.prony.is_empty() { b } else { b.prony(&m.prony) })
+}
+
+/// The registered law `m.law` with `m.params`.
+fn registered_law(m: &MaterialSpec) -> Result<Box<dyn crate::Material>> {
     let entry = find_material(&m.law)
         .map_err(|e| HemlError::Invalid(format!("{e}{}", registry_hint(materials().is_empty()))))?;
     let mut names: Vec<&str> = entry.params.iter().map(|p| p.name).collect();
@@ -576,10 +603,5 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
             .unwrap_or_default();
         HemlError::Invalid(format!("{e}{hint}"))
     })?;
-    let b = match m.tag {
-        None => b.material_law(law),
-        Some(tag) => b.region_law(tag, law),
-    };
-    let b = b.region_density(m.density.unwrap_or(1000.0));
-    Ok(if m.prony.is_empty() { b } else { b.prony(&m.prony) })
+    Ok(law)
 }
