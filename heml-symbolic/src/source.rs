@@ -61,29 +61,28 @@ pub fn lower_text(g: &mut Graph, text: &str, scope: Scope, params: &[String]) ->
 /// everything a law's kernels evaluate, as the macro builds it (the inversion
 /// extension when `inversion_fix` is set and w depends on J).
 pub fn invariant_kernels(text: &str, params: &[String], inversion_fix: bool) -> Result<InvariantKernels, SourceError> {
+    let whole = |message: String| SourceError {
+        line: 1,
+        column: 1,
+        width: text.chars().count().max(1),
+        message,
+        source_line: text.lines().next().unwrap_or("").to_string(),
+    };
     if let Some(clash) = params
         .iter()
         .find(|p| crate::vocab::reserved(Kind::Invariant, false, p))
     {
-        return Err(SourceError {
-            line: 1,
-            column: 1,
-            width: text.chars().count().max(1),
-            message: format!("a parameter may not be called `{clash}`: it is a variable of the energy"),
-            source_line: text.lines().next().unwrap_or("").to_string(),
-        });
+        return Err(whole(format!(
+            "a parameter may not be called `{clash}`: it is a variable of the energy"
+        )));
     }
-    if let Some(bad) = params.iter().find(|p| syn::parse_str::<syn::Ident>(p).is_err()) {
-        proc_macro2::extra::invalidate_current_thread_spans();
-        return Err(SourceError {
-            line: 1,
-            column: 1,
-            width: text.chars().count().max(1),
-            message: format!("`{bad}` is not a valid parameter name (letters, digits and `_`, not a leading digit)"),
-            source_line: text.lines().next().unwrap_or("").to_string(),
-        });
-    }
+    let bad_name = params.iter().find(|p| syn::parse_str::<syn::Ident>(p).is_err());
     proc_macro2::extra::invalidate_current_thread_spans();
+    if let Some(bad) = bad_name {
+        return Err(whole(format!(
+            "`{bad}` is not a valid parameter name (letters, digits and `_`, not a leading digit)"
+        )));
+    }
     let mut g = Graph::new();
     let w = lower_text(&mut g, text, Scope::Energy(Kind::Invariant), params)?;
     Ok(InvariantKernels::new(g, w, inversion_fix))

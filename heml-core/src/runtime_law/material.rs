@@ -1,13 +1,12 @@
-//! A [`RuntimeLaw`] behind the [`Material`] interface: the same fields as a
-//! compiled invariant law (the generic ones, monomorphised for the tape law), with
-//! the name, parameters and operation count it only knows at run time.
+//! A [`RuntimeLaw`] behind the [`Material`] interface: the fields of
+//! [`Invariant`] (the generic ones, monomorphised for the tape law), with the name,
+//! parameters and operation count it only knows at run time.
 
 use super::RuntimeLaw;
 use crate::error::Result;
-use crate::force::p1::energy_and_piola;
-use crate::force::{ElasticForces, ForceOptions, HemlField, P1Field, TangentField, TangentOperator};
+use crate::force::{ElasticForces, ForceOptions, TangentOperator};
 use crate::law::{LawKind, OpCount, ParamInfo};
-use crate::material::Material;
+use crate::material::{Invariant, Material};
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
 
@@ -31,13 +30,14 @@ impl Material for RuntimeLaw {
     fn uses(&self) -> (bool, bool) {
         RuntimeLaw::uses(self)
     }
+    // the fields of any invariant law, through the generic wrapper
     fn force_field(
         &self,
         mesh: &TetMesh,
         tets: Option<&[usize]>,
         opts: &ForceOptions,
     ) -> Result<Box<dyn ElasticForces>> {
-        Ok(Box::new(HemlField::on_tets(*self, mesh, tets, *opts)?))
+        Invariant(*self).force_field(mesh, tets, opts)
     }
     fn fem_field(
         &self,
@@ -45,10 +45,10 @@ impl Material for RuntimeLaw {
         tets: Option<&[usize]>,
         opts: &ForceOptions,
     ) -> Result<Option<Box<dyn ElasticForces>>> {
-        Ok(Some(Box::new(P1Field::on_tets(*self, mesh, tets, *opts)?)))
+        Invariant(*self).fem_field(mesh, tets, opts)
     }
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
-        Some(energy_and_piola(self, f, opts))
+        Invariant(*self).stress(f, opts)
     }
     fn tangent(
         &self,
@@ -57,12 +57,6 @@ impl Material for RuntimeLaw {
         opts: &ForceOptions,
         project_psd: bool,
     ) -> Result<Option<Box<dyn TangentOperator>>> {
-        Ok(Some(Box::new(TangentField::invariant(
-            *self,
-            mesh,
-            tets,
-            *opts,
-            project_psd,
-        )?)))
+        Invariant(*self).tangent(mesh, tets, opts, project_psd)
     }
 }
