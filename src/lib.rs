@@ -90,6 +90,7 @@
 
 #![warn(missing_docs)]
 
+pub use heml_core::RuntimeLaw;
 pub use heml_core::{force, io, mesh, params, registry, rest, HemlError, Params, Result, TetMesh, Vec3};
 pub use heml_derive::material;
 pub use heml_integrators as integrators;

@@ -23,8 +23,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// List every registered material law with its parameters and energy.
-    Materials,
+    /// List every registered material law with its parameters and energy, or
+    /// (--energy) check an energy given as text and print its derivatives.
+    Materials(cli::materials::MaterialsArgs),
     /// Mesh statistics, element quality and the stable explicit time step.
     Info(cli::info::InfoArgs),
     /// Run a scene file: VTU frames + a .pvd series + energy.csv (see scenes/example.toml).
@@ -43,7 +44,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     logger::install(cli.verbose);
     let result = match cli.command {
-        Command::Materials => cli::materials::run(),
+        Command::Materials(args) => cli::materials::run(args),
         Command::Info(args) => cli::info::run(args),
         Command::Run(args) => cli::run::run(args),
         Command::Demo(opts) => cli::demo::run(opts),

@@ -165,3 +165,33 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
         "{err}"
     );
 }
+
+/// `heml materials --energy` checks a text, prints its derivatives and rest state,
+/// and points at the column of a mistake.
+#[test]
+fn materials_energy_checks_and_differentiates_a_text() {
+    let energy = "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)";
+    let (ok, out, err) = heml(&[
+        "materials",
+        "--energy",
+        energy,
+        "--param",
+        "mu=2",
+        "--param",
+        "lambda=4",
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("parameters: lambda = 4, mu = 2"), "{out}");
+    assert!(out.contains("dw/dI1     = mu*0.5"), "{out}");
+    assert!(out.contains("stress factor 2w1 + 4w2 + wJ = 0e0"), "{out}");
+    let (ok, _, err) = heml(&[
+        "materials",
+        "--energy",
+        "mu*(I1-3) + k*J^2",
+        "--param",
+        "mu=1",
+        "--param",
+        "k=1",
+    ]);
+    assert!(!ok && err.contains("column 16: unsupported operator"), "{err}");
+}

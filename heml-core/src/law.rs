@@ -188,6 +188,24 @@ pub trait InvariantLaw: MaterialInfo {
     fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
         self.dw_ext(i1, i2, j, j0)
     }
+
+    /// Whether the batch kernels call [`Self::dw_lanes`] for the lanes of a batch
+    /// none of which needs the extension, instead of [`Self::dw_fast`] lane by lane:
+    /// set by laws evaluated by an interpreter ([`crate::RuntimeLaw`]), whose
+    /// per-operation dispatch is then paid once per batch. Compiled laws keep the
+    /// inlined per-lane loop.
+    const BATCHED: bool = false;
+    /// w, ∂w/∂I1, ∂w/∂I2, ∂w/∂J at `N` lanes at once, equal to [`Self::dw_fast`]
+    /// lane by lane (which the default calls).
+    #[inline(always)]
+    fn dw_lanes<const N: usize>(&self, i1: &[f64; N], i2: &[f64; N], j: &[f64; N]) -> [[f64; N]; 4] {
+        let mut out = [[0.0; N]; 4];
+        for l in 0..N {
+            let d = self.dw_fast(i1[l], i2[l], j[l]);
+            (out[0][l], out[1][l], out[2][l], out[3][l]) = (d.w, d.d[0], d.d[1], d.d[2]);
+        }
+        out
+    }
 }
 
 /// A law given by an energy per tetrahedron edge, w(l, L), with `l` the current and

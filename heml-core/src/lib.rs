@@ -18,6 +18,7 @@ pub mod mesh;
 pub mod params;
 pub mod registry;
 pub mod rest;
+pub mod runtime_law;
 pub mod scene;
 pub mod system;
 
@@ -31,6 +32,7 @@ pub use material::{Material, Volumetric};
 pub use mesh::TetMesh;
 pub use params::Params;
 pub use registry::MaterialEntry;
+pub use runtime_law::RuntimeLaw;
 pub use system::{Integrator, StepStats, System};
 
 /// Items the generated code of `#[heml::material]` refers to. Not a public API.

@@ -17,5 +17,8 @@ pub mod derivatives;
 pub mod diff;
 pub mod expr;
 pub mod lower;
+pub mod ops;
+pub mod print;
+pub mod source;
 pub mod taylor;
 pub mod vocab;

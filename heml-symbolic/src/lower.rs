@@ -60,6 +60,13 @@ impl Lowerer<'_> {
                     let a = self.expr(&u.expr)?;
                     Ok(self.g.neg(a))
                 }
+                UnOp::Deref(_) => err(
+                    u.op,
+                    format!(
+                        "unsupported unary operator `*` in {}; for a power use `.powi(n)` or `.powf(x)` (`**` is not one)",
+                        self.what()
+                    ),
+                ),
                 _ => err(
                     u.op,
                     format!("unsupported unary operator; only `-` is allowed in {}", self.what()),
@@ -255,13 +262,16 @@ impl Lowerer<'_> {
             return err(name, format!("unsupported function `{name}`; supported: {FUNCTIONS}"));
         };
         if args.len() != function.arity() {
-            return err(
-                name,
+            return err(name, {
+                let vars = ["x", "y"];
+                let (all, rest) = (&vars[..function.arity()], &vars[1..function.arity()]);
                 format!(
-                    "`{name}` takes {} argument(s) besides the receiver",
-                    function.arity() - 1
-                ),
-            );
+                    "`{name}` takes {} argument(s): `{name}({})` or `x.{name}({})`",
+                    function.arity(),
+                    all.join(", "),
+                    rest.join(", ")
+                )
+            });
         }
         let a = self.expr(args[0])?;
         Ok(match function {

@@ -66,11 +66,18 @@ pub struct BenchArgs {
     /// the generated organ meshes).
     #[arg(long, default_value_t = 1e-3)]
     pub implicit_scale: f64,
+    /// Instead of the usual table: this energy declared at run time against the
+    /// compiled --law, one thread, timed round-robin (same energy: same forces).
+    #[arg(long, value_name = "TEXT")]
+    pub energy: Option<String>,
+    /// Parameter NAME=VALUE of --energy (repeatable); default: --law's values.
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    pub params: Vec<String>,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
 /// spring stiffness of 10 N/m per tet edge.
-fn tissue_params(entry: &MaterialEntry) -> heml::Result<Params> {
+pub(super) fn tissue_params(entry: &MaterialEntry) -> heml::Result<Params> {
     fixtures::tissue_params(entry, 3e3, 0.45).ok_or_else(|| {
         HemlError::Invalid(format!(
             "heml bench knows soft-tissue parameters for the built-in laws only, not '{}'",
@@ -79,7 +86,7 @@ fn tissue_params(entry: &MaterialEntry) -> heml::Result<Params> {
     })
 }
 
-fn median(v: &mut [f64]) -> f64 {
+pub(super) fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n % 2 == 1 {
@@ -90,11 +97,11 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// One timed case: a field evaluated at `x` on `pool`, `inner` calls per sample.
-struct Case<'a> {
-    pool: &'a rayon::ThreadPool,
-    field: &'a dyn ElasticForces,
-    x: &'a [Vec3],
-    inner: usize,
+pub(super) struct Case<'a> {
+    pub(super) pool: &'a rayon::ThreadPool,
+    pub(super) field: &'a dyn ElasticForces,
+    pub(super) x: &'a [Vec3],
+    pub(super) inner: usize,
 }
 
 /// Seconds per call of every case, `repeats` samples each, taken round-robin (one
@@ -105,7 +112,7 @@ struct Case<'a> {
 /// backwards, so that whatever the first sample after a change of pool pays (its
 /// workers were idle, its caches hold another case's data) falls on every case of
 /// the group in turn, not always on the first one listed.
-fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<Vec<Vec<f64>>> {
+pub(super) fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<Vec<Vec<f64>>> {
     let mut bufs: Vec<Vec<Vec3>> = cases.iter().map(|c| vec![Vec3::zeros(); c.x.len()]).collect();
     for (c, f) in cases.iter().zip(&mut bufs) {
         c.pool.install(|| c.field.add_forces(c.x, f))?; // warm-up (allocates scratch)
@@ -147,7 +154,7 @@ fn visiting_order(cases: &[Case], backwards: bool) -> Vec<usize> {
 }
 
 /// The median over rounds of `a[i] / b[i]`: a ratio robust to drifts that move both.
-fn median_ratio(a: &[f64], b: &[f64]) -> f64 {
+pub(super) fn median_ratio(a: &[f64], b: &[f64]) -> f64 {
     let mut r: Vec<f64> = a.iter().zip(b).map(|(a, b)| a / b).collect();
     median(&mut r)
 }
@@ -221,6 +228,9 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     }
     if !args.implicit.is_empty() {
         return super::bench_implicit::run(&args.implicit, args.implicit_scale, threads, placement);
+    }
+    if let Some(energy) = &args.energy {
+        return super::bench_energy::run(&args, energy, &pool(1)?);
     }
     if args.scaling {
         outln!(

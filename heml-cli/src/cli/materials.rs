@@ -1,10 +1,79 @@
-//! `heml materials`: the registry, with parameters and energies.
+//! `heml materials`: the registry, with parameters and energies; or one energy
+//! given as text, checked and differentiated.
 
-use heml::law::LawKind;
+use clap::Args;
+use heml::law::{InvariantLaw, LawKind};
+use heml::RuntimeLaw;
 
-/// Prints every registered law.
-pub fn run() -> heml::Result<()> {
-    print_materials();
+/// Arguments of `heml materials`.
+#[derive(Args, Debug)]
+pub struct MaterialsArgs {
+    /// An energy w(I1, I2, J) in the language of `#[heml::material]`, e.g.
+    /// "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)": checked, and its
+    /// derivatives printed, instead of the registry's list.
+    #[arg(long, value_name = "TEXT")]
+    pub energy: Option<String>,
+    /// Parameter NAME=VALUE of --energy (repeatable; every name the energy uses).
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    pub params: Vec<String>,
+    /// Do not build the J0 inversion extension (for an energy finite for J <= 0).
+    #[arg(long)]
+    pub no_inversion_fix: bool,
+}
+
+/// Prints every registered law, or the checked --energy.
+pub fn run(args: MaterialsArgs) -> heml::Result<()> {
+    match &args.energy {
+        Some(energy) => print_energy(energy, &args),
+        None => {
+            print_materials();
+            Ok(())
+        }
+    }
+}
+
+/// The law of `energy`: its parameters, derivatives and rest state.
+fn print_energy(energy: &str, args: &MaterialsArgs) -> heml::Result<()> {
+    let params = super::info::parse_params(&args.params)?;
+    let law = RuntimeLaw::with_inversion_fix(energy, &params, !args.no_inversion_fix)?;
+    outln!("w = {energy}");
+    let shown: Vec<String> = law
+        .param_info()
+        .iter()
+        .zip(law.values())
+        .map(|(p, v)| format!("{} = {v}", p.name))
+        .collect();
+    outln!(
+        "parameters: {}",
+        if shown.is_empty() {
+            "none".into()
+        } else {
+            shown.join(", ")
+        }
+    );
+    let (uses_i2, uses_j) = law.uses();
+    let ops = law.op_count();
+    outln!(
+        "uses I2: {uses_i2}   uses J: {uses_j}   J0 inversion extension: {}   value+gradient: {} operations",
+        law.extended(),
+        ops.add + ops.mul + ops.div + ops.func
+    );
+    outln!();
+    for (name, expr) in law.derivatives() {
+        outln!("{name:<10} = {expr}");
+    }
+    // at rest: P = (2 w1 + 4 w2 + wJ) I must vanish for a stress-free rest state
+    let d = law.dw(3.0, 3.0, 1.0);
+    let stress = 2.0 * d.d[0] + 4.0 * d.d[1] + d.d[2];
+    outln!();
+    outln!(
+        "at rest (I1 = I2 = 3, J = 1): w = {:e}, stress factor 2w1 + 4w2 + wJ = {stress:e}",
+        d.w
+    );
+    let scale = law.values().iter().fold(1.0_f64, |m, v| m.max(v.abs()));
+    if d.w.abs() > 1e-9 * scale || stress.abs() > 1e-9 * scale {
+        outln!("warning: this law is not energy- and stress-free at rest with these parameters");
+    }
     Ok(())
 }
 

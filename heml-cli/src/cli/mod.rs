@@ -13,6 +13,7 @@ macro_rules! out {
 }
 
 pub mod bench;
+pub mod bench_energy;
 pub mod bench_implicit;
 pub mod demo;
 pub mod haptic;

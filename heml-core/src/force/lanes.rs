@@ -31,6 +31,8 @@ macro_rules! law_lanes {
                 };
                 ($w[l], $w1[l], $w2[l], $wj[l]) = (d.w, d.d[0], d.d[1], d.d[2]);
             }
+        } else if M::BATCHED {
+            [$w, $w1, $w2, $wj] = $law.dw_lanes(&$i1, &$i2, &$j);
         } else {
             for l in 0..L {
                 let d = $law.dw_fast($i1[l], $i2[l], $j[l]);

@@ -560,22 +560,23 @@ fn registry_hint(empty: bool) -> &'static str {
 /// Adds one `[[material]]` to the builder, with a "did you mean" for misspelt
 /// parameter names.
 fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec) -> Result<SystemBuilder> {
-    let entry = find_material(&m.law)
-        .map_err(|e| HemlError::Invalid(format!("{e}{}", registry_hint(materials().is_empty()))))?;
-    let mut names: Vec<&str> = entry.params.iter().map(|p| p.name).collect();
-    if entry.small_strain.is_some() {
-        names.extend(["E", "nu"]);
-    }
-    let law = entry.instantiate(&m.params).map_err(|e| {
-        let hint = m
-            .params
-            .0
-            .keys()
-            .filter(|k| !names.contains(&k.as_str()) && !["young", "poisson"].contains(&k.as_str()))
-            .find_map(|k| closest(k, &names).map(|c| format!(" (did you mean '{c}' for '{k}'?)")))
-            .unwrap_or_default();
-        HemlError::Invalid(format!("{e}{hint}"))
-    })?;
+    let law = match &m.energy {
+        Some(energy) if m.law.is_empty() => Box::new(crate::RuntimeLaw::from_energy(energy, &m.params)?),
+        Some(_) => {
+            return Err(HemlError::Invalid(format!(
+                "[[material]] gives both law = \"{}\" and energy: give one of them",
+                m.law
+            )))
+        }
+        None if m.law.is_empty() => {
+            return Err(HemlError::Invalid(
+                "[[material]] needs `law` (a registry name, `heml materials` lists them) or \
+                 `energy` (an energy w(I1, I2, J) as text)"
+                    .into(),
+            ))
+        }
+        None => registered_law(m)?,
+    };
     // the material's own volumetric keys, else [solver]'s, else the element form
     let volumetric = match (&m.volumetric, &solver.volumetric) {
         (Some(v), _) => Some((v, m.volumetric_stabilization.or(solver.volumetric_stabilization))),
@@ -597,4 +598,25 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec) -> Resu
     };
     let b = b.region_density(m.density.unwrap_or(1000.0));
     Ok(if m.prony.is_empty() { b } else { b.prony(&m.prony) })
+}
+
+/// The registered law `m.law` with `m.params`.
+fn registered_law(m: &MaterialSpec) -> Result<Box<dyn crate::Material>> {
+    let entry = find_material(&m.law)
+        .map_err(|e| HemlError::Invalid(format!("{e}{}", registry_hint(materials().is_empty()))))?;
+    let mut names: Vec<&str> = entry.params.iter().map(|p| p.name).collect();
+    if entry.small_strain.is_some() {
+        names.extend(["E", "nu"]);
+    }
+    let law = entry.instantiate(&m.params).map_err(|e| {
+        let hint = m
+            .params
+            .0
+            .keys()
+            .filter(|k| !names.contains(&k.as_str()) && !["young", "poisson"].contains(&k.as_str()))
+            .find_map(|k| closest(k, &names).map(|c| format!(" (did you mean '{c}' for '{k}'?)")))
+            .unwrap_or_default();
+        HemlError::Invalid(format!("{e}{hint}"))
+    })?;
+    Ok(law)
 }

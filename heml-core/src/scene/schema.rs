@@ -115,12 +115,18 @@ pub struct GenerateSpec {
     pub max_tets: Option<usize>,
 }
 
-/// One material: a registered law with its parameters, over one tag or all tets.
+/// One material: a registered law (or an energy given as text) with its
+/// parameters, over one tag or all tets.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
-    /// Registry name (`heml materials` lists them).
+    /// Registry name (`heml materials` lists them); empty when `energy` is given.
+    #[serde(default)]
     pub law: String,
+    /// An invariant energy w(I1, I2, J) in the language of `#[heml::material]`,
+    /// compiled at load time ([`crate::RuntimeLaw`]), in place of `law`; its
+    /// parameters are the names in `params`.
+    pub energy: Option<String>,
     /// Parameters by name; laws with exactly `mu`, `lambda` also accept `E`, `nu`.
     #[serde(default)]
     pub params: Params,

@@ -1,0 +1,75 @@
+//! `heml bench --energy`: a law declared at run time against the compiled law,
+//! per tet, on one mesh, one thread, timed round-robin.
+
+use super::bench::{median, median_ratio, time_round_robin, tissue_params, BenchArgs, Case};
+use super::info::parse_params;
+use heml::mesh::generate::box_of_about;
+use heml::prelude::*;
+use heml::RuntimeLaw;
+use heml_validation::fixtures::{renumbered_at_load, smooth_deformation as deformed};
+
+/// Times the HEML and P1 fields of `--law` and of `energy` (whose parameters are
+/// `--param`, else `--law`'s values by name).
+pub fn run(args: &BenchArgs, energy: &str, pool: &rayon::ThreadPool) -> heml::Result<()> {
+    let entry = heml::find_material(&args.law)?;
+    let compiled = entry.instantiate(&tissue_params(entry)?)?;
+    if compiled.kind() != heml::law::LawKind::Invariant {
+        return Err(HemlError::Invalid(format!(
+            "--energy is compared with an invariant law; '{}' is a link law",
+            entry.name
+        )));
+    }
+    let params = if args.params.is_empty() {
+        let mut p = Params::new();
+        for (info, v) in compiled.param_info().iter().zip(compiled.param_values()) {
+            p.set(info.name, v);
+        }
+        p
+    } else {
+        parse_params(&args.params)?
+    };
+    let runtime = RuntimeLaw::from_energy(energy, &params)?;
+    let mesh = match &args.mesh {
+        Some(path) => heml::io::read_mesh(path)?.0,
+        None => box_of_about(args.tets)?,
+    };
+    let mesh = renumbered_at_load(&mesh)?;
+    let x = deformed(&mesh);
+    let n_tets = mesh.n_tets();
+    let inner = (2_000_000 / n_tets.max(1)).clamp(1, 1000);
+    let repeats = args.repeats.max(1);
+    let opts = ForceOptions::default();
+    let laws: [(&str, &dyn Material); 2] = [("compiled", compiled.as_ref()), ("runtime", &runtime)];
+    let mut fields = Vec::new();
+    for (_, law) in laws {
+        fields.push(law.force_field(&mesh, None, &opts)?);
+        if let Some(f) = law.fem_field(&mesh, None, &opts)? {
+            fields.push(f);
+        }
+    }
+    let cases: Vec<Case> = fields
+        .iter()
+        .map(|f| Case {
+            pool,
+            field: f.as_ref(),
+            x: &x,
+            inner,
+        })
+        .collect();
+    outln!("mesh: {} tets   law: {}   energy: {energy}", n_tets, entry.name);
+    outln!("1 thread, {repeats} × {inner} calls (medians), tape: {} ops", {
+        let o = runtime.op_count();
+        o.add + o.mul + o.div + o.func
+    });
+    let samples = time_round_robin(&cases, repeats)?;
+    let ns = |s: &[f64]| median(&mut s.to_vec()) / n_tets as f64 * 1e9;
+    outln!("{:<10} {:>12} {:>12}", "", "HEML ns/tet", "P1 ns/tet");
+    outln!("{:<10} {:>12.2} {:>12.2}", "compiled", ns(&samples[0]), ns(&samples[1]));
+    outln!("{:<10} {:>12.2} {:>12.2}", "runtime", ns(&samples[2]), ns(&samples[3]));
+    outln!(
+        "runtime / compiled: HEML {:.2}×, P1 {:.2}× (medians of the per-round ratios)",
+        median_ratio(&samples[2], &samples[0]),
+        median_ratio(&samples[3], &samples[1])
+    );
+    Ok(())
+}

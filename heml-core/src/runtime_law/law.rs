@@ -1,0 +1,368 @@
+//! [`RuntimeLaw`]: an invariant law whose energy is text given at run time,
+//! evaluated from tapes of its exact derivatives.
+
+use super::tape::Tape;
+use crate::error::{HemlError, Result};
+use crate::law::{Derivs, InvariantLaw, MaterialInfo, OpCount, ParamInfo};
+use crate::params::Params;
+use heml_symbolic::derivatives::{Derivatives, InvariantKernels};
+use heml_symbolic::expr::{Graph, Id};
+use std::collections::HashMap;
+use std::sync::{LazyLock, Mutex};
+
+/// Most parameters a law declared at run time may have (the values live inline in
+/// the law, which is `Copy` like every law).
+pub const MAX_PARAMS: usize = 16;
+
+/// The three tapes (value, value + gradient, Hessian) of one set of derivatives.
+#[derive(Debug)]
+struct Tapes {
+    w: Tape,
+    dw: Tape,
+    d2w: Tape,
+}
+
+impl Tapes {
+    fn new(g: &Graph, d: &Derivatives, n_params: usize) -> Self {
+        let hess: Vec<Id> = d.hess.iter().flatten().copied().collect();
+        Self {
+            w: Tape::new(g, &[d.w], n_params),
+            dw: Tape::new(g, &d.value_and_grad(), n_params),
+            d2w: Tape::new(g, &hess, n_params),
+        }
+    }
+}
+
+/// Everything compiled from one energy text: kept for the life of the process and
+/// shared by every law with that text (see [`RuntimeLaw`]).
+#[derive(Debug)]
+pub(super) struct Compiled {
+    pub(super) text: &'static str,
+    pub(super) params: &'static [ParamInfo],
+    pub(super) uses_i2: bool,
+    pub(super) uses_j: bool,
+    plain: Tapes,
+    ext: Option<Tapes>,
+    /// `(name, expression)` of w, its gradient and its Hessian, for people.
+    pub(super) printed: Vec<(String, String)>,
+}
+
+/// The compiled forms made so far, by (text, parameter names, inversion fix).
+type Cache = HashMap<(String, Vec<String>, bool), &'static Compiled>;
+static COMPILED: LazyLock<Mutex<Cache>> = LazyLock::new(Mutex::default);
+
+/// An invariant law w(I1, I2, J) declared at run time by its energy, in the
+/// language of `#[heml::material]`'s `#[energy(...)]`:
+///
+/// ```
+/// use heml_core::{Params, RuntimeLaw, InvariantLaw};
+/// let law = RuntimeLaw::from_energy(
+///     "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)",
+///     &Params::from([("mu", 1.0), ("lambda", 4.0)]),
+/// )?;
+/// let d = law.dw(3.0, 3.0, 1.0); // at rest: no energy, P = (2w₁ + w_J)·I = 0
+/// assert_eq!((d.w, 2.0 * d.d[0] + d.d[2]), (0.0, 0.0));
+/// # Ok::<(), heml_core::HemlError>(())
+/// ```
+///
+/// The text is parsed and differentiated once (by heml-symbolic, the macro's own
+/// engine), and w, its gradient, its Hessian and the J0 inversion extension of each
+/// are compiled into register tapes ([`super::tape`]) that compute exactly what the
+/// macro's generated code computes; the batch kernels run them over a batch of tets
+/// at once. A runtime law is an [`InvariantLaw`], so it works everywhere a compiled
+/// one does (HEML and P1 fields, the tangent, scenes through [`crate::Material`]).
+///
+/// Compiled forms are kept for the life of the process, one per distinct energy
+/// text and parameter names (a few kB each), which is what lets the law be `Copy`
+/// like every law; the parameter values live in the law itself, so laws that differ
+/// only in their values share one compiled form.
+#[derive(Clone, Copy)]
+pub struct RuntimeLaw {
+    /// `None`: the zero law of [`MaterialInfo::from_params`].
+    compiled: Option<&'static Compiled>,
+    values: [f64; MAX_PARAMS],
+}
+
+impl std::fmt::Debug for RuntimeLaw {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let params: Vec<(&str, f64)> = self
+            .param_info()
+            .iter()
+            .zip(&self.values)
+            .map(|(p, &v)| (p.name, v))
+            .collect();
+        f.debug_struct("RuntimeLaw")
+            .field("energy", &self.energy())
+            .field("params", &params)
+            .finish()
+    }
+}
+
+impl RuntimeLaw {
+    /// The law with energy `energy` over the parameters `params` (their names are
+    /// the parameters the energy may use, each given a finite value), with the J0
+    /// inversion extension when the energy depends on J.
+    ///
+    /// Errors say where the text is wrong (column, with the line shown) and what is
+    /// allowed there, as the macro's errors do; a parameter the energy does not use
+    /// is an error too (a misspelt name would otherwise pass silently).
+    pub fn from_energy(energy: &str, params: &Params) -> Result<Self> {
+        Self::with_inversion_fix(energy, params, true)
+    }
+
+    /// As [`Self::from_energy`]; `inversion_fix = false` is the macro's
+    /// `no_inversion_fix` (for an energy finite for J ≤ 0).
+    pub fn with_inversion_fix(energy: &str, params: &Params, inversion_fix: bool) -> Result<Self> {
+        let names: Vec<String> = params.0.keys().cloned().collect();
+        let bad = |problem: String| HemlError::Invalid(format!("energy \"{energy}\": {problem}"));
+        if names.len() > MAX_PARAMS {
+            return Err(bad(format!(
+                "{} parameters given, at most {MAX_PARAMS} are supported",
+                names.len()
+            )));
+        }
+        if let Some((k, v)) = params.0.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(bad(format!("parameter '{k}' is {v}, not a finite number")));
+        }
+        let compiled = compile(energy, names, inversion_fix).map_err(bad)?;
+        let mut values = [0.0; MAX_PARAMS];
+        for (slot, v) in values.iter_mut().zip(params.0.values()) {
+            *slot = *v;
+        }
+        Ok(Self {
+            compiled: Some(compiled),
+            values,
+        })
+    }
+
+    /// The energy as given.
+    pub fn energy(&self) -> &'static str {
+        self.compiled.map_or("0", |c| c.text)
+    }
+
+    /// The parameters (in name order, as the values).
+    pub fn param_info(&self) -> &'static [ParamInfo] {
+        self.compiled.map_or(&[], |c| c.params)
+    }
+
+    /// The parameter values, in [`Self::param_info`] order.
+    pub fn values(&self) -> &[f64] {
+        &self.values[..self.param_info().len()]
+    }
+
+    /// Whether w depends on I2, and on J.
+    pub fn uses(&self) -> (bool, bool) {
+        self.compiled.map_or((false, false), |c| (c.uses_i2, c.uses_j))
+    }
+
+    /// Whether the J0 inversion extension applies (the energy depends on J and the
+    /// fix was not turned off).
+    pub fn extended(&self) -> bool {
+        self.compiled.is_some_and(|c| c.ext.is_some())
+    }
+
+    /// The simplified symbolic derivatives, as `(name, expression)`: w, ∂w/∂I1,
+    /// ∂w/∂I2, ∂w/∂J and the upper triangle of the Hessian — what
+    /// `heml materials --energy` prints.
+    pub fn derivatives(&self) -> &'static [(String, String)] {
+        self.compiled.map_or(&[], |c| &c.printed)
+    }
+
+    /// Operation count of the value-and-gradient tape.
+    pub fn op_count(&self) -> OpCount {
+        self.compiled.map_or(OpCount::default(), |c| c.plain.dw.op_count())
+    }
+
+    /// The tapes of the plain law, or of the extension (the plain law's when it has none).
+    #[inline(always)]
+    fn tapes(&self, ext: bool) -> Option<&'static Tapes> {
+        let c = self.compiled?;
+        Some(if ext {
+            c.ext.as_ref().unwrap_or(&c.plain)
+        } else {
+            &c.plain
+        })
+    }
+
+    #[inline(always)]
+    fn derivs<const FAST: bool>(&self, ext: bool, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        let Some(t) = self.tapes(ext) else {
+            return Derivs::default();
+        };
+        t.dw.run::<1, FAST, _>([[i1], [i2], [j], [j0]], &self.values, |o| {
+            let mut next = || o.next().map_or(0.0, |[x]| x);
+            Derivs {
+                w: next(),
+                d: [next(), next(), next()],
+            }
+        })
+    }
+
+    fn value(&self, ext: bool, i1: f64, i2: f64, j: f64, j0: f64) -> f64 {
+        self.tapes(ext).map_or(0.0, |t| {
+            t.w.run::<1, false, _>([[i1], [i2], [j], [j0]], &self.values, |o| o.next().map_or(0.0, |[x]| x))
+        })
+    }
+
+    fn hessian(&self, ext: bool, i1: f64, i2: f64, j: f64, j0: f64) -> [[f64; 3]; 3] {
+        self.tapes(ext).map_or([[0.0; 3]; 3], |t| {
+            t.d2w.run::<1, false, _>([[i1], [i2], [j], [j0]], &self.values, |o| {
+                let mut h = [[0.0; 3]; 3];
+                for (slot, [x]) in h.iter_mut().flatten().zip(o) {
+                    *slot = x;
+                }
+                h
+            })
+        })
+    }
+}
+
+/// The compiled form of `text` over `names`, made once per process.
+fn compile(text: &str, names: Vec<String>, inversion_fix: bool) -> std::result::Result<&'static Compiled, String> {
+    let key = (text.to_string(), names, inversion_fix);
+    // a panic elsewhere while holding the lock leaves a consistent map (inserts are atomic)
+    let mut cache = COMPILED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    if let Some(&c) = cache.get(&key) {
+        return Ok(c);
+    }
+    let (text, names, inversion_fix) = &key;
+    let k = heml_symbolic::source::invariant_kernels(text, names, *inversion_fix).map_err(|e| e.to_string())?;
+    let unused: Vec<&str> = names
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| !uses_param(&k, i))
+        .map(|(_, n)| n.as_str())
+        .collect();
+    if !unused.is_empty() {
+        return Err(format!(
+            "parameter(s) {} given but not used by the energy",
+            unused.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    let n = names.len();
+    let leak = |s: &str| -> &'static str { Box::leak(s.to_string().into_boxed_str()) };
+    let params: Vec<ParamInfo> = names
+        .iter()
+        .map(|name| ParamInfo {
+            name: leak(name),
+            doc: "",
+            signed: true,
+        })
+        .collect();
+    let printed = print(&k, names);
+    let compiled = Compiled {
+        text: leak(text),
+        params: Box::leak(params.into_boxed_slice()),
+        uses_i2: k.uses_i2,
+        uses_j: k.uses_j,
+        plain: Tapes::new(&k.graph, &k.plain, n),
+        ext: k.ext.as_ref().map(|d| Tapes::new(&k.graph, d, n)),
+        printed,
+    };
+    let compiled: &'static Compiled = Box::leak(Box::new(compiled));
+    cache.insert(key.clone(), compiled);
+    Ok(compiled)
+}
+
+/// Whether w depends on parameter `i`.
+fn uses_param(k: &InvariantKernels, i: usize) -> bool {
+    let seen = k.graph.reachable(&[k.plain.w]);
+    seen.iter()
+        .enumerate()
+        .any(|(id, &s)| s && k.graph.node(id) == heml_symbolic::expr::Node::Param(i))
+}
+
+/// w and its derivatives as text.
+fn print(k: &InvariantKernels, names: &[String]) -> Vec<(String, String)> {
+    let d = &k.plain;
+    let show = |id| heml_symbolic::print::infix(&k.graph, id, names);
+    let mut out = vec![
+        ("w".to_string(), show(d.w)),
+        ("dw/dI1".to_string(), show(d.grad[0])),
+        ("dw/dI2".to_string(), show(d.grad[1])),
+        ("dw/dJ".to_string(), show(d.grad[2])),
+    ];
+    let v = ["I1", "I2", "J"];
+    for a in 0..3 {
+        for b in a..3 {
+            out.push((format!("d2w/d{}d{}", v[a], v[b]), show(d.hess[a][b])));
+        }
+    }
+    out
+}
+
+impl MaterialInfo for RuntimeLaw {
+    const NAME: &'static str = "energy";
+    // The parameters of a runtime law are known at run time only: see
+    // [`RuntimeLaw::param_info`] (and `Material::param_info`, which uses it).
+    const PARAMS: &'static [ParamInfo] = &[];
+    const ENERGY: &'static str = "";
+    const DOC: &'static str = "A law declared at run time by its energy (`RuntimeLaw::from_energy`).";
+
+    fn to_params(&self) -> Vec<f64> {
+        self.values().to_vec()
+    }
+
+    /// The zero law: a runtime law cannot be made from values alone (its energy is
+    /// not in its type); nothing in HEML calls this for it, since it is not in the
+    /// registry.
+    fn from_params(_values: &[f64]) -> Self {
+        Self {
+            compiled: None,
+            values: [0.0; MAX_PARAMS],
+        }
+    }
+}
+
+impl InvariantLaw for RuntimeLaw {
+    // The kernels' compile-time switches are on: a runtime law not using I2 or J
+    // evaluates w₂ = 0 or w_J = 0 exactly, so the extra terms add exact zeros and
+    // the forces equal a compiled law's with the same energy.
+    const USES_I2: bool = true;
+    const USES_J: bool = true;
+    const INVERSION_FIX: bool = true;
+    const OPS: OpCount = OpCount {
+        add: 0,
+        mul: 0,
+        div: 0,
+        func: 0,
+    };
+    const BATCHED: bool = true;
+
+    fn w(&self, i1: f64, i2: f64, j: f64) -> f64 {
+        self.value(false, i1, i2, j, 0.0)
+    }
+    fn dw(&self, i1: f64, i2: f64, j: f64) -> Derivs {
+        self.derivs::<false>(false, i1, i2, j, 0.0)
+    }
+    fn d2w(&self, i1: f64, i2: f64, j: f64) -> [[f64; 3]; 3] {
+        self.hessian(false, i1, i2, j, 0.0)
+    }
+    fn w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> f64 {
+        self.value(true, i1, i2, j, j0)
+    }
+    fn dw_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        self.derivs::<false>(true, i1, i2, j, j0)
+    }
+    fn d2w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> [[f64; 3]; 3] {
+        self.hessian(true, i1, i2, j, j0)
+    }
+    fn dw_fast(&self, i1: f64, i2: f64, j: f64) -> Derivs {
+        self.derivs::<true>(false, i1, i2, j, 0.0)
+    }
+    fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        self.derivs::<true>(true, i1, i2, j, j0)
+    }
+
+    /// The fast value-and-gradient tape over all lanes at once.
+    #[inline]
+    fn dw_lanes<const N: usize>(&self, i1: &[f64; N], i2: &[f64; N], j: &[f64; N]) -> [[f64; N]; 4] {
+        let Some(t) = self.tapes(false) else {
+            return [[0.0; N]; 4];
+        };
+        t.dw.run::<N, true, _>([*i1, *i2, *j, [0.0; N]], &self.values, |o| {
+            let mut next = || o.next().unwrap_or([0.0; N]);
+            [next(), next(), next(), next()]
+        })
+    }
+}

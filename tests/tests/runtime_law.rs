@@ -1,0 +1,294 @@
+//! Laws declared at run time (`RuntimeLaw::from_energy`) against the compiled laws
+//! with the same energy text, on every evaluation path, and their errors.
+
+use heml::force::{Assembly, HemlField, P1Field, TangentField, TangentOperator};
+use heml::law::{InvariantLaw, Material, MaterialInfo};
+use heml::materials::*;
+use heml::nalgebra::Matrix3;
+use heml::prelude::*;
+use heml::RuntimeLaw;
+use heml_tests::*;
+use rand::Rng;
+
+/// `n` independent random tets (four nodes each), rest and current positions:
+/// random rest shapes, each deformed by its own random F (stretches 0.6–1.6,
+/// shear, rotation), a fifth of them inverted through a face and a tenth squashed
+/// into 0 < J < J0, where the inversion extension takes over.
+fn random_tets(rng: &mut TestRng, n: usize) -> (TetMesh, Vec<Vec3>) {
+    let (mut nodes, mut x, mut tets) = (Vec::new(), Vec::new(), Vec::new());
+    for t in 0..n {
+        let rest = random_tet(rng);
+        let stretch = Matrix3::from_diagonal(&Vec3::from_fn(|_, _| rng.gen_range(0.6..1.6)));
+        let shear = Matrix3::from_fn(|i, j| if i < j { rng.gen_range(-0.3..0.3) } else { 0.0 });
+        let mut f = random_rotation(rng) * (stretch + shear);
+        match rng.gen_range(0..10) {
+            0 | 1 => f.set_column(0, &(-f.column(0))),
+            2 => f.set_column(0, &(f.column(0) * rng.gen_range(0.05..0.35))),
+            _ => {}
+        }
+        for p in rest.nodes() {
+            nodes.push(*p);
+            x.push(f * p + Vec3::from_fn(|_, _| rng.gen_range(-0.01..0.01)));
+        }
+        tets.push([4 * t, 4 * t + 1, 4 * t + 2, 4 * t + 3]);
+    }
+    (TetMesh::new(nodes, tets).unwrap(), x)
+}
+
+/// The compiled law `M` with registry parameters, and the runtime law of its
+/// declared energy text with the same parameters (and inversion fix).
+fn pair<M: InvariantLaw>(rng: &mut TestRng) -> (M, RuntimeLaw) {
+    let entry = heml::find_material(M::NAME).unwrap();
+    let params = sample_params(entry, rng);
+    let values: Vec<f64> = M::PARAMS.iter().map(|p| params.get(p.name).unwrap()).collect();
+    let runtime = RuntimeLaw::with_inversion_fix(M::ENERGY, &params, M::INVERSION_FIX).unwrap();
+    (M::from_params(&values), runtime)
+}
+
+/// Largest per-tet difference of `a` and `b` (four nodes per tet), relative to the
+/// tet's largest force (at least 1e-300, so all-zero tets compare absolutely).
+fn max_tet_relative(a: &[Vec3], b: &[Vec3]) -> f64 {
+    a.chunks(4)
+        .zip(b.chunks(4))
+        .map(|(a, b)| {
+            let scale = a.iter().map(|v| v.norm()).fold(1e-300, f64::max);
+            a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max) / scale
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Tolerance: the tape evaluates the graph the macro generates code from, with the
+/// same functions on the same operands in the same order (fast kernels included),
+/// so the forces agree to the bit in practice; 1e-13 relative per tet is the
+/// issue's bound, leaving room for a compiler reassociating a product of the
+/// generated code (one rounding, ~1e-16 relative, amplified by at most the ~100
+/// terms of a tet's force).
+const TOL: f64 = 1e-13;
+
+fn check_equal<M: InvariantLaw>(seed: u64) {
+    let mut rng = rng(seed);
+    let (mesh, x) = random_tets(&mut rng, 10_000);
+    let (compiled, runtime) = pair::<M>(&mut rng);
+    let opts = ForceOptions::default();
+    for assembly in [Assembly::Parallel, Assembly::Batched, Assembly::Reference] {
+        let mut c = HemlField::new(compiled, &mesh, opts).unwrap();
+        let mut r = HemlField::new(runtime, &mesh, opts).unwrap();
+        c.set_assembly(assembly);
+        r.set_assembly(assembly);
+        let ((ec, fc), (er, fr)) = (c.forces(&x).unwrap(), r.forces(&x).unwrap());
+        assert!(fc.iter().all(|f| f.iter().all(|v| v.is_finite())), "{}", M::NAME);
+        let err = max_tet_relative(&fc, &fr);
+        assert!(err <= TOL, "{} ({assembly:?}): forces differ by {err:e}", M::NAME);
+        assert!((ec - er).abs() <= TOL * ec.abs(), "{}: energy {ec} vs {er}", M::NAME);
+    }
+    // the P1 FEM path and the tangent (second derivatives)
+    let (_, fc) = P1Field::on_tets(compiled, &mesh, None, opts)
+        .unwrap()
+        .forces(&x)
+        .unwrap();
+    let (_, fr) = P1Field::on_tets(runtime, &mesh, None, opts)
+        .unwrap()
+        .forces(&x)
+        .unwrap();
+    let err = max_tet_relative(&fc, &fr);
+    assert!(err <= TOL, "{} (P1): forces differ by {err:e}", M::NAME);
+    let tets: Vec<usize> = (0..500).collect();
+    let mut kc = TangentField::invariant(compiled, &mesh, Some(&tets), opts, false).unwrap();
+    let mut kr = TangentField::invariant(runtime, &mesh, Some(&tets), opts, false).unwrap();
+    kc.update(&x).unwrap();
+    kr.update(&x).unwrap();
+    for k in 0..tets.len() {
+        let (a, b) = (kc.tet_stiffness(k), kr.tet_stiffness(k));
+        let err = (a - b).amax() / a.amax().max(1e-300);
+        assert!(err <= TOL, "{} (tangent, tet {k}): differs by {err:e}", M::NAME);
+    }
+}
+
+#[test]
+fn runtime_neo_hookean_equals_the_compiled_law() {
+    check_equal::<NeoHookean>(1);
+}
+
+#[test]
+fn runtime_mooney_rivlin_equals_the_compiled_law() {
+    // Ī1, Ī2 (powers in thirds: cube roots in the fast kernels), J0-extended
+    check_equal::<MooneyRivlin>(2);
+}
+
+#[test]
+fn runtime_gent_equals_the_compiled_law() {
+    // Ī1 inside ln, J0-extended: the extension's I1 derivatives are third derivatives
+    check_equal::<Gent>(3);
+}
+
+#[test]
+fn runtime_laws_with_i2_blocks_exp_and_no_inversion_fix_equal_the_compiled_laws() {
+    check_equal::<TestQuartic>(4); // `let` blocks, Ī1·Ī2
+    check_equal::<VerondaWestmann>(5); // exp, Ī2
+    check_equal::<SaintVenantKirchhoff>(6); // I2, no inversion fix
+    check_equal::<StableNeoHookean>(7); // no inversion fix
+}
+
+/// The runtime law through the checks every registered law gets: forces are minus
+/// the energy gradient (inverted tet included), rest is energy- and force-free,
+/// and the HEML field equals the P1 FEM field.
+#[test]
+fn runtime_law_passes_the_property_checks() {
+    let mut rng = rng(11);
+    let law = RuntimeLaw::from_energy(
+        "c1*(I1bar - 3) + c2*(I1bar - 3).powi(2) + kappa/2*(J - 1 - ln(J))",
+        &Params::from([("c1", 0.7), ("c2", 0.3), ("kappa", 5.0)]),
+    )
+    .unwrap();
+    let mesh = jittered_box(&mut rng, [2, 2, 1]);
+    let opts = ForceOptions::default();
+    let field = law.force_field(&mesh, None, &opts).unwrap();
+    let p1 = law.fem_field(&mesh, None, &opts).unwrap().unwrap();
+    // rest, and rigidly moved: no energy, no force (round-off of O(1) terms: 1e-12)
+    let r = random_rotation(&mut rng);
+    let rigid: Vec<Vec3> = mesh.nodes().iter().map(|p| r * p + Vec3::new(1.0, 2.0, 3.0)).collect();
+    for x in [mesh.nodes(), &rigid[..]] {
+        let (e, f) = field.forces(x).unwrap();
+        assert!(
+            e.abs() < 1e-12 && max_norm(&f) < 1e-12,
+            "rest: energy {e:e}, force {:e}",
+            max_norm(&f)
+        );
+    }
+    let mut x = random_deformation(&mut rng, &mesh, 0.7, 1.4, 0.05);
+    for inverted in [false, true] {
+        if inverted {
+            invert_first_tet(&mesh, &mut x, 0.4);
+        }
+        let (e, f) = field.forces(&x).unwrap();
+        assert!(e.is_finite());
+        // finite differences: h = 1e-6 on a mesh of size ~1, truncation h²|E'''| and
+        // round-off ε|E|/h ≈ 2e-10|E|: 1e-6 relative to the largest force (as the
+        // registry laws' check)
+        let g = fd_gradient(&x, 1e-6, |y| field.energy(y).unwrap());
+        let minus_g: Vec<Vec3> = g.iter().map(|v| -v).collect();
+        let scale = max_norm(&f).max(1.0);
+        assert!(
+            max_diff(&f, &minus_g) <= 1e-6 * scale,
+            "inverted {inverted}: |f + ∇E| too large"
+        );
+        // HEML = P1 (same energy, two formulations): round-off of sums of O(10)
+        // terms, 1e-10 relative to the largest force
+        let (ep, fp) = p1.forces(&x).unwrap();
+        assert!(
+            max_diff(&f, &fp) <= 1e-10 * scale,
+            "HEML vs P1: {:e}",
+            max_diff(&f, &fp)
+        );
+        assert!((e - ep).abs() <= 1e-10 * e.abs().max(1.0));
+    }
+}
+
+/// The error message of `energy` over the parameters mu, lambda.
+fn error(energy: &str) -> String {
+    let params = Params::from([("mu", 1.0), ("lambda", 2.0)]);
+    RuntimeLaw::from_energy(energy, &params).unwrap_err().to_string()
+}
+
+#[test]
+fn bad_energies_are_clear_errors_with_a_column() {
+    let e = error("mu/2*(I1-3) - mu*ln(J) + lamda/2*ln(J).powi(2)");
+    assert!(
+        e.contains("column 26: unknown identifier `lamda`") && e.contains("did you mean `lambda`"),
+        "{e}"
+    );
+    assert!(
+        e.contains("\n    mu/2*(I1-3) - mu*ln(J) + lamda/2*ln(J).powi(2)\n"),
+        "{e}"
+    );
+    assert!(e.contains(&format!("\n    {}^^^^^", " ".repeat(25))), "{e}");
+    let e = error("mu*(I1-3) + lambda*ln(J)^2");
+    assert!(e.contains("column 25: unsupported operator"), "{e}");
+    let e = error("mu*(I1-3) + lambda*(ln(J)");
+    assert!(e.contains("column 20"), "{e}");
+    let e = error("mu*(I1-3) + lambda*ln(J, I1)");
+    assert!(
+        e.contains("column 20: `ln` takes 1 argument(s): `ln(x)` or `x.ln()`"),
+        "{e}"
+    );
+    let e = error("mu*(I1-3) + lambda*J.powi(2.5)");
+    assert!(
+        e.contains("column 27: the exponent of `powi` must be an integer literal"),
+        "{e}"
+    );
+    let e = error("mu*(I1-3) + lambda*");
+    assert!(e.contains("column 20: unexpected end of input"), "{e}");
+    let e = error("mu*(I1-3)");
+    assert!(e.contains("parameter(s) 'lambda' given but not used"), "{e}");
+    let e = error("");
+    assert!(e.contains("column 1"), "{e}");
+    let e = RuntimeLaw::from_energy("mu*(I1-3)", &Params::from([("mu", f64::NAN)]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("parameter 'mu' is NaN, not a finite number"), "{e}");
+}
+
+#[test]
+fn laws_differing_only_in_values_share_their_compiled_form() {
+    let a = RuntimeLaw::from_energy("mu*(I1-3)", &Params::from([("mu", 1.0)])).unwrap();
+    let b = RuntimeLaw::from_energy("mu*(I1-3)", &Params::from([("mu", 2.0)])).unwrap();
+    assert!(std::ptr::eq(a.energy(), b.energy()));
+    assert_eq!((a.dw(4.0, 3.0, 1.0).d[0], b.dw(4.0, 3.0, 1.0).d[0]), (1.0, 2.0));
+    assert_eq!(a.param_info()[0].name, "mu");
+    assert_eq!(<RuntimeLaw as MaterialInfo>::to_params(&b), vec![2.0]);
+}
+
+const SCENE: &str = r#"
+[mesh]
+generate = { kind = "box", size = [0.02, 0.02, 0.02], cells = [2, 2, 2] }
+
+[[material]]
+MATERIAL
+params = { mu = 1.0e3, lambda = 4.0e3 }
+
+[[fix]]
+box = { min = [0, 0, 0], max = [0, 0.02, 0.02] }
+
+[loads]
+gravity = [0, 0, -9.81]
+
+[solver]
+duration = 0.01
+"#;
+
+/// A scene's `energy = "..."` material steps exactly as the registered law with
+/// the same energy; bad materials are errors naming the material and the column.
+#[test]
+fn scenes_accept_an_energy_in_place_of_a_law() {
+    let _ = heml::materials_list();
+    let run = |material: &str| {
+        let text = SCENE.replace("MATERIAL", material);
+        let mut sim = heml::scene::Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+        sim.run(|_| {}).unwrap();
+        sim.system.positions().to_vec()
+    };
+    let compiled = run("law = \"neo_hookean\"");
+    let runtime = run(&format!("energy = \"{}\"", NeoHookean::ENERGY));
+    let rest = heml::mesh::generate::box_mesh([0.02; 3], [2; 3], heml::mesh::generate::HexSplit::Six).unwrap();
+    let moved = max_diff(&compiled, rest.nodes());
+    assert!(moved > 1e-6, "gravity should move the body: {moved:e}");
+    // the same forces to the bit give the same trajectory; 1e-12 of the motion
+    // would still allow the reassociation margin of `TOL`
+    assert!(max_diff(&compiled, &runtime) <= 1e-12 * moved);
+    let err = |material: &str| {
+        let text = SCENE.replace("MATERIAL", material);
+        match heml::scene::Scene::from_toml_str(&text, ".").and_then(|s| s.build()) {
+            Ok(_) => panic!("expected an error for {material}"),
+            Err(e) => e.to_string(),
+        }
+    };
+    let e = err("energy = \"mu*(I1 - 3) + lambda*ln(J)**2\"");
+    assert!(
+        e.contains("[[material]] #1") && e.contains("column 28") && e.contains("`**` is not one"),
+        "{e}"
+    );
+    let e = err("law = \"neo_hookean\"\nenergy = \"mu*(I1 - 3) + lambda*ln(J)\"");
+    assert!(e.contains("give one of them"), "{e}");
+    let e = err("density = 1000.0");
+    assert!(e.contains("needs `law`"), "{e}");
+}
