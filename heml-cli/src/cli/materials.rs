@@ -13,6 +13,7 @@ fn print_materials() {
         let kind = match e.kind {
             LawKind::Invariant => "w(I1, I2, J)",
             LawKind::Link => "link w(l, L)",
+            LawKind::Fibre => "fibre w(I1, I2, J, I4, I5)",
         };
         outln!("{}  [{kind}]  {}", e.name, e.title());
         for p in e.params {

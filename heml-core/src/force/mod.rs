@@ -6,6 +6,8 @@
 pub mod assembly;
 mod elastic;
 pub mod fastmath;
+mod fibre;
+mod fibre_tangent;
 mod field;
 mod heml;
 pub(crate) mod kernel;
@@ -17,6 +19,10 @@ pub mod tangent;
 
 pub use assembly::SimdLevel;
 pub use elastic::{Assembly, ElasticForces};
+pub use fibre::{
+    fibre_energy_and_piola, fibre_invariants, FibreField, FibreKernel, FibreP1Field, FibreP1Kernel, FibreTet,
+};
+pub use fibre_tangent::FibreHessian;
 pub use field::{Formulation, TetField};
 pub use heml::{HemlField, HemlKernel};
 pub use link::{LinkField, LinkKernel};
