@@ -2,19 +2,19 @@
 //! by name while the per-tet loops stay monomorphised: the dynamic call happens once,
 //! when a force field is built, never per tet.
 
-use crate::error::Result;
-use crate::force::p1::energy_and_piola;
 use crate::error::HemlError;
+use crate::error::Result;
 use crate::fibres::Fibres;
+use crate::force::p1::energy_and_piola;
 use crate::force::{
     fibre_energy_and_piola, ElasticForces, FibreField, FibreP1Field, ForceOptions, HemlField, LinkField, P1Field,
     TangentField, TangentOperator,
 };
 use crate::law::{FibreLaw, InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo};
-use crate::Vec3;
-use std::sync::Arc;
 use crate::mesh::TetMesh;
+use crate::Vec3;
 use nalgebra::Matrix3;
+use std::sync::Arc;
 
 /// A law chosen at run time.
 pub trait Material: Send + Sync + std::fmt::Debug {

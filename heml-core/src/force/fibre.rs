@@ -143,11 +143,7 @@ impl FibreState {
             }
         }
         let extended = opts.extend(M::INVERSION_FIX, j);
-        let d = if extended {
-            law.dw_ext(&q, opts.j0)
-        } else {
-            law.dw(&q)
-        };
+        let d = if extended { law.dw_ext(&q, opts.j0) } else { law.dw(&q) };
         FibreState {
             q,
             grads,
@@ -289,7 +285,15 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
 pub fn fibre_invariants(f: &Matrix3<f64>, a: &[Vec3; 2], families: usize) -> [f64; FIBRE_VARS] {
     let c = f.transpose() * f;
     let i1 = c.trace();
-    let mut q = [i1, 0.5 * (i1 * i1 - (c * c).trace()), f.determinant(), 1.0, 1.0, 1.0, 1.0];
+    let mut q = [
+        i1,
+        0.5 * (i1 * i1 - (c * c).trace()),
+        f.determinant(),
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    ];
     for k in 0..families {
         let ca = c * a[k];
         q[i4_index(k)] = a[k].dot(&ca);
@@ -370,8 +374,11 @@ impl<M: FibreLaw> TetKernel for FibreP1Kernel<M> {
     type Batch = FibreP1Batch;
 
     const PAD: FibreP1Batch = FibreP1Batch {
-        tets: [(1.0, Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), [Vec3::new(1.0, 0.0, 0.0); 2]);
-            LANES],
+        tets: [(
+            1.0,
+            Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            [Vec3::new(1.0, 0.0, 0.0); 2],
+        ); LANES],
     };
     const PLAIN_ENERGY: bool = true;
 

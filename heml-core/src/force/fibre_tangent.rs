@@ -9,7 +9,9 @@
 
 use super::fibre::{FibreState, FibreTet};
 use super::field::selection;
-use super::tangent::{add_length_curvature, add_volume_curvature, length_gradients, TangentField, TetHessian, TetStiffness};
+use super::tangent::{
+    add_length_curvature, add_volume_curvature, length_gradients, TangentField, TetHessian, TetStiffness,
+};
 use super::ForceOptions;
 use crate::error::Result;
 use crate::fibres::Fibres;

@@ -8,6 +8,8 @@ mod elastic;
 pub mod fastmath;
 mod fibre;
 mod fibre_tangent;
+#[cfg(test)]
+mod fibre_tests;
 mod field;
 mod heml;
 pub(crate) mod kernel;
