@@ -275,7 +275,7 @@ impl Scene {
                 }
                 untagged = Some(i);
             }
-            b = add_material(b, m).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
+            b = add_material(b, m, &mesh).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         }
         // which entry holds each node (file ids), to name both entries of a conflict
         let mut holder: Vec<Option<(&str, usize)>> = vec![None; mesh.n_nodes()];
@@ -559,7 +559,7 @@ fn registry_hint(empty: bool) -> &'static str {
 
 /// Adds one `[[material]]` to the builder, with a "did you mean" for misspelt
 /// parameter names.
-fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
+fn add_material(b: SystemBuilder, m: &MaterialSpec, mesh: &TetMesh) -> Result<SystemBuilder> {
     let entry = find_material(&m.law)
         .map_err(|e| HemlError::Invalid(format!("{e}{}", registry_hint(materials().is_empty()))))?;
     let mut names: Vec<&str> = entry.params.iter().map(|p| p.name).collect();
@@ -576,6 +576,10 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec) -> Result<SystemBuilder> {
             .unwrap_or_default();
         HemlError::Invalid(format!("{e}{hint}"))
     })?;
+    let law = match super::fibres::material_fibres(m, mesh, law.fibre_families())? {
+        Some(f) => law.with_fibres(std::sync::Arc::new(f))?,
+        None => law,
+    };
     let b = match m.tag {
         None => b.material_law(law),
         Some(tag) => b.region_law(tag, law),

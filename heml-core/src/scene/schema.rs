@@ -132,6 +132,25 @@ pub struct MaterialSpec {
     /// Prony series (visco-hyperelasticity): `[{ alpha = 0.3, tau = 0.1 }, …]`.
     #[serde(default)]
     pub prony: Vec<PronyTerm>,
+    /// Fibre laws: one or two constant fibre directions (rest frame) for the
+    /// region, `[[1, 0, 0]]` or `[[1, 0, 0], [0, 1, 0]]`.
+    pub fibres: Option<Vec<[f64; 3]>>,
+    /// Fibre laws: two helical families around an axis, at ±`angle` degrees from
+    /// the circumferential direction at each tet's rest centroid (vessel walls).
+    pub fibre_helix: Option<HelixSpec>,
+}
+
+/// `fibre_helix = { axis = [0, 0, 1], origin = [0, 0, 0], angle = 40 }`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HelixSpec {
+    /// Direction of the axis (any length > 0).
+    pub axis: [f64; 3],
+    /// A point of the axis (metres, default the origin).
+    #[serde(default)]
+    pub origin: [f64; 3],
+    /// Angle of the fibres to the circumferential direction, in degrees.
+    pub angle: f64,
 }
 
 /// An axis-aligned box `min ≤ X ≤ max` (metres, inclusive up to 1e-9 of the mesh size).
