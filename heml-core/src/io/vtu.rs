@@ -416,7 +416,16 @@ fn read_piece(ctx: &Ctx<'_>, p: &Piece) -> Result<MeshData> {
         });
     }
     let tags = choose_tags(&arrays, p.n_cells);
-    assemble(nodes, &offsets, &conn, &types, tags, &|at, msg| {
+    // 3-component cell arrays (fibre directions): read whole, n_cells × 3 values
+    let mut vectors = Vec::new();
+    for s in p.cell_arrays.iter().filter(|s| s.components == 3) {
+        let n = p
+            .n_cells
+            .checked_mul(3)
+            .ok_or_else(|| ctx.err(s.line, "NumberOfCells × 3 overflows"))?;
+        vectors.push((s.name.clone(), values(ctx, s, n, "3 × NumberOfCells")?));
+    }
+    assemble(nodes, &offsets, &conn, &types, tags, &vectors, &|at, msg| {
         let line = match at {
             At::Type(_) => types_spec.line,
             At::Line(l) => l,

@@ -11,27 +11,64 @@ use crate::Vec3;
 /// The fibres of material `m` on `mesh`, checked against the law's `families`
 /// (0: not a fibre law, which may not have fibre keys).
 pub(super) fn material_fibres(m: &MaterialSpec, mesh: &TetMesh, families: usize) -> Result<Option<Fibres>> {
-    let given = usize::from(m.fibres.is_some()) + usize::from(m.fibre_helix.is_some());
+    let given =
+        usize::from(m.fibres.is_some()) + usize::from(m.fibre_helix.is_some()) + usize::from(m.fibre_fields.is_some());
     let invalid = |msg: String| Err(HemlError::Invalid(msg));
     match (families, given) {
         (0, 0) => return Ok(None),
         (0, _) => {
             return invalid(format!(
-                "law {} is not a fibre law: remove `fibres`/`fibre_helix`",
+                "law {} is not a fibre law: remove `fibres`/`fibre_helix`/`fibre_fields`",
                 m.law
             ))
         }
         (_, 0) => {
             return invalid(format!(
                 "law {} is fibre-reinforced ({families} famil{}): give its directions with \
-                 `fibres = [[x, y, z]{}]` or `fibre_helix = {{ axis = [..], angle = deg }}`",
+                 `fibres = [[x, y, z]{}]`, `fibre_helix = {{ axis = [..], angle = deg }}` or \
+                 `fibre_fields = [\"<cell field>\"]`",
                 m.law,
                 if families == 1 { "y" } else { "ies" },
                 if families == 2 { ", [x, y, z]" } else { "" }
             ))
         }
-        (_, 2) => return invalid("give `fibres` or `fibre_helix`, not both".into()),
-        _ => {}
+        (_, 1) => {}
+        _ => return invalid("give one of `fibres`, `fibre_helix` and `fibre_fields`".into()),
+    }
+    if let Some(names) = &m.fibre_fields {
+        if names.len() < families || names.len() > 2 {
+            return invalid(format!(
+                "`fibre_fields` names {} field(s); law {} has {families} fibre famil{}",
+                names.len(),
+                m.law,
+                if families == 1 { "y" } else { "ies" }
+            ));
+        }
+        let fields = names
+            .iter()
+            .map(|n| {
+                mesh.cell_vectors().get(n).ok_or_else(|| {
+                    let known: Vec<&String> = mesh.cell_vectors().keys().collect();
+                    HemlError::Invalid(format!(
+                        "`fibre_fields`: the mesh has no 3-component cell field '{n}' (it has {known:?})"
+                    ))
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        // tets outside a tagged region are never read: any unit vector will do there
+        let outside = |t: usize| m.tag.is_some_and(|tag| mesh.tags()[t] != tag);
+        let dirs = (0..mesh.n_tets())
+            .map(|t| {
+                if outside(t) {
+                    [Vec3::x(); 2]
+                } else {
+                    [fields[0][t], fields[fields.len() - 1][t]]
+                }
+            })
+            .collect();
+        return Fibres::new(names.len(), dirs)
+            .map(Some)
+            .map_err(|e| HemlError::Invalid(format!("`fibre_fields` {names:?}: {e}")));
     }
     if let Some(dirs) = &m.fibres {
         if dirs.len() < families || dirs.len() > 2 {

@@ -138,6 +138,9 @@ pub struct MaterialSpec {
     /// Fibre laws: two helical families around an axis, at ±`angle` degrees from
     /// the circumferential direction at each tet's rest centroid (vessel walls).
     pub fibre_helix: Option<HelixSpec>,
+    /// Fibre laws: the names of one or two 3-component cell fields of the mesh file
+    /// (VTU `CellData`) holding each tet's fibre directions.
+    pub fibre_fields: Option<Vec<String>>,
 }
 
 /// `fibre_helix = { axis = [0, 0, 1], origin = [0, 0, 0], angle = 40 }`.
