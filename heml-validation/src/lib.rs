@@ -32,6 +32,7 @@
 mod cantilever;
 mod energy;
 mod equivalence;
+mod fibres;
 pub mod fixtures;
 mod inversion;
 mod mass_spring;
@@ -224,6 +225,11 @@ pub const CASES: &[CaseInfo] = &[
         name: "uniaxial",
         title: "unconstrained uniaxial tension/compression of a cube vs closed forms (SVK, neo-Hookean)",
         run: uniaxial::run,
+    },
+    CaseInfo {
+        name: "fibres",
+        title: "uniaxial cube along/across the fibres vs closed forms (Holzapfel-Gasser-Ogden, TI Mooney-Rivlin)",
+        run: fibres::run,
     },
     CaseInfo {
         name: "cantilever",

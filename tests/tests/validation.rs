@@ -22,6 +22,11 @@ fn uniaxial_cube_matches_svk_and_neo_hookean_closed_forms() {
 }
 
 #[test]
+fn fibre_cube_matches_closed_forms_along_and_across_the_fibres() {
+    check("fibres");
+}
+
+#[test]
 fn cantilever_converges_to_euler_bernoulli() {
     check("cantilever");
 }
