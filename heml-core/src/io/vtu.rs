@@ -314,7 +314,17 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
         for (k, v) in data.skipped {
             *out.skipped.entry(k).or_insert(0) += v;
         }
+        for (k, v) in data.cell_vectors {
+            out.cell_vectors.entry(k).or_default().extend(v);
+        }
+        for (k, v) in data.hex_vectors {
+            out.hex_vectors.entry(k).or_default().extend(v);
+        }
     }
+    // a cell field missing from some piece covers only part of the cells: dropped
+    let (n_tets, n_hexes) = (out.tets.len(), out.hexes.len());
+    out.cell_vectors.retain(|_, v| v.len() == n_tets);
+    out.hex_vectors.retain(|_, v| v.len() == n_hexes);
     if out.tets.is_empty() && out.hexes.is_empty() {
         return Err(perr(pieces[0].line, no_tets_message(&out)));
     }
