@@ -106,8 +106,9 @@ impl<M: FibreLaw> Fibre<M> {
     fn fibres(&self) -> Result<&Arc<Fibres>> {
         self.fibres.as_ref().ok_or_else(|| {
             HemlError::Invalid(format!(
-                "law {} is fibre-reinforced ({} famil{}) and needs fibre directions: give `fibre = [x, y, z]`, \
-                 `fibre_field = \"<cell vector field>\"` or `fibre_expr` in its [[material]] (or call `with_fibres`)",
+                "law {} is fibre-reinforced ({} famil{}) and needs fibre directions: give `fibres = [[x, y, z]]`, \
+                 `fibre_helix = {{ .. }}` or `fibre_fields = [\"<cell field>\"]` in its [[material]] (or call \
+                 `Material::with_fibres`)",
                 M::NAME,
                 M::FAMILIES,
                 if M::FAMILIES == 1 { "y" } else { "ies" }

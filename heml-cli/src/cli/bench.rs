@@ -405,7 +405,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     let clamp = lo.x + 1e-9 * (hi - lo).norm();
     let size = hi - lo;
     let mut sys = heml::system(mesh.clone())
-        .material(entry.name, &params)?
+        .material_law(with_fibres(entry.instantiate(&params)?, &mesh)?)
         .density(1000.0)
         .initial_velocity(move |p| Vec3::new(0.0, 0.0, 1e-3 * ((p.x - lo.x) / size.x).powi(2)))
         .fix_where(|p| p.x <= clamp)
