@@ -36,7 +36,7 @@ impl Fibres {
         for (t, d) in dirs.iter_mut().enumerate() {
             for (k, a) in d.iter_mut().enumerate().take(families) {
                 let n = a.norm();
-                if !(n.is_finite() && n > 1e-300) || !a.iter().all(|c| c.is_finite()) {
+                if !(n.is_finite() && n > 1e-300 && a.iter().all(|c| c.is_finite())) {
                     return Err(HemlError::Invalid(format!(
                         "tet {t}: fibre direction {} of family {} is not a non-zero finite vector",
                         fmt_vec(a),

@@ -86,7 +86,7 @@ pub(super) fn material_fibres(m: &MaterialSpec, mesh: &TetMesh, families: usize)
     }
     let h = m.fibre_helix.expect("one source is given");
     let axis = Vec3::from(h.axis);
-    if !(axis.norm() > 0.0 && axis.iter().all(|c| c.is_finite())) || !h.angle.is_finite() {
+    if !(axis.norm() > 0.0 && axis.iter().all(|c| c.is_finite()) && h.angle.is_finite()) {
         return invalid(format!(
             "`fibre_helix`: axis {:?} must be a non-zero finite vector and angle {} finite",
             h.axis, h.angle
