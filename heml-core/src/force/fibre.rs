@@ -229,6 +229,27 @@ impl<M: FibreLaw> FibreKernel<M> {
     }
 }
 
+/// A batch kernel made of a plain one: `tet(lane, corners)` gives each lane's
+/// energy and corner forces, stored in the batch's layout.
+#[inline(always)]
+fn per_lane(
+    p: &LanePoints,
+    f: &mut LaneForces,
+    en: &mut [f64; LANES],
+    mut tet: impl FnMut(usize, &[Vec3; 4]) -> (f64, [Vec3; 4]),
+) {
+    for l in 0..LANES {
+        let pts: [Vec3; 4] = std::array::from_fn(|a| Vec3::new(p[a][0][l], p[a][1][l], p[a][2][l]));
+        let (e, fl) = tet(l, &pts);
+        for a in 0..4 {
+            for c in 0..3 {
+                f[a][c][l] = fl[a][c];
+            }
+        }
+        en[l] = e;
+    }
+}
+
 /// The directions of the families of tet `t` (the first repeated for one family).
 fn tet_dirs(fibres: &Fibres, t: usize) -> [Vec3; 2] {
     [fibres.dir(t, 0), fibres.dir(t, 1)]
@@ -263,16 +284,10 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
 
     #[inline(always)]
     fn batch(&self, r: &FibreBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
-        for l in 0..LANES {
-            let pts: [Vec3; 4] = std::array::from_fn(|a| Vec3::new(p[a][0][l], p[a][1][l], p[a][2][l]));
-            let (e, _, fl) = self.eval(&r.tets[l], &pts);
-            for a in 0..4 {
-                for c in 0..3 {
-                    f[a][c][l] = fl[a][c];
-                }
-            }
-            en[l] = e;
-        }
+        per_lane(p, f, en, |l, pts| {
+            let (e, _, fl) = self.eval(&r.tets[l], pts);
+            (e, fl)
+        });
     }
 
     fn side_bytes(&self) -> usize {
@@ -407,15 +422,10 @@ impl<M: FibreLaw> TetKernel for FibreP1Kernel<M> {
     }
 
     fn batch(&self, r: &FibreP1Batch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
-        for l in 0..LANES {
-            let pts: [Vec3; 4] = std::array::from_fn(|a| Vec3::new(p[a][0][l], p[a][1][l], p[a][2][l]));
+        per_lane(p, f, en, |l, pts| {
             let mut fl = [Vec3::zeros(); 4];
-            en[l] = self.tet(r, l, &pts, |a, fa| fl[a] += fa);
-            for a in 0..4 {
-                for c in 0..3 {
-                    f[a][c][l] = fl[a][c];
-                }
-            }
-        }
+            let e = self.tet(r, l, pts, |a, fa| fl[a] += fa);
+            (e, fl)
+        });
     }
 }
