@@ -40,6 +40,9 @@ pub enum LawKind {
     Link,
     /// Energy density in the principal stretches of C and J ([`StretchLaw`]).
     Stretch,
+    /// Energy density w(I1, I2, J, I4, I5, …) of a fibre-reinforced material, with
+    /// one or two fibre families ([`FibreLaw`]).
+    Fibre,
 }
 
 /// What every law knows about itself, whatever its kind.
@@ -220,6 +223,77 @@ pub trait LinkLaw: MaterialInfo {
     fn dw(&self, l: f64, rest_l: f64) -> (f64, f64);
     /// ∂²w/∂l².
     fn d2w(&self, l: f64, rest_l: f64) -> f64;
+}
+
+/// Number of variables of a [`FibreLaw`]: (I1, I2, J, I4_1, I5_1, I4_2, I5_2).
+pub const FIBRE_VARS: usize = 7;
+
+/// Index of I4 of fibre family `k` (0 or 1) in a [`FibreLaw`]'s variables; I5 of
+/// the family is the next one.
+pub const fn i4_index(k: usize) -> usize {
+    3 + 2 * k
+}
+
+/// Value and gradient of a fibre law's energy density.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FibreDerivs {
+    /// w at the variables.
+    pub w: f64,
+    /// ∂w/∂(I1, I2, J, I4_1, I5_1, I4_2, I5_2).
+    pub d: [f64; FIBRE_VARS],
+}
+
+/// A fibre-reinforced hyperelastic law: an energy density per unit rest volume
+/// w(I1, I2, J, I4_1, I5_1, I4_2, I5_2), with a_k the unit fibre direction of family
+/// k in the rest frame, I4_k = a_k·C·a_k (the squared fibre stretch) and
+/// I5_k = a_k·C²·a_k. Like I1, I4 is linear in the six squared edge lengths (six
+/// precomputed numbers per family and tet); like I2, I5 is quadratic in them
+/// (DESIGN §1, issue 17). The variables are passed in one array in that order
+/// (`q[0..3]` = I1, I2, J; `q[i4_index(k)]`, `q[i4_index(k) + 1]` = I4, I5 of family
+/// k); the variables of absent families are 1 (their rest value) and unused.
+///
+/// `#[heml::material]` generates the impl when an energy names a fibre invariant;
+/// the `_ext` functions are the J0 Taylor extension, as for [`InvariantLaw`].
+pub trait FibreLaw: MaterialInfo {
+    /// Number of fibre families (1 or 2).
+    const FAMILIES: usize;
+    /// Whether w depends on I2.
+    const USES_I2: bool;
+    /// Whether w depends on J.
+    const USES_J: bool;
+    /// Whether w depends on an I5 (else its terms are skipped).
+    const USES_I5: bool;
+    /// Whether the J0 extension applies.
+    const INVERSION_FIX: bool;
+    /// Operation count of [`Self::dw`].
+    const OPS: OpCount;
+
+    /// w at the variables `q`.
+    fn w(&self, q: &[f64; FIBRE_VARS]) -> f64;
+    /// w and its gradient.
+    fn dw(&self, q: &[f64; FIBRE_VARS]) -> FibreDerivs;
+    /// The symmetric matrix of second derivatives, in the variables' order.
+    fn d2w(&self, q: &[f64; FIBRE_VARS]) -> [[f64; FIBRE_VARS]; FIBRE_VARS];
+    /// The Taylor extension's value.
+    fn w_ext(&self, q: &[f64; FIBRE_VARS], j0: f64) -> f64;
+    /// The Taylor extension's value and gradient.
+    fn dw_ext(&self, q: &[f64; FIBRE_VARS], j0: f64) -> FibreDerivs;
+    /// The Taylor extension's second derivatives.
+    fn d2w_ext(&self, q: &[f64; FIBRE_VARS], j0: f64) -> [[f64; FIBRE_VARS]; FIBRE_VARS];
+}
+
+/// The rest state of a fibre law with parameter values `values`: the energy at
+/// C = I and, as the stress, |2w1 + 4w2 + wJ| + Σ_k |2w4_k + 4w5_k| (the isotropic
+/// factor and each family's stress along its fibre: zero iff stress-free).
+pub fn rest_state_fibre<M: FibreLaw>(values: &[f64]) -> RestState {
+    let q = [3.0, 3.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+    let d = M::from_params(values).dw(&q);
+    let mut stress = (2.0 * d.d[0] + 4.0 * d.d[1] + d.d[2]).abs();
+    for k in 0..M::FAMILIES {
+        let i = i4_index(k);
+        stress += (2.0 * d.d[i] + 4.0 * d.d[i + 1]).abs();
+    }
+    RestState { energy: d.w, stress }
 }
 
 /// The rest state of a principal-stretch law with parameter values `values` (see

@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod fibres;
 pub mod force;
 pub mod io;
 pub mod law;
@@ -27,7 +28,7 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 
 pub use error::{HemlError, Result};
 pub use force::{ElasticForces, ForceOptions, HemlField, LinkField};
-pub use law::{Derivs, InvariantLaw, LawKind, LinkLaw, MaterialInfo, OpCount, ParamInfo};
+pub use law::{Derivs, FibreLaw, InvariantLaw, LawKind, LinkLaw, MaterialInfo, OpCount, ParamInfo};
 pub use material::{Material, Volumetric};
 pub use mesh::TetMesh;
 pub use params::Params;

@@ -3,15 +3,19 @@
 //! when a force field is built, never per tet.
 
 use crate::error::{HemlError, Result};
+use crate::fibres::Fibres;
 use crate::force::nodal_volume::{element_fraction, DEFAULT_STABILIZATION};
 use crate::force::p1::energy_and_piola;
 use crate::force::{
-    energy_and_piola_stretch, Dilation, ElasticForces, ForceOptions, HemlField, Isochoric, LinkField, NodalVolume,
-    NodalVolumeField, NodalVolumeTangent, P1Field, StretchHemlField, StretchP1Field, TangentField, TangentOperator,
+    energy_and_piola_stretch, fibre_energy_and_piola, Dilation, ElasticForces, FibreField, FibreP1Field, ForceOptions,
+    HemlField, Isochoric, LinkField, NodalVolume, NodalVolumeField, NodalVolumeTangent, P1Field, StretchHemlField,
+    StretchP1Field, TangentField, TangentOperator,
 };
-use crate::law::{InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo, StretchLaw};
+use crate::law::{FibreLaw, InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo, StretchLaw};
 use crate::mesh::TetMesh;
+use crate::Vec3;
 use nalgebra::Matrix3;
+use std::sync::Arc;
 
 /// A law chosen at run time.
 pub trait Material: Send + Sync + std::fmt::Debug {
@@ -57,6 +61,19 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         opts: &ForceOptions,
         project_psd: bool,
     ) -> Result<Option<Box<dyn TangentOperator>>>;
+    /// Number of fibre families the law needs directions for (0: not a fibre law).
+    fn fibre_families(&self) -> usize {
+        0
+    }
+    /// The same law with the fibre directions `fibres` (one or two unit vectors per
+    /// tet of the mesh its fields will be built on). Errors for a law without fibres.
+    fn with_fibres(&self, fibres: Arc<Fibres>) -> Result<Box<dyn Material>> {
+        let _ = fibres;
+        Err(HemlError::Invalid(format!(
+            "law {} has no fibre families; fibre directions apply to fibre laws only",
+            self.name()
+        )))
+    }
 
     /// How the volumetric energy is discretised ([`Volumetric::Element`] unless the
     /// law was made with [`Self::with_volumetric`]).
@@ -137,6 +154,131 @@ pub struct Invariant<M>(pub M);
 /// Wraps a link law as a [`Material`].
 #[derive(Debug, Clone, Copy)]
 pub struct Link<M>(pub M);
+
+/// Wraps a fibre law and its fibre directions (none until
+/// [`Material::with_fibres`]) as a [`Material`].
+#[derive(Debug, Clone)]
+pub struct Fibre<M> {
+    /// The law.
+    pub law: M,
+    /// The fibre directions of every tet of the mesh, once given.
+    pub fibres: Option<Arc<Fibres>>,
+}
+
+/// Registry constructor for fibre laws (named by `#[heml::material]`'s output).
+pub fn build_fibre<M: FibreLaw>(values: &[f64]) -> Box<dyn Material> {
+    Box::new(Fibre {
+        law: M::from_params(values),
+        fibres: None,
+    })
+}
+
+impl<M: FibreLaw> Fibre<M> {
+    /// The fibres, or an error saying how to give them.
+    fn fibres(&self) -> Result<&Arc<Fibres>> {
+        self.fibres.as_ref().ok_or_else(|| {
+            HemlError::Invalid(format!(
+                "law {} is fibre-reinforced ({} famil{}) and needs fibre directions: give `fibres = [[x, y, z]]`, \
+                 `fibre_helix = {{ .. }}` or `fibre_fields = [\"<cell field>\"]` in its [[material]] (or call \
+                 `Material::with_fibres`)",
+                M::NAME,
+                M::FAMILIES,
+                if M::FAMILIES == 1 { "y" } else { "ies" }
+            ))
+        })
+    }
+}
+
+impl<M: FibreLaw> Material for Fibre<M> {
+    fn name(&self) -> &'static str {
+        M::NAME
+    }
+    fn kind(&self) -> LawKind {
+        LawKind::Fibre
+    }
+    fn param_info(&self) -> &'static [ParamInfo] {
+        M::PARAMS
+    }
+    fn param_values(&self) -> Vec<f64> {
+        self.law.to_params()
+    }
+    fn ops(&self) -> OpCount {
+        <M as FibreLaw>::OPS
+    }
+    fn uses(&self) -> (bool, bool) {
+        (M::USES_I2, M::USES_J)
+    }
+    fn force_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Box<dyn ElasticForces>> {
+        Ok(Box::new(FibreField::on_tets(
+            self.law,
+            self.fibres()?.clone(),
+            mesh,
+            tets,
+            *opts,
+        )?))
+    }
+    fn fem_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Option<Box<dyn ElasticForces>>> {
+        Ok(Some(Box::new(FibreP1Field::on_tets(
+            self.law,
+            self.fibres()?.clone(),
+            mesh,
+            tets,
+            *opts,
+        )?)))
+    }
+    /// At `f` with the fibres of the first tet (or along x, y before any are given):
+    /// the law's stress for a homogeneous material.
+    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
+        let a = match &self.fibres {
+            Some(fib) if fib.n_tets() > 0 => [fib.dir(0, 0), fib.dir(0, 1)],
+            _ => [Vec3::x(), Vec3::y()],
+        };
+        Some(fibre_energy_and_piola(&self.law, f, &a, opts))
+    }
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>> {
+        Ok(Some(Box::new(TangentField::fibre(
+            self.law,
+            self.fibres()?,
+            mesh,
+            tets,
+            *opts,
+            project_psd,
+        )?)))
+    }
+    fn fibre_families(&self) -> usize {
+        M::FAMILIES
+    }
+    fn with_fibres(&self, fibres: Arc<Fibres>) -> Result<Box<dyn Material>> {
+        if fibres.families() < M::FAMILIES {
+            return Err(HemlError::Invalid(format!(
+                "law {} has {} fibre families, {} direction(s) per tet were given",
+                M::NAME,
+                M::FAMILIES,
+                fibres.families()
+            )));
+        }
+        Ok(Box::new(Fibre {
+            law: self.law,
+            fibres: Some(fibres),
+        }))
+    }
+}
 
 /// Wraps a principal-stretch law as a [`Material`].
 #[derive(Debug, Clone, Copy)]

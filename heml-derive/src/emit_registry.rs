@@ -114,9 +114,10 @@ fn small_strain_mapping(
 }
 
 /// The `inventory` registration.
-pub fn registration(core: &TokenStream, decl: &Declaration, kind: Kind) -> TokenStream {
+pub fn registration(core: &TokenStream, decl: &Declaration, kind: Kind, fibre: bool) -> TokenStream {
     let ty = &decl.item.ident;
     let (kind, build, rest) = match kind {
+        Kind::Invariant if fibre => (quote!(Fibre), quote!(build_fibre), quote!(rest_state_fibre)),
         Kind::Invariant => (quote!(Invariant), quote!(build_invariant), quote!(rest_state_invariant)),
         Kind::Link => (quote!(Link), quote!(build_link), quote!(rest_state_link)),
     };

@@ -26,9 +26,18 @@
 //! and the parameters' documentation.
 //!
 //! The energy language: numbers, the variables, the fields (`mu` or `self.mu`),
-//! `+ - * /`, unary `-`, parentheses, `ln exp sqrt abs powi powf` in method
+//! `+ - * /`, unary `-`, parentheses, `ln exp sqrt abs powi powf max` in method
 //! (`J.ln()`) or function (`ln(J)`, `f64::ln(J)`) form, and blocks
-//! `{ let a = ...; expr }`.
+//! `{ let a = ...; expr }`. `max(a, b)` has the one-sided derivative of the larger
+//! argument (at a tie the second's), so `max(I4 - 1.0, 0.0)` switches a fibre off
+//! in compression.
+//!
+//! **Fibre laws.** An energy that names a fibre invariant of the unit rest-frame
+//! fibre direction a — `I4` = a·C·a, `I5` = a·C²·a, `I4bar` = I4·J^(−2/3),
+//! `I5bar` = I5·J^(−4/3) for the first family (also spelt `I4_1`, …), `I4_2`,
+//! `I5_2`, `I4bar_2`, `I5bar_2` for a second — implements `FibreLaw` instead of
+//! `InvariantLaw`; its fields take the directions from the scene (`fibres`,
+//! `fibre_helix`, `fibre_fields`) or `Material::with_fibres`.
 //!
 //! `#[small_strain(field = <expr>, ...)]` (invariant laws) states which values of
 //! some fields make the law match linear elasticity at small strain, in the same
@@ -54,6 +63,7 @@
 mod attr;
 mod emit_law;
 mod emit_registry;
+mod fibre;
 mod straight_line;
 
 // The symbolic engine lives in heml-symbolic (shared with laws declared at run
@@ -98,7 +108,11 @@ fn expand(args: TokenStream, item: TokenStream) -> syn::Result<TokenStream> {
         .transpose()?;
     // emit
     let core = core_path(&opts);
+    let fibre = opts.kind == Kind::Invariant && fibre::is_fibre(&graph, w);
     let law = match opts.kind {
+        Kind::Invariant if fibre => {
+            fibre::fibre_law(&core, &decl, &fibre::FibreKernels::new(graph, w, opts.inversion_fix))
+        }
         Kind::Invariant => {
             let k = derivatives::InvariantKernels::new(graph, w, opts.inversion_fix);
             emit_law::invariant_law(&core, &decl, &k)
@@ -107,7 +121,7 @@ fn expand(args: TokenStream, item: TokenStream) -> syn::Result<TokenStream> {
     };
     let item = &decl.item;
     let info = emit_registry::material_info(&core, &opts, &decl, small_strain.as_ref());
-    let registration = emit_registry::registration(&core, &decl, opts.kind);
+    let registration = emit_registry::registration(&core, &decl, opts.kind, fibre);
     Ok(quote! {
         #item
         #info

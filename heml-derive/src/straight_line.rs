@@ -52,6 +52,10 @@ impl<'a> Names<'a> {
             Var::Mu0 => "mu0",
             Var::K0 => "k0",
             Var::Lambda0 => "lambda0",
+            Var::I4a => "i4_1",
+            Var::I5a => "i5_1",
+            Var::I4b => "i4_2",
+            Var::I5b => "i5_2",
         };
         if used {
             Ident::new(name, Span::call_site())
@@ -181,6 +185,15 @@ fn operation(g: &Graph, names: &Names, id: Id) -> Option<TokenStream> {
         Node::Sqrt(a) => method(o(a), "sqrt"),
         Node::Abs(a) => method(o(a), "abs"),
         Node::Signum(a) => method(o(a), "signum"),
+        Node::Max(a, b) => {
+            let (a, b) = (o(a), o(b));
+            quote!(f64::max(#a, #b))
+        }
+        // the one-sided derivative of max: a select, which vectorises
+        Node::Step(a) => {
+            let a = o(a);
+            quote!(if #a > 0.0 { 1.0 } else { 0.0 })
+        }
         Node::Powi(a, n) => {
             let a = o(a);
             let lit = Literal::u32_unsuffixed(n.unsigned_abs());
@@ -254,6 +267,7 @@ pub fn count_ops(g: &Graph, roots: &[Id]) -> OpTally {
             | Node::Powf(..)
             | Node::Abs(_)
             | Node::Signum(_) => t.func += 1,
+            Node::Max(..) | Node::Step(_) => t.add += 1,
         }
     }
     t

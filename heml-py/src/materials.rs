@@ -17,12 +17,13 @@ fn kind_name(kind: LawKind) -> &'static str {
         LawKind::Invariant => "invariant",
         LawKind::Link => "link",
         LawKind::Stretch => "stretch",
+        LawKind::Fibre => "fibre",
     }
 }
 
 /// Every registered law, sorted by name, as a list of dicts with keys `name`,
 /// `parameters` (list of names, in declaration order), `parameter_docs`,
-/// `energy` (the expression as declared), `kind` (`"invariant"`, `"link"` or `"stretch"`),
+/// `energy` (the expression as declared), `kind` (`"invariant"`, `"link"`, `"stretch"` or `"fibre"`),
 /// `young_poisson` (whether `E` and `nu` are accepted) and `doc`.
 #[pyfunction]
 pub fn materials(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {

@@ -20,7 +20,7 @@ fn diff_memo(g: &mut Graph, id: Id, var: Var, memo: &mut HashMap<Id, Id>) -> Id 
     }
     let mut d = |g: &mut Graph, a: Id| diff_memo(g, a, var, memo);
     let result = match g.node(id) {
-        Node::Const(_) | Node::Param(_) | Node::Signum(_) => g.constant(0.0),
+        Node::Const(_) | Node::Param(_) | Node::Signum(_) | Node::Step(_) => g.constant(0.0),
         Node::Var(v) => g.constant(if v == var { 1.0 } else { 0.0 }),
         Node::Add(a, b) => {
             let (da, db) = (d(g, a), d(g, b));
@@ -87,6 +87,18 @@ fn diff_memo(g: &mut Graph, id: Id, var: Var, memo: &mut HashMap<Id, Id>) -> Id 
                 let s = g.add(t1, t2);
                 g.mul(id, s)
             }
+        }
+        Node::Max(a, b) => {
+            // one-sided: the larger argument's derivative, the second's at a tie
+            // (so d max(x, 0) = 0 at x = 0: a fibre switched off in compression)
+            let (da, db) = (d(g, a), d(g, b));
+            let amb = g.sub(a, b);
+            let s = g.step(amb);
+            let one = g.constant(1.0);
+            let t = g.sub(one, s);
+            let x = g.mul(s, da);
+            let y = g.mul(t, db);
+            g.add(x, y)
         }
         Node::Abs(a) => {
             let da = d(g, a);

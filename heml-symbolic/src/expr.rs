@@ -37,6 +37,14 @@ pub enum Var {
     K0,
     /// Small-strain first Lamé parameter (small-strain mappings).
     Lambda0,
+    /// I4 = a·C·a of the first fibre family (fibre laws).
+    I4a,
+    /// I5 = a·C²·a of the first fibre family.
+    I5a,
+    /// I4 of the second fibre family.
+    I4b,
+    /// I5 of the second fibre family.
+    I5b,
 }
 
 /// One operation. Constants are stored as bits so that nodes can be hashed.
@@ -72,6 +80,10 @@ pub enum Node {
     Abs(Id),
     /// sign of a (derivative of |a|).
     Signum(Id),
+    /// max(a, b).
+    Max(Id, Id),
+    /// 1 if a > 0 else 0 (derivative of max).
+    Step(Id),
 }
 
 /// A hash-consed expression DAG.
@@ -443,20 +455,42 @@ impl Graph {
         }
     }
 
+    /// max(a, b); constants fold.
+    pub fn max(&mut self, a: Id, b: Id) -> Id {
+        match (self.as_const(a), self.as_const(b)) {
+            (Some(x), Some(y)) => self.constant(x.max(y)),
+            _ if a == b => a,
+            _ => self.intern(Node::Max(a, b)),
+        }
+    }
+
+    /// 1 if a > 0 else 0: the derivative of [`Self::max`] w.r.t. its first argument
+    /// is `step(a − b)`.
+    pub fn step(&mut self, a: Id) -> Id {
+        match self.as_const(a) {
+            Some(x) => self.constant(if x > 0.0 { 1.0 } else { 0.0 }),
+            None => self.intern(Node::Step(a)),
+        }
+    }
+
     /// The children of a node.
     pub fn children(&self, id: Id) -> impl Iterator<Item = Id> {
         let (a, b) = match self.nodes[id] {
             Node::Const(_) | Node::Var(_) | Node::Param(_) => (None, None),
-            Node::Add(a, b) | Node::Sub(a, b) | Node::Mul(a, b) | Node::Div(a, b) | Node::Powf(a, b) => {
-                (Some(a), Some(b))
-            }
+            Node::Add(a, b)
+            | Node::Sub(a, b)
+            | Node::Mul(a, b)
+            | Node::Div(a, b)
+            | Node::Powf(a, b)
+            | Node::Max(a, b) => (Some(a), Some(b)),
             Node::Neg(a)
             | Node::Ln(a)
             | Node::Exp(a)
             | Node::Sqrt(a)
             | Node::Powi(a, _)
             | Node::Abs(a)
-            | Node::Signum(a) => (Some(a), None),
+            | Node::Signum(a)
+            | Node::Step(a) => (Some(a), None),
         };
         a.into_iter().chain(b)
     }
@@ -501,6 +535,8 @@ impl Graph {
                 Node::Powf(a, b) => v(a).powf(v(b)),
                 Node::Abs(a) => v(a).abs(),
                 Node::Signum(a) => v(a).signum(),
+                Node::Max(a, b) => v(a).max(v(b)),
+                Node::Step(a) => f64::from(u8::from(v(a) > 0.0)),
             };
             values.push(x);
         }

@@ -292,6 +292,10 @@ impl Lowerer<'_> {
                 let b = self.expr(args[1])?;
                 self.g.powf(a, b)
             }
+            Function::Max => {
+                let b = self.expr(args[1])?;
+                self.g.max(a, b)
+            }
         })
     }
 

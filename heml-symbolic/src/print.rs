@@ -43,6 +43,9 @@ fn write(g: &Graph, id: Id, params: &[String]) -> (String, u8) {
         Node::Signum(a) => (format!("signum({})", w(a).0), 4),
         Node::Powi(a, n) => (format!("powi({}, {n})", w(a).0), 4),
         Node::Powf(a, b) => (format!("powf({}, {})", w(a).0, w(b).0), 4),
+        Node::Max(a, b) => (format!("max({}, {})", w(a).0, w(b).0), 4),
+        // the derivative of max: no word of the language spells it
+        Node::Step(a) => (format!("step({})", w(a).0), 4),
     }
 }
 
@@ -58,6 +61,10 @@ fn var_name(v: Var) -> &'static str {
         Var::Mu0 => "mu0",
         Var::K0 => "K0",
         Var::Lambda0 => "lambda0",
+        Var::I4a => "I4",
+        Var::I5a => "I5",
+        Var::I4b => "I4_2",
+        Var::I5b => "I5_2",
     }
 }
 

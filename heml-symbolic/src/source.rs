@@ -5,7 +5,7 @@
 //! instead of by a compiler span.
 
 use crate::derivatives::InvariantKernels;
-use crate::expr::{Graph, Id};
+use crate::expr::{Graph, Id, Var};
 use crate::lower::lower;
 use crate::vocab::{Kind, Scope};
 
@@ -85,6 +85,30 @@ pub fn invariant_kernels(text: &str, params: &[String], inversion_fix: bool) -> 
     }
     let mut g = Graph::new();
     let w = lower_text(&mut g, text, Scope::Energy(Kind::Invariant), params)?;
+    let fibre = [Var::I4a, Var::I5a, Var::I4b, Var::I5b];
+    if fibre.iter().any(|&v| g.uses(&[w], v)) {
+        // point at the first fibre word (I4…, I5…) of the text
+        let chars: Vec<char> = text.chars().collect();
+        let at = (0..chars.len())
+            .find(|&i| {
+                chars[i] == 'I'
+                    && matches!(chars.get(i + 1), Some('4' | '5'))
+                    && (i == 0 || !(chars[i - 1].is_alphanumeric() || chars[i - 1] == '_'))
+            })
+            .unwrap_or(0);
+        let (line, column) = text[..text.char_indices().nth(at).map_or(text.len(), |(b, _)| b)]
+            .split('\n')
+            .fold((0, 0), |(l, _), part| (l + 1, part.chars().count() + 1));
+        return Err(SourceError {
+            line,
+            column,
+            width: 2,
+            message: "fibre invariants (I4, I5) are not available in laws typed at run time: declare a \
+                      fibre law with #[heml::material] (see holzapfel_gasser_ogden)"
+                .into(),
+            source_line: text.lines().nth(line - 1).unwrap_or("").to_string(),
+        });
+    }
     Ok(InvariantKernels::new(g, w, inversion_fix))
 }
 

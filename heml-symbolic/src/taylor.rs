@@ -74,6 +74,14 @@ fn subst_memo(g: &mut Graph, id: Id, from: Var, to: Id, memo: &mut HashMap<Id, I
             let a = s(g, a);
             g.signum(a)
         }
+        Node::Max(a, b) => {
+            let (a, b) = (s(g, a), s(g, b));
+            g.max(a, b)
+        }
+        Node::Step(a) => {
+            let a = s(g, a);
+            g.step(a)
+        }
     };
     memo.insert(id, result);
     result

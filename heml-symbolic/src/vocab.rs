@@ -40,6 +40,20 @@ const INVARIANT_VARS: &[(&str, Symbol)] = &[
     ("J", Symbol::Var(Var::J)),
     ("I1bar", Symbol::Isochoric(Var::I1, -2.0 / 3.0)),
     ("I2bar", Symbol::Isochoric(Var::I2, -4.0 / 3.0)),
+    // fibre invariants: I4 = a·C·a, I5 = a·C²·a of family 1 (`I4`, `I4_1`) or 2
+    // (`I4_2`), and their isochoric forms Ī4 = I4·J^(−2/3), Ī5 = I5·J^(−4/3)
+    ("I4", Symbol::Var(Var::I4a)),
+    ("I5", Symbol::Var(Var::I5a)),
+    ("I4bar", Symbol::Isochoric(Var::I4a, -2.0 / 3.0)),
+    ("I5bar", Symbol::Isochoric(Var::I5a, -4.0 / 3.0)),
+    ("I4_1", Symbol::Var(Var::I4a)),
+    ("I5_1", Symbol::Var(Var::I5a)),
+    ("I4bar_1", Symbol::Isochoric(Var::I4a, -2.0 / 3.0)),
+    ("I5bar_1", Symbol::Isochoric(Var::I5a, -4.0 / 3.0)),
+    ("I4_2", Symbol::Var(Var::I4b)),
+    ("I5_2", Symbol::Var(Var::I5b)),
+    ("I4bar_2", Symbol::Isochoric(Var::I4b, -2.0 / 3.0)),
+    ("I5bar_2", Symbol::Isochoric(Var::I5b, -4.0 / 3.0)),
 ];
 
 const LINK_VARS: &[(&str, Symbol)] = &[("l", Symbol::Var(Var::LinkL)), ("L", Symbol::Var(Var::RestL))];
@@ -91,6 +105,10 @@ pub enum Function {
     Powi,
     /// Real power.
     Powf,
+    /// The larger of two values (`max(I4 - 1.0, 0.0)`: fibres that do not resist
+    /// compression), with the one-sided derivative of the larger argument (at a
+    /// tie, the second's: 0 for `max(x, 0.0)` at x = 0).
+    Max,
 }
 
 impl Function {
@@ -103,6 +121,7 @@ impl Function {
             "abs" => Self::Abs,
             "powi" => Self::Powi,
             "powf" => Self::Powf,
+            "max" => Self::Max,
             _ => return None,
         })
     }
@@ -111,13 +130,13 @@ impl Function {
     pub fn arity(self) -> usize {
         match self {
             Self::Ln | Self::Exp | Self::Sqrt | Self::Abs => 1,
-            Self::Powi | Self::Powf => 2,
+            Self::Powi | Self::Powf | Self::Max => 2,
         }
     }
 }
 
 /// The functions, as listed in error messages.
-pub const FUNCTIONS: &str = "ln, exp, sqrt, abs, powi (integer literal exponent), powf";
+pub const FUNCTIONS: &str = "ln, exp, sqrt, abs, powi (integer literal exponent), powf, max";
 
 /// Whether `ty` is `f64`, the only type of a parameter or a `let` binding.
 pub fn is_f64(ty: &syn::Type) -> bool {

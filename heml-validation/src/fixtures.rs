@@ -64,10 +64,33 @@ pub fn soft_tissue_params(law: &str, e: f64, nu: f64) -> Option<Params> {
 /// # Ok::<(), heml::HemlError>(())
 /// ```
 pub fn tissue_params(entry: &MaterialEntry, e: f64, nu: f64) -> Option<Params> {
-    soft_tissue_params(entry.name, e, nu).or_else(|| {
-        (entry.kind == LawKind::Link && entry.params.len() == 1)
-            .then(|| Params::new().with(entry.params[0].name, e / 300.0))
-    })
+    soft_tissue_params(entry.name, e, nu)
+        .or_else(|| {
+            (entry.kind == LawKind::Link && entry.params.len() == 1)
+                .then(|| Params::new().with(entry.params[0].name, e / 300.0))
+        })
+        .or_else(|| fibre_tissue_params(entry.name, e, nu))
+}
+
+/// Parameters of the built-in fibre laws for a matrix of small-strain moduli (E, ν)
+/// reinforced by fibres of comparable stiffness (k1 = μ, k2 = 1 for HGO with
+/// dispersion 0.1; c3 = μ/2, c4 = 10 for TI Mooney–Rivlin): soft tissue such as a
+/// vessel wall or a tendon sheath, for benchmarks.
+pub fn fibre_tissue_params(law: &str, e: f64, nu: f64) -> Option<Params> {
+    let (mu, lambda) = heml::params::lame(e, nu);
+    let k = lambda + 2.0 * mu / 3.0;
+    let set: &[(&str, f64)] = match law {
+        "holzapfel_gasser_ogden" => &[("c", mu), ("k1", mu), ("k2", 1.0), ("dispersion", 0.1), ("kappa", k)],
+        "ti_mooney_rivlin" => &[
+            ("c1", 0.4 * mu),
+            ("c2", 0.1 * mu),
+            ("c3", 0.5 * mu),
+            ("c4", 10.0),
+            ("kappa", k),
+        ],
+        _ => return None,
+    };
+    Some(set.iter().fold(Params::new(), |p, (n, v)| p.with(n, *v)))
 }
 
 /// A smooth deformation of `mesh` that inverts no element: 10 % stretch along x, a

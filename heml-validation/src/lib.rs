@@ -34,6 +34,7 @@
 mod cantilever;
 mod energy;
 mod equivalence;
+mod fibres;
 pub mod fixtures;
 mod inversion;
 pub mod locking;
@@ -228,6 +229,11 @@ pub const CASES: &[CaseInfo] = &[
         name: "uniaxial",
         title: "unconstrained uniaxial tension/compression of a cube vs closed forms (SVK, neo-Hookean)",
         run: uniaxial::run,
+    },
+    CaseInfo {
+        name: "fibres",
+        title: "uniaxial cube along/across the fibres vs closed forms (Holzapfel-Gasser-Ogden, TI Mooney-Rivlin)",
+        run: fibres::run,
     },
     CaseInfo {
         name: "cantilever",

@@ -18,30 +18,36 @@
 //! | `stable_neo_hookean` | [`StableNeoHookean`] |
 //! | `ogden` | [`Ogden`] (principal stretches) |
 //! | `mass_spring` | [`MassSpring`] |
+//! | `holzapfel_gasser_ogden` | [`HolzapfelGasserOgden`] (two fibre families) |
+//! | `ti_mooney_rivlin` | [`TiMooneyRivlin`] (one fibre family) |
 
 #![warn(missing_docs)]
 
 mod arruda_boyce;
 mod fung_demiray;
 mod gent;
+mod holzapfel_gasser_ogden;
 mod mass_spring;
 mod mooney_rivlin;
 mod neo_hookean;
 mod ogden;
 mod saint_venant_kirchhoff;
 mod stable_neo_hookean;
+mod ti_mooney_rivlin;
 mod veronda_westmann;
 mod yeoh;
 
 pub use arruda_boyce::ArrudaBoyce;
 pub use fung_demiray::FungDemiray;
 pub use gent::Gent;
+pub use holzapfel_gasser_ogden::HolzapfelGasserOgden;
 pub use mass_spring::MassSpring;
 pub use mooney_rivlin::MooneyRivlin;
 pub use neo_hookean::NeoHookean;
 pub use ogden::Ogden;
 pub use saint_venant_kirchhoff::SaintVenantKirchhoff;
 pub use stable_neo_hookean::StableNeoHookean;
+pub use ti_mooney_rivlin::TiMooneyRivlin;
 pub use veronda_westmann::VerondaWestmann;
 pub use yeoh::Yeoh;
 

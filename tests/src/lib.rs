@@ -9,7 +9,7 @@ use heml::nalgebra::{Matrix3, Rotation3};
 use heml::prelude::*;
 use rand::Rng;
 
-pub use laws::{all_laws, sample_params, TestQuartic};
+pub use laws::{all_laws, all_laws_on, fibred, random_unit, sample_params, TestQuartic};
 
 /// The laws of the `materials` crate, by registry name, sorted.
 pub const BUILT_IN: [&str; 11] = [

@@ -15,7 +15,7 @@ const REL: f64 = 1e-12;
 fn compare(mesh: &TetMesh, x: &[Vec3], rng: &mut TestRng) -> usize {
     let mut compared = 0;
     for entry in heml::materials_list() {
-        let law = entry.instantiate(&sample_params(entry, rng)).unwrap();
+        let law = fibred(entry.instantiate(&sample_params(entry, rng)).unwrap(), mesh, rng);
         let opts = ForceOptions::default();
         let Some(fem) = law.fem_field(mesh, None, &opts).unwrap() else {
             assert_eq!(

@@ -30,7 +30,12 @@ fn check_fd(name: &str, field: &dyn ElasticForces, x: &[Vec3]) {
         return;
     }
     assert!(e.is_finite(), "{name}: energy {e}");
-    let g = fd_gradient(x, 1e-6, |y| field.energy(y).unwrap());
+    // HGO's exp(k2·E²) of a fibre stretched ~4× in a deeply inverted tet (forces
+    // ~1e50) has |E'''|/|E'| ~ (2·k2·E·|∇E|)² ≈ 1e5, 30× the other exponential laws':
+    // h = 1e-7 cuts the h² truncation 100× while the round-off ε·|E|/h stays ≲ 1e-8
+    // relative (|E| ≲ |f| here), keeping the same 1e-6 bound meaningful.
+    let h = if name == "holzapfel_gasser_ogden" { 1e-7 } else { 1e-6 };
+    let g = fd_gradient(x, h, |y| field.energy(y).unwrap());
     let minus_g: Vec<Vec3> = g.iter().map(|v| -v).collect();
     let scale = max_norm(&f).max(1.0);
     let err = max_diff(&f, &minus_g);
@@ -45,7 +50,7 @@ proptest! {
         let mut rng = rng(seed);
         let mesh = mesh_for(seed, &mut rng);
         let x = random_deformation(&mut rng, &mesh, 0.6, 1.6, 0.05);
-        for (name, law) in all_laws(&mut rng) {
+        for (name, law) in all_laws_on(&mesh, &mut rng) {
             let field = law.force_field(&mesh, None, &ForceOptions::default()).unwrap();
             check_fd(name, field.as_ref(), &x);
         }
@@ -68,7 +73,7 @@ proptest! {
         if invert {
             invert_first_tet(&mesh, &mut x, 0.5);
         }
-        for (name, law) in all_laws(&mut rng) {
+        for (name, law) in all_laws_on(&mesh, &mut rng) {
             let (_, f) = law.force_field(&mesh, None, &ForceOptions::default()).unwrap().forces(&x).unwrap();
             let scale = max_norm(&f).max(1e-300);
             let (net, torque) = net_force_and_torque(&x, &f);
@@ -84,7 +89,7 @@ fn check_inverted(seed: u64, depth: f64) {
     let mesh = mesh_for(seed, &mut rng);
     let mut x = random_deformation(&mut rng, &mesh, 0.8, 1.2, 0.02);
     invert_first_tet(&mesh, &mut x, depth);
-    for (name, law) in all_laws(&mut rng) {
+    for (name, law) in all_laws_on(&mesh, &mut rng) {
         let field = law.force_field(&mesh, None, &ForceOptions::default()).unwrap();
         // fields may store their tets in another order (Morton): find mesh tet 0
         let k = field.tet_ids().iter().position(|&t| t == 0).unwrap();
@@ -116,7 +121,7 @@ fn rest_state_is_energy_and_force_free() {
         let r = random_rotation(&mut rng);
         let t = Vec3::new(0.3, -1.0, 2.0);
         let rigid: Vec<Vec3> = mesh.nodes().iter().map(|p| r * p + t).collect();
-        for (name, law) in all_laws(&mut rng) {
+        for (name, law) in all_laws_on(&mesh, &mut rng) {
             let field = law.force_field(&mesh, None, &ForceOptions::default()).unwrap();
             for x in [mesh.nodes(), &rigid[..]] {
                 let (e, f) = field.forces(x).unwrap();

@@ -132,7 +132,11 @@ fn mesh_forces_stay_finite_for_flat_and_inverted_tets() {
         let mut x = mesh.nodes().to_vec();
         invert_first_tet(&mesh, &mut x, depth);
         for entry in heml::materials_list() {
-            let law = entry.instantiate(&sample_params(entry, &mut rng)).unwrap();
+            let law = fibred(
+                entry.instantiate(&sample_params(entry, &mut rng)).unwrap(),
+                &mesh,
+                &mut rng,
+            );
             let (e, f) = law
                 .force_field(&mesh, None, &ForceOptions::default())
                 .unwrap()

@@ -70,8 +70,15 @@ fn magnitudes(law: &dyn Material, mesh: &TetMesh, x: &[Vec3], fem: bool) -> Vec<
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for the built-in invariant laws; the
 /// test's own laws get random parameters from their valid ranges.
 fn tissue_params(entry: &MaterialEntry) -> Params {
-    heml_validation::fixtures::soft_tissue_params(entry.name, 3e3, 0.45)
-        .unwrap_or_else(|| heml_tests::sample_params(entry, &mut heml_tests::rng(1)))
+    let p = heml_validation::fixtures::soft_tissue_params(entry.name, 3e3, 0.45)
+        .unwrap_or_else(|| heml_tests::sample_params(entry, &mut heml_tests::rng(1)));
+    // fibre laws' exp(k2·E²) overflows at this setup's inverted, 3× squashed tets for
+    // k2 ~ 1 (E ~ 10): a small exponent keeps the forces finite, the code paths the same
+    match entry.name {
+        "holzapfel_gasser_ogden" => p.with("k2", 0.05),
+        "ti_mooney_rivlin" => p.with("c4", 0.5),
+        _ => p,
+    }
 }
 
 fn assert_close(name: &str, what: &str, got: &[Vec3], want: &[Vec3], scale: &[f64]) {
@@ -109,7 +116,11 @@ fn check_all_paths(fem: bool) {
             continue;
         }
         links += usize::from(entry.kind == LawKind::Link);
-        let law = entry.instantiate(&tissue_params(entry)).unwrap();
+        let law = heml_tests::fibred(
+            entry.instantiate(&tissue_params(entry)).unwrap(),
+            &mesh,
+            &mut heml_tests::rng(3),
+        );
         let build = || -> Box<dyn ElasticForces> {
             if fem {
                 law.fem_field(&mesh, None, &opts).unwrap().unwrap()

@@ -27,6 +27,11 @@ fn ogden_cube_matches_the_closed_form_with_treloar_parameters() {
 }
 
 #[test]
+fn fibre_cube_matches_closed_forms_along_and_across_the_fibres() {
+    check("fibres");
+}
+
+#[test]
 fn cantilever_converges_to_euler_bernoulli() {
     check("cantilever");
 }

@@ -214,6 +214,21 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     let params = tissue_params(entry)?;
     let law = entry.instantiate(&params)?;
     let opts = ForceOptions::default();
+    // fibre laws: two families in the x–y plane at ±30° from x (x is stretched by the
+    // benchmark's deformation, so the fibres work in tension, exponential included)
+    let with_fibres = |law: Box<dyn heml::heml_core::Material>,
+                       mesh: &heml::TetMesh|
+     -> heml::Result<Box<dyn heml::heml_core::Material>> {
+        if law.fibre_families() == 0 {
+            return Ok(law);
+        }
+        let (s, c) = 30f64.to_radians().sin_cos();
+        let dirs = [heml::Vec3::new(c, s, 0.0), heml::Vec3::new(c, -s, 0.0)];
+        law.with_fibres(std::sync::Arc::new(heml::heml_core::fibres::Fibres::uniform(
+            mesh.n_tets(),
+            &dirs,
+        )?))
+    };
     let threads = args
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -279,6 +294,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         inner
     );
 
+    let law = with_fibres(law, &mesh)?;
     let heml_field = law.force_field(&mesh, None, &opts)?;
     let fem_field = law.fem_field(&mesh, None, &opts)?;
     let mut counts = vec![1];
@@ -399,7 +415,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     let clamp = lo.x + 1e-9 * (hi - lo).norm();
     let size = hi - lo;
     let mut sys = heml::system(mesh.clone())
-        .material(entry.name, &params)?
+        .material_law(with_fibres(entry.instantiate(&params)?, &mesh)?)
         .density(1000.0)
         .initial_velocity(move |p| Vec3::new(0.0, 0.0, 1e-3 * ((p.x - lo.x) / size.x).powi(2)))
         .fix_where(|p| p.x <= clamp)

@@ -83,6 +83,7 @@ fn print_materials() {
             LawKind::Invariant => "w(I1, I2, J)",
             LawKind::Link => "link w(l, L)",
             LawKind::Stretch => "w(λ1, λ2, λ3, J)",
+            LawKind::Fibre => "fibre w(I1, I2, J, I4, I5)",
         };
         outln!("{}  [{kind}]  {}", e.name, e.title());
         for p in e.params {

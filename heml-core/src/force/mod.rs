@@ -7,6 +7,10 @@ pub mod assembly;
 mod eigensystem;
 mod elastic;
 pub mod fastmath;
+mod fibre;
+mod fibre_tangent;
+#[cfg(test)]
+mod fibre_tests;
 mod field;
 mod heml;
 pub(crate) mod kernel;
@@ -24,6 +28,10 @@ pub mod volumetric;
 
 pub use assembly::SimdLevel;
 pub use elastic::{Assembly, ElasticForces};
+pub use fibre::{
+    fibre_energy_and_piola, fibre_invariants, FibreField, FibreKernel, FibreP1Field, FibreP1Kernel, FibreTet,
+};
+pub use fibre_tangent::FibreHessian;
 pub use field::{Formulation, TetField};
 pub use heml::{HemlField, HemlKernel};
 pub use link::{LinkField, LinkKernel};

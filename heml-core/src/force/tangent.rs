@@ -114,7 +114,7 @@ pub trait TetHessian: Send + Sync {
 }
 
 /// ∇l_e of the six squared edge lengths: 2 v_e on the head, −2 v_e on the tail.
-fn length_gradients(v: &[Vec3; 6]) -> [[f64; 12]; 6] {
+pub(super) fn length_gradients(v: &[Vec3; 6]) -> [[f64; 12]; 6] {
     let mut g = [[0.0; 12]; 6];
     for (e, &(tail, head)) in EDGES.iter().enumerate() {
         for a in 0..3 {
@@ -126,7 +126,7 @@ fn length_gradients(v: &[Vec3; 6]) -> [[f64; 12]; 6] {
 }
 
 /// Adds Σ_e c_e ∇²l_e, with ∇²l_e = 2[[I, −I], [−I, I]] on the edge's (tail, head).
-fn add_length_curvature(k: &mut TetStiffness, c: &[f64; 6]) {
+pub(super) fn add_length_curvature(k: &mut TetStiffness, c: &[f64; 6]) {
     for (e, &(tail, head)) in EDGES.iter().enumerate() {
         let s = 2.0 * c[e];
         for a in 0..3 {
@@ -141,7 +141,7 @@ fn add_length_curvature(k: &mut TetStiffness, c: &[f64; 6]) {
 /// Adds c·∇²vol, vol = v1·(v2×v3)/6 with v_i = x_i − x0: in the v_i the Hessian has
 /// zero diagonal blocks and ∂²vol/∂v_i∂v_j = −[v_k]×/6 for (i, j, k) cyclic; the
 /// node-0 rows and columns follow from v_i = x_i − x0.
-fn add_volume_curvature(k: &mut TetStiffness, v: &[Vec3; 6], c: f64) {
+pub(super) fn add_volume_curvature(k: &mut TetStiffness, v: &[Vec3; 6], c: f64) {
     let s = c / 6.0;
     // hv[i][j]: the 3×3 block (v_{i+1}, v_{j+1})
     let mut hv = [[Matrix3::zeros(); 3]; 3];

@@ -77,6 +77,10 @@ pub struct MeshData {
     pub hexes: Vec<[usize; 8]>,
     /// One region tag per hexahedron (0 where the file has none).
     pub hex_tags: Vec<i32>,
+    /// Named 3-component cell fields (VTU), one vector per tet in `tets` order.
+    pub cell_vectors: BTreeMap<String, Vec<Vec3>>,
+    /// The same fields per hexahedron, copied to its tets when it is split.
+    pub hex_vectors: BTreeMap<String, Vec<Vec3>>,
 }
 
 impl MeshData {
@@ -85,7 +89,11 @@ impl MeshData {
     /// default [`HexSplit`] (six tets each).
     pub fn into_mesh(mut self) -> Result<TetMesh> {
         self.split_hexes(HexSplit::default())?;
-        TetMesh::with_tags(self.nodes, self.tets, self.tags)
+        let mut mesh = TetMesh::with_tags(self.nodes, self.tets, self.tags)?;
+        for (name, v) in self.cell_vectors {
+            mesh = mesh.with_cell_vectors(name, v)?;
+        }
+        Ok(mesh)
     }
 
     /// Replaces the hexahedra by tets cut with `split` (conforming between
@@ -125,6 +133,12 @@ impl MeshData {
         let per = split.tets_per_cell();
         self.tets.extend(tets);
         self.tags.extend(tags.iter().flat_map(|&t| std::iter::repeat_n(t, per)));
+        for (name, v) in std::mem::take(&mut self.hex_vectors) {
+            self.cell_vectors
+                .entry(name)
+                .or_default()
+                .extend(v.iter().flat_map(|&a| std::iter::repeat_n(a, per)));
+        }
         Ok(hexes.len())
     }
 

@@ -83,6 +83,7 @@ pub(crate) fn assemble(
     connectivity: &[f64],
     types: &[f64],
     tags: Option<&CellArray>,
+    vectors: &[(String, Vec<f64>)],
     err: &dyn Fn(At, String) -> HemlError,
 ) -> Result<MeshData> {
     let n_cells = offsets.len().saturating_sub(1);
@@ -147,6 +148,10 @@ pub(crate) fn assemble(
                 CellKind::Tet => {
                     data.tets.push([v[0], v[1], v[2], v[3]]);
                     data.tags.push(tag);
+                    for (name, a) in vectors {
+                        let value = Vec3::new(a[3 * c], a[3 * c + 1], a[3 * c + 2]);
+                        data.cell_vectors.entry(name.clone()).or_default().push(value);
+                    }
                 }
                 _ => {
                     // a voxel's corners are in bit order: swap 2-3 and 6-7 for the hex order
@@ -157,6 +162,10 @@ pub(crate) fn assemble(
                     };
                     data.hexes.push(hex);
                     data.hex_tags.push(tag);
+                    for (name, a) in vectors {
+                        let value = Vec3::new(a[3 * c], a[3 * c + 1], a[3 * c + 2]);
+                        data.hex_vectors.entry(name.clone()).or_default().push(value);
+                    }
                 }
             }
             continue;

@@ -341,7 +341,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
         Arrays => cells.line,
         Line(l) => l,
     };
-    let data = assemble(points, &cells.offsets, &cells.conn, &types, tags, &|at, msg| {
+    let data = assemble(points, &cells.offsets, &cells.conn, &types, tags, &[], &|at, msg| {
         c.err_at(line_of(at), msg)
     })?;
     if data.tets.is_empty() && data.hexes.is_empty() {

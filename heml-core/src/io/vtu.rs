@@ -314,7 +314,17 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
         for (k, v) in data.skipped {
             *out.skipped.entry(k).or_insert(0) += v;
         }
+        for (k, v) in data.cell_vectors {
+            out.cell_vectors.entry(k).or_default().extend(v);
+        }
+        for (k, v) in data.hex_vectors {
+            out.hex_vectors.entry(k).or_default().extend(v);
+        }
     }
+    // a cell field missing from some piece covers only part of the cells: dropped
+    let (n_tets, n_hexes) = (out.tets.len(), out.hexes.len());
+    out.cell_vectors.retain(|_, v| v.len() == n_tets);
+    out.hex_vectors.retain(|_, v| v.len() == n_hexes);
     if out.tets.is_empty() && out.hexes.is_empty() {
         return Err(perr(pieces[0].line, no_tets_message(&out)));
     }
@@ -416,7 +426,16 @@ fn read_piece(ctx: &Ctx<'_>, p: &Piece) -> Result<MeshData> {
         });
     }
     let tags = choose_tags(&arrays, p.n_cells);
-    assemble(nodes, &offsets, &conn, &types, tags, &|at, msg| {
+    // 3-component cell arrays (fibre directions): read whole, n_cells × 3 values
+    let mut vectors = Vec::new();
+    for s in p.cell_arrays.iter().filter(|s| s.components == 3) {
+        let n = p
+            .n_cells
+            .checked_mul(3)
+            .ok_or_else(|| ctx.err(s.line, "NumberOfCells × 3 overflows"))?;
+        vectors.push((s.name.clone(), values(ctx, s, n, "3 × NumberOfCells")?));
+    }
+    assemble(nodes, &offsets, &conn, &types, tags, &vectors, &|at, msg| {
         let line = match at {
             At::Type(_) => types_spec.line,
             At::Line(l) => l,

@@ -23,6 +23,9 @@ pub struct TetMesh {
     tets: Vec<[u32; 4]>,
     tags: Vec<i32>,
     reoriented: usize,
+    /// Named 3-vector fields per tet read from the file's cell data (fibre
+    /// directions, say), in tet order.
+    cell_vectors: std::collections::BTreeMap<String, Vec<Vec3>>,
 }
 
 impl TetMesh {
@@ -133,6 +136,7 @@ impl TetMesh {
             tets: out,
             tags,
             reoriented,
+            cell_vectors: Default::default(),
         })
     }
 
@@ -226,7 +230,27 @@ impl TetMesh {
         let mut out = Self::with_tags(nodes, tets, self.tags.clone())
             .map_err(|e| HemlError::Invalid(format!("scaling the mesh by {factor:e}: {e}")))?;
         out.reoriented = self.reoriented;
+        out.cell_vectors = self.cell_vectors.clone();
         Ok(out)
+    }
+
+    /// The 3-vector cell fields of the mesh file (e.g. fibre directions), by name,
+    /// one vector per tet in tet order.
+    pub fn cell_vectors(&self) -> &std::collections::BTreeMap<String, Vec<Vec3>> {
+        &self.cell_vectors
+    }
+
+    /// The mesh with the 3-vector cell field `name` (one vector per tet).
+    pub fn with_cell_vectors(mut self, name: impl Into<String>, values: Vec<Vec3>) -> Result<Self> {
+        if values.len() != self.n_tets() {
+            return Err(HemlError::SizeMismatch {
+                what: "cell vectors",
+                got: values.len(),
+                expected: self.n_tets(),
+            });
+        }
+        self.cell_vectors.insert(name.into(), values);
+        Ok(self)
     }
 
     /// Indices of the tets whose tag is `tag`.

@@ -173,7 +173,11 @@ impl TetMesh {
             .iter()
             .map(|&t| self.tets()[t].map(|i| nodes.old_to_new[i as usize]))
             .collect();
-        TetMesh::with_tags(new_nodes, new_tets, tets.apply(self.tags()))
+        let mut out = TetMesh::with_tags(new_nodes, new_tets, tets.apply(self.tags()))?;
+        for (name, v) in self.cell_vectors() {
+            out = out.with_cell_vectors(name.clone(), tets.apply(v))?;
+        }
+        Ok(out)
     }
 }
 

@@ -36,6 +36,10 @@ enum Code {
     Powi,
     /// `a.powf(b)`; with `Some(n)` the exponent is the constant n/3.
     Powf(Option<i32>),
+    /// `a.max(b)`.
+    Max,
+    /// 1 where `a > 0`, else 0 (the derivative of `max`).
+    Step,
 }
 
 /// One operation: `reg[dst] = code(reg[a], reg[b])`.
@@ -101,6 +105,8 @@ impl Tape {
                 Node::Sqrt(a) => (Code::Sqrt, a, None),
                 Node::Abs(a) => (Code::Abs, a, None),
                 Node::Signum(a) => (Code::Signum, a, None),
+                Node::Max(a, b) => (Code::Max, a, Some(b)),
+                Node::Step(a) => (Code::Step, a, None),
                 Node::Powi(a, n) => {
                     reg[id] = next;
                     ops.push(Op {
@@ -218,6 +224,8 @@ impl Tape {
                 Code::Powf(Some(n)) if FAST => lanes(a, |x| fastmath::pow_thirds(x, n)),
                 Code::Powf(_) if FAST => lanes2(a, b(), fastmath::powf),
                 Code::Powf(_) => lanes2(a, b(), f64::powf),
+                Code::Max => lanes2(a, b(), f64::max),
+                Code::Step => lanes(a, |x| f64::from(u8::from(x > 0.0))),
             };
             regs[op.dst as usize] = z;
         }

@@ -275,7 +275,7 @@ impl Scene {
                 }
                 untagged = Some(i);
             }
-            b = add_material(b, m, s).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
+            b = add_material(b, m, s, &mesh).map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         }
         // which entry holds each node (file ids), to name both entries of a conflict
         let mut holder: Vec<Option<(&str, usize)>> = vec![None; mesh.n_nodes()];
@@ -559,7 +559,7 @@ fn registry_hint(empty: bool) -> &'static str {
 
 /// Adds one `[[material]]` to the builder, with a "did you mean" for misspelt
 /// parameter names.
-fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec) -> Result<SystemBuilder> {
+fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec, mesh: &TetMesh) -> Result<SystemBuilder> {
     let law = match &m.energy {
         Some(energy) if m.law.is_empty() => Box::new(crate::RuntimeLaw::from_energy(energy, &m.params)?),
         Some(_) => {
@@ -576,6 +576,10 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec) -> Resu
             ))
         }
         None => registered_law(m)?,
+    };
+    let law = match super::fibres::material_fibres(m, mesh, law.fibre_families())? {
+        Some(f) => law.with_fibres(std::sync::Arc::new(f))?,
+        None => law,
     };
     // the material's own volumetric keys, else [solver]'s, else the element form
     let volumetric = match (&m.volumetric, &solver.volumetric) {

@@ -41,6 +41,7 @@
 //! translations are in metres, on the converted mesh.
 
 mod build;
+mod fibres;
 mod output;
 mod parse;
 mod plan;
@@ -58,8 +59,8 @@ pub use plan::{
 };
 pub use runner::{Progress, RunSummary};
 pub use schema::{
-    BoxSpec, Compression, DampingSpec, FixSpec, GenerateKind, GenerateSpec, LoadsSpec, MaterialSpec, MeshSpec,
-    NodalLoadSpec, OutputSpec, PlaneSpec, PrescribeSpec, SolverSpec, Units,
+    BoxSpec, Compression, DampingSpec, FixSpec, GenerateKind, GenerateSpec, HelixSpec, LoadsSpec, MaterialSpec,
+    MeshSpec, NodalLoadSpec, OutputSpec, PlaneSpec, PrescribeSpec, SolverSpec, Units,
 };
 pub use select::Selection;
 pub use surgery::{CutSpec, FacePlaneSpec, SurfaceLoadSpec, Surgery};

@@ -145,6 +145,28 @@ pub struct MaterialSpec {
     /// Stabilisation factor s of `volumetric = "nodal"` (β = min(1, s·μ0/K0) of the
     /// element volumetric energy is kept; default 0.1, or `[solver]`'s).
     pub volumetric_stabilization: Option<f64>,
+    /// Fibre laws: one or two constant fibre directions (rest frame) for the
+    /// region, `[[1, 0, 0]]` or `[[1, 0, 0], [0, 1, 0]]`.
+    pub fibres: Option<Vec<[f64; 3]>>,
+    /// Fibre laws: two helical families around an axis, at ±`angle` degrees from
+    /// the circumferential direction at each tet's rest centroid (vessel walls).
+    pub fibre_helix: Option<HelixSpec>,
+    /// Fibre laws: the names of one or two 3-component cell fields of the mesh file
+    /// (VTU `CellData`) holding each tet's fibre directions.
+    pub fibre_fields: Option<Vec<String>>,
+}
+
+/// `fibre_helix = { axis = [0, 0, 1], origin = [0, 0, 0], angle = 40 }`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HelixSpec {
+    /// Direction of the axis (any length > 0).
+    pub axis: [f64; 3],
+    /// A point of the axis (metres, default the origin).
+    #[serde(default)]
+    pub origin: [f64; 3],
+    /// Angle of the fibres to the circumferential direction, in degrees.
+    pub angle: f64,
 }
 
 /// An axis-aligned box `min ≤ X ≤ max` (metres, inclusive up to 1e-9 of the mesh size).

@@ -1,0 +1,431 @@
+//! Fibre-reinforced laws ([`FibreLaw`]) the HEML way: I1, I2 and J as for invariant
+//! laws, plus per fibre family k
+//!
+//! * I4 = a·C·a = Σ_e l_e c4_e, **linear in the squared edge lengths**: with
+//!   b = V⁻¹a, a·C_e·a = bᵀ D_e b (C_e = V⁻ᵀ D_e V⁻¹, DESIGN §1), six numbers per
+//!   family precomputed per tet ([`FibreTet::new`]);
+//! * I5 = a·C²·a = |C a|² = (D b)ᵀ B (D b) with B = V⁻¹V⁻ᵀ (recovered from `vtr`,
+//!   [`b_from_vtr`]) and D = D(l): quadratic in l like I2, with
+//!   ∂I5/∂l_e = 2 bᵀ D_e (B D b) and the constant Hessian 2 (D_e b)ᵀ B (D_f b).
+//!
+//! The link force of edge e is then −2 g_e v_e with
+//! g_e = ∂W/∂l_e = Vol·Σ_v w_v ∂v/∂l_e over the variables v, plus the volume term
+//! of J, exactly as for invariant laws. The P1 oracle ([`FibreP1Kernel`]) computes
+//! the same law from F with P = ∂Ψ/∂F, ∂I4/∂F = 2F a⊗a and
+//! ∂I5/∂F = 2F(Ca⊗a + a⊗Ca).
+//!
+//! The batch kernel runs the plain kernel lane by lane (equal to the bit).
+
+// The kernels index fixed-size arrays in lock-step on purpose.
+#![allow(clippy::needless_range_loop)]
+
+use super::assembly::{LaneForces, LanePoints, LANES};
+use super::field::{Formulation, TetField};
+use super::heml::{invariant_terms, scatter_links, signed_j, volume_terms};
+use super::kernel::TetKernel;
+use super::p1::cofactor;
+use super::ForceOptions;
+use crate::error::Result;
+use crate::fibres::Fibres;
+use crate::law::{i4_index, FibreDerivs, FibreLaw, FIBRE_VARS};
+use crate::mesh::TetMesh;
+use crate::rest::{b_from_vtr, d_of_lengths, edge_vectors, rest_edge_matrix, RestTet};
+use crate::Vec3;
+use nalgebra::Matrix3;
+use std::sync::Arc;
+
+/// uᵀ D_e w for the six edges e (D_e of DESIGN §1; symmetric in u and w): the
+/// l-gradient of any bilinear form uᵀ D(l) w.
+#[inline(always)]
+pub(crate) fn edge_form(u: &[f64; 3], w: &[f64; 3]) -> [f64; 6] {
+    let s01 = 0.5 * (u[0] * w[1] + u[1] * w[0]);
+    let s12 = 0.5 * (u[1] * w[2] + u[2] * w[1]);
+    let s02 = 0.5 * (u[0] * w[2] + u[2] * w[0]);
+    [
+        u[0] * w[0] + s01 + s02,
+        u[1] * w[1] + s01 + s12,
+        u[2] * w[2] + s02 + s12,
+        -s01,
+        -s12,
+        -s02,
+    ]
+}
+
+#[inline(always)]
+fn mat3_vec(m: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+}
+
+/// I5 = (D b)ᵀ B (D b) and its l-gradient 2·edge_form(b, B D b), for b = V⁻¹a.
+#[inline(always)]
+pub(crate) fn i5_terms(b: &[f64; 3], bm: &[[f64; 3]; 3], l: &[f64; 6]) -> (f64, [f64; 6]) {
+    let db = mat3_vec(&d_of_lengths(l), b);
+    let y = mat3_vec(bm, &db);
+    let i5 = db[0] * y[0] + db[1] * y[1] + db[2] * y[2];
+    (i5, edge_form(b, &y).map(|g| 2.0 * g))
+}
+
+/// Rest data of one tet of a fibre law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FibreTet {
+    /// Rest volume.
+    pub vol: f64,
+    /// tr(C_e), as for invariant laws.
+    pub vtr: [f64; 6],
+    /// a_k·C_e·a_k per family: I4_k = c4[k]·l.
+    pub c4: [[f64; 6]; 2],
+    /// b_k = V⁻¹a_k per family (for I5).
+    pub b: [[f64; 3]; 2],
+}
+
+impl FibreTet {
+    /// The rest data of a tet with rest corners `p` and unit fibre directions `a`.
+    pub fn new(p: &[Vec3; 4], a: [Vec3; 2]) -> Self {
+        let r = RestTet::new(p);
+        let vinv = rest_edge_matrix(p).try_inverse().unwrap_or_else(Matrix3::zeros);
+        let b = a.map(|a| {
+            let v = vinv * a;
+            [v.x, v.y, v.z]
+        });
+        FibreTet {
+            vol: r.vol,
+            vtr: r.vtr,
+            c4: b.map(|b| edge_form(&b, &b)),
+            b,
+        }
+    }
+
+    const PAD: FibreTet = FibreTet {
+        vol: 1.0,
+        vtr: [0.0; 6],
+        c4: [[0.0; 6]; 2],
+        b: [[0.0; 3]; 2],
+    };
+}
+
+/// What a fibre tet's energy depends on, at the current edge vectors: the variables
+/// q, their l-gradients (row 2, J, is zero: J enters through the volume term), the
+/// law's derivatives on the force kernel's branch, J's cross products.
+pub(crate) struct FibreState {
+    pub q: [f64; FIBRE_VARS],
+    pub grads: [[f64; 6]; FIBRE_VARS],
+    pub d: FibreDerivs,
+    pub crosses: [Vec3; 3],
+    pub extended: bool,
+}
+
+impl FibreState {
+    /// The state of tet `r` (law `M`) at edge vectors `v`.
+    #[inline(always)]
+    pub(crate) fn new<M: FibreLaw>(law: &M, opts: &ForceOptions, r: &FibreTet, v: &[Vec3; 6]) -> Self {
+        let l = v.map(|e| e.norm_squared());
+        let (i1, i2, ml) = invariant_terms(&r.vtr, &l, M::USES_I2);
+        let (j, crosses) = if M::USES_J {
+            volume_terms(v, r.vol)
+        } else {
+            (1.0, [Vec3::zeros(); 3])
+        };
+        let mut q = [i1, i2, j, 1.0, 1.0, 1.0, 1.0];
+        let mut grads = [[0.0; 6]; FIBRE_VARS];
+        grads[0] = r.vtr;
+        if M::USES_I2 {
+            grads[1] = std::array::from_fn(|e| i1 * r.vtr[e] - ml[e]);
+        }
+        let bm = b_from_vtr(&r.vtr);
+        for k in 0..M::FAMILIES {
+            let i = i4_index(k);
+            q[i] = (0..6).map(|e| r.c4[k][e] * l[e]).sum();
+            grads[i] = r.c4[k];
+            if M::USES_I5 {
+                let (i5, g5) = i5_terms(&r.b[k], &bm, &l);
+                q[i + 1] = i5;
+                grads[i + 1] = g5;
+            }
+        }
+        let extended = opts.extend(M::INVERSION_FIX, j);
+        let d = if extended { law.dw_ext(&q, opts.j0) } else { law.dw(&q) };
+        FibreState {
+            q,
+            grads,
+            d,
+            crosses,
+            extended,
+        }
+    }
+
+    /// g_e = ∂W/∂l_e of a tet of rest volume `vol`.
+    #[inline(always)]
+    pub(crate) fn link_coefficients(&self, vol: f64) -> [f64; 6] {
+        std::array::from_fn(|e| {
+            let mut s = 0.0;
+            for (a, g) in self.grads.iter().enumerate() {
+                if a != 2 {
+                    s += self.d.d[a] * g[e];
+                }
+            }
+            vol * s
+        })
+    }
+}
+
+/// Internal forces of a fibre law `M` over (a region of) a mesh, the HEML way.
+pub type FibreField<M> = TetField<FibreKernel<M>>;
+
+/// The HEML formulation of a fibre law: law, options and the fibre directions of
+/// every tet of the mesh.
+#[derive(Debug, Clone)]
+pub struct FibreKernel<M: FibreLaw> {
+    law: M,
+    opts: ForceOptions,
+    fibres: Arc<Fibres>,
+}
+
+impl<M: FibreLaw> Formulation for FibreKernel<M> {}
+
+/// Rest data of `LANES` tets (array of structures: the batch kernel is the plain
+/// kernel per lane).
+#[derive(Debug, Clone, Copy)]
+pub struct FibreBatch {
+    tets: [FibreTet; LANES],
+}
+
+impl<M: FibreLaw> FibreField<M> {
+    /// The field of `law` with fibres `fibres` (covering all of `mesh`) over the tets
+    /// `tets` of `mesh` (all when `None`), in Morton order.
+    pub fn on_tets(
+        law: M,
+        fibres: Arc<Fibres>,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: ForceOptions,
+    ) -> Result<Self> {
+        fibres.check(M::NAME, mesh.n_tets(), M::FAMILIES)?;
+        TetField::build(FibreKernel { law, opts, fibres }, mesh, tets, opts, true)
+    }
+
+    /// The law.
+    pub fn law(&self) -> &M {
+        &self.kernel().law
+    }
+}
+
+impl<M: FibreLaw> FibreKernel<M> {
+    /// Energy, J and nodal forces of a tet with rest data `r` at corners `p`.
+    #[inline(always)]
+    fn eval(&self, r: &FibreTet, p: &[Vec3; 4]) -> (f64, f64, [Vec3; 4]) {
+        let v = edge_vectors(p);
+        let s = FibreState::new(&self.law, &self.opts, r, &v);
+        let g = s.link_coefficients(r.vol);
+        let mut f = [Vec3::zeros(); 4];
+        scatter_links(&mut f, &g, &v);
+        if M::USES_J {
+            let c = s.d.d[2] / 6.0;
+            for a in 0..3 {
+                f[a + 1] -= s.crosses[a] * c;
+                f[0] += s.crosses[a] * c;
+            }
+        }
+        (r.vol * s.d.w, s.q[2], f)
+    }
+}
+
+/// A batch kernel made of a plain one: `tet(lane, corners)` gives each lane's
+/// energy and corner forces, stored in the batch's layout.
+#[inline(always)]
+fn per_lane(
+    p: &LanePoints,
+    f: &mut LaneForces,
+    en: &mut [f64; LANES],
+    mut tet: impl FnMut(usize, &[Vec3; 4]) -> (f64, [Vec3; 4]),
+) {
+    for l in 0..LANES {
+        let pts: [Vec3; 4] = std::array::from_fn(|a| Vec3::new(p[a][0][l], p[a][1][l], p[a][2][l]));
+        let (e, fl) = tet(l, &pts);
+        for a in 0..4 {
+            for c in 0..3 {
+                f[a][c][l] = fl[a][c];
+            }
+        }
+        en[l] = e;
+    }
+}
+
+/// The directions of the families of tet `t` (the first repeated for one family).
+fn tet_dirs(fibres: &Fibres, t: usize) -> [Vec3; 2] {
+    [fibres.dir(t, 0), fibres.dir(t, 1)]
+}
+
+impl<M: FibreLaw> TetKernel for FibreKernel<M> {
+    type Batch = FibreBatch;
+
+    const PAD: FibreBatch = FibreBatch {
+        tets: [FibreTet::PAD; LANES],
+    };
+
+    fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut FibreBatch, lane: usize) {
+        batch.tets[lane] = FibreTet::new(&mesh.tet_points(t), tet_dirs(&self.fibres, t));
+    }
+
+    #[inline(always)]
+    fn tet(&self, rest: &FibreBatch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
+        let (e, _, f) = self.eval(&rest.tets[lane], p);
+        for (a, fa) in f.into_iter().enumerate() {
+            add(a, fa);
+        }
+        e
+    }
+
+    fn tet_state(&self, rest: &FibreBatch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
+        let r = &rest.tets[lane];
+        let (e, j, _) = self.eval(r, p);
+        let j = if M::USES_J { j } else { signed_j(p, r.vol) };
+        (j, e / r.vol)
+    }
+
+    #[inline(always)]
+    fn batch(&self, r: &FibreBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+        per_lane(p, f, en, |l, pts| {
+            let (e, _, fl) = self.eval(&r.tets[l], pts);
+            (e, fl)
+        });
+    }
+
+    fn side_bytes(&self) -> usize {
+        std::mem::size_of_val(&*self.fibres) + self.fibres.n_tets() * std::mem::size_of::<[Vec3; 2]>()
+    }
+}
+
+/// The variables q = (I1, I2, J, I4_1, I5_1, I4_2, I5_2) of a fibre law at the
+/// deformation gradient `f` with fibres `a` (families beyond `families` stay 1).
+pub fn fibre_invariants(f: &Matrix3<f64>, a: &[Vec3; 2], families: usize) -> [f64; FIBRE_VARS] {
+    let c = f.transpose() * f;
+    let i1 = c.trace();
+    let mut q = [
+        i1,
+        0.5 * (i1 * i1 - (c * c).trace()),
+        f.determinant(),
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    ];
+    for k in 0..families {
+        let ca = c * a[k];
+        q[i4_index(k)] = a[k].dot(&ca);
+        q[i4_index(k) + 1] = ca.norm_squared();
+    }
+    q
+}
+
+/// Energy density and first Piola–Kirchhoff stress of fibre law `law` at `f` with
+/// fibres `a`: P = 2w1 F + 2w2 (I1 F − F C) + wJ cof F + Σ_k (2w4_k F a⊗a +
+/// 2w5_k F (Ca⊗a + a⊗Ca)), with the J0 extension as in the HEML path.
+pub fn fibre_energy_and_piola<M: FibreLaw>(
+    law: &M,
+    f: &Matrix3<f64>,
+    a: &[Vec3; 2],
+    opts: &ForceOptions,
+) -> (f64, Matrix3<f64>) {
+    let q = fibre_invariants(f, a, M::FAMILIES);
+    let d = if opts.extend(M::INVERSION_FIX, q[2]) {
+        law.dw_ext(&q, opts.j0)
+    } else {
+        law.dw(&q)
+    };
+    let c = f.transpose() * f;
+    let mut p = f * (2.0 * d.d[0]) + (f * q[0] - f * c) * (2.0 * d.d[1]) + cofactor(f) * d.d[2];
+    for k in 0..M::FAMILIES {
+        let i = i4_index(k);
+        let ca = c * a[k];
+        p += f * (a[k] * a[k].transpose()) * (2.0 * d.d[i])
+            + f * (ca * a[k].transpose() + a[k] * ca.transpose()) * (2.0 * d.d[i + 1]);
+    }
+    (d.w, p)
+}
+
+/// The standard P1 formulation of a fibre law (the oracle for [`FibreField`]).
+#[derive(Debug, Clone)]
+pub struct FibreP1Kernel<M: FibreLaw> {
+    law: M,
+    opts: ForceOptions,
+    fibres: Arc<Fibres>,
+}
+
+impl<M: FibreLaw> Formulation for FibreP1Kernel<M> {}
+
+/// Internal forces of a fibre law computed the standard P1 way.
+pub type FibreP1Field<M> = TetField<FibreP1Kernel<M>>;
+
+/// Rest data of `LANES` tets for the P1 oracle: volume, Dm⁻¹ and the fibres.
+#[derive(Debug, Clone, Copy)]
+pub struct FibreP1Batch {
+    tets: [(f64, Matrix3<f64>, [Vec3; 2]); LANES],
+}
+
+impl<M: FibreLaw> FibreP1Field<M> {
+    /// The P1 field of `law` with fibres `fibres` over the tets `tets` of `mesh`.
+    pub fn on_tets(
+        law: M,
+        fibres: Arc<Fibres>,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: ForceOptions,
+    ) -> Result<Self> {
+        fibres.check(M::NAME, mesh.n_tets(), M::FAMILIES)?;
+        TetField::build(FibreP1Kernel { law, opts, fibres }, mesh, tets, opts, true)
+    }
+}
+
+impl<M: FibreLaw> FibreP1Kernel<M> {
+    fn eval(&self, r: &(f64, Matrix3<f64>, [Vec3; 2]), p: &[Vec3; 4]) -> (f64, Matrix3<f64>, f64) {
+        let (vol, dm_inv, a) = r;
+        let f = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * dm_inv;
+        let (w, pk) = fibre_energy_and_piola(&self.law, &f, a, &self.opts);
+        (vol * w, -*vol * pk * dm_inv.transpose(), f.determinant())
+    }
+}
+
+impl<M: FibreLaw> TetKernel for FibreP1Kernel<M> {
+    type Batch = FibreP1Batch;
+
+    const PAD: FibreP1Batch = FibreP1Batch {
+        tets: [(
+            1.0,
+            Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            [Vec3::new(1.0, 0.0, 0.0); 2],
+        ); LANES],
+    };
+    const PLAIN_ENERGY: bool = true;
+
+    fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut FibreP1Batch, lane: usize) {
+        let dm = rest_edge_matrix(&mesh.tet_points(t));
+        batch.tets[lane] = (
+            dm.determinant() / 6.0,
+            dm.try_inverse().unwrap_or_else(Matrix3::zeros),
+            tet_dirs(&self.fibres, t),
+        );
+    }
+
+    fn tet(&self, rest: &FibreP1Batch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
+        let (e, h, _) = self.eval(&rest.tets[lane], p);
+        for a in 0..3 {
+            let fa: Vec3 = h.column(a).into();
+            add(a + 1, fa);
+            add(0, -fa);
+        }
+        e
+    }
+
+    fn tet_state(&self, rest: &FibreP1Batch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
+        let (e, _, j) = self.eval(&rest.tets[lane], p);
+        (j, e / rest.tets[lane].0)
+    }
+
+    fn batch(&self, r: &FibreP1Batch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+        per_lane(p, f, en, |l, pts| {
+            let mut fl = [Vec3::zeros(); 4];
+            let e = self.tet(r, l, pts, |a, fa| fl[a] += fa);
+            (e, fl)
+        });
+    }
+}

@@ -1,0 +1,114 @@
+//! The fibre directions of a `[[material]]` with a fibre law: a constant per
+//! region (`fibres`) or a helix around an axis (`fibre_helix`), evaluated at every
+//! tet's rest centroid (only the region's tets are read by its force field).
+
+use super::schema::MaterialSpec;
+use crate::error::{HemlError, Result};
+use crate::fibres::Fibres;
+use crate::mesh::TetMesh;
+use crate::Vec3;
+
+/// The fibres of material `m` on `mesh`, checked against the law's `families`
+/// (0: not a fibre law, which may not have fibre keys).
+pub(super) fn material_fibres(m: &MaterialSpec, mesh: &TetMesh, families: usize) -> Result<Option<Fibres>> {
+    let given =
+        usize::from(m.fibres.is_some()) + usize::from(m.fibre_helix.is_some()) + usize::from(m.fibre_fields.is_some());
+    let invalid = |msg: String| Err(HemlError::Invalid(msg));
+    match (families, given) {
+        (0, 0) => return Ok(None),
+        (0, _) => {
+            return invalid(format!(
+                "law {} is not a fibre law: remove `fibres`/`fibre_helix`/`fibre_fields`",
+                m.law
+            ))
+        }
+        (_, 0) => {
+            return invalid(format!(
+                "law {} is fibre-reinforced ({families} famil{}): give its directions with \
+                 `fibres = [[x, y, z]{}]`, `fibre_helix = {{ axis = [..], angle = deg }}` or \
+                 `fibre_fields = [\"<cell field>\"]`",
+                m.law,
+                if families == 1 { "y" } else { "ies" },
+                if families == 2 { ", [x, y, z]" } else { "" }
+            ))
+        }
+        (_, 1) => {}
+        _ => return invalid("give one of `fibres`, `fibre_helix` and `fibre_fields`".into()),
+    }
+    if let Some(names) = &m.fibre_fields {
+        if names.len() < families || names.len() > 2 {
+            return invalid(format!(
+                "`fibre_fields` names {} field(s); law {} has {families} fibre famil{}",
+                names.len(),
+                m.law,
+                if families == 1 { "y" } else { "ies" }
+            ));
+        }
+        let fields = names
+            .iter()
+            .map(|n| {
+                mesh.cell_vectors().get(n).ok_or_else(|| {
+                    let known: Vec<&String> = mesh.cell_vectors().keys().collect();
+                    HemlError::Invalid(format!(
+                        "`fibre_fields`: the mesh has no 3-component cell field '{n}' (it has {known:?})"
+                    ))
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        // tets outside a tagged region are never read: any unit vector will do there
+        let outside = |t: usize| m.tag.is_some_and(|tag| mesh.tags()[t] != tag);
+        let dirs = (0..mesh.n_tets())
+            .map(|t| {
+                if outside(t) {
+                    [Vec3::x(); 2]
+                } else {
+                    [fields[0][t], fields[fields.len() - 1][t]]
+                }
+            })
+            .collect();
+        return Fibres::new(names.len(), dirs)
+            .map(Some)
+            .map_err(|e| HemlError::Invalid(format!("`fibre_fields` {names:?}: {e}")));
+    }
+    if let Some(dirs) = &m.fibres {
+        if dirs.len() < families || dirs.len() > 2 {
+            return invalid(format!(
+                "`fibres` has {} direction(s); law {} has {families} fibre famil{}",
+                dirs.len(),
+                m.law,
+                if families == 1 { "y" } else { "ies" }
+            ));
+        }
+        let v: Vec<Vec3> = dirs.iter().map(|d| Vec3::from(*d)).collect();
+        return Fibres::uniform(mesh.n_tets(), &v)
+            .map(Some)
+            .map_err(|e| HemlError::Invalid(format!("`fibres`: {e}")));
+    }
+    let h = m.fibre_helix.expect("one source is given");
+    let axis = Vec3::from(h.axis);
+    if !(axis.norm() > 0.0 && axis.iter().all(|c| c.is_finite()) && h.angle.is_finite()) {
+        return invalid(format!(
+            "`fibre_helix`: axis {:?} must be a non-zero finite vector and angle {} finite",
+            h.axis, h.angle
+        ));
+    }
+    let axis = axis.normalize();
+    let origin = Vec3::from(h.origin);
+    let (s, c) = h.angle.to_radians().sin_cos();
+    let dirs = (0..mesh.n_tets())
+        .map(|t| {
+            let p = mesh.tet_points(t);
+            let centroid = (p[0] + p[1] + p[2] + p[3]) / 4.0;
+            let r = centroid - origin;
+            let radial = r - axis * axis.dot(&r);
+            if radial.norm() <= 1e-12 * r.norm().max(1e-300) {
+                return Err(HemlError::Invalid(format!(
+                    "`fibre_helix`: tet {t} has its centroid on the axis, where the circumferential direction is undefined"
+                )));
+            }
+            let theta = axis.cross(&radial).normalize();
+            Ok([theta * c + axis * s, theta * c - axis * s])
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Fibres::new(2, dirs).map(Some)
+}
