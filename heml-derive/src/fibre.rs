@@ -3,10 +3,10 @@
 //! (I1, I2, J, I4_1, I5_1, I4_2, I5_2) instead of `InvariantLaw`: value,
 //! gradient and 7×7 Hessian, and their J0 extension, all from the one graph.
 
-use heml_symbolic::diff::diff;
 use crate::emit_law::allows;
 use crate::expr::{Graph, Id, Var};
 use crate::straight_line::{self, count_ops, Names, OpTally};
+use heml_symbolic::diff::diff;
 use heml_symbolic::taylor::inversion_extension;
 use proc_macro2::TokenStream;
 use quote::quote;

@@ -225,7 +225,10 @@ fn bad_energies_are_clear_errors_with_a_column() {
     // fibre invariants need per-tet directions, which a runtime law cannot take yet:
     // refused, pointing at the word (not silently read as another variable)
     let e = error("mu*(I1-3) + lambda*(I4_2-1)*(J-1)");
-    assert!(e.contains("column 21: fibre invariants (I4, I5) are not available"), "{e}");
+    assert!(
+        e.contains("column 21: fibre invariants (I4, I5) are not available"),
+        "{e}"
+    );
     let e = RuntimeLaw::from_energy("mu*(I1-3)", &Params::from([("mu", f64::NAN)]))
         .unwrap_err()
         .to_string();
