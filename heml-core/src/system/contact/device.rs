@@ -41,7 +41,8 @@ pub struct DeviceLog {
 }
 
 /// Runs a device of `ticks` ticks at `rate` Hz from `start` (tick k at
-/// start + k/rate): each tick publishes the pose `path(t)` (t = k/rate, device
+/// start + k/rate, or one period after the previous tick when the thread was held
+/// off the CPU for more than a period): each tick publishes the pose `path(t)` (t = k/rate, device
 /// time; a non-finite pose is skipped and the last one kept) and renders the
 /// newest local model at that pose ([`LocalModel::force_at`], clamped to
 /// `max_force`). Wait-free on the simulation: a stalled simulation leaves the
@@ -65,8 +66,20 @@ pub fn run_device(
     let period = 1.0 / rate;
     let mut last: Option<Instant> = None;
     let mut last_model: Option<Instant> = None;
+    let step = Duration::from_secs_f64(period);
+    let mut deadline = start;
     for k in 0..ticks {
-        wait_until(start + Duration::from_secs_f64(k as f64 * period));
+        if k > 0 {
+            deadline += step;
+            // a device thread the OS kept off the CPU for more than a period
+            // resumes one period from now rather than bursting through the ticks
+            // it missed (a burst renders nothing the motors could follow)
+            let now = Instant::now();
+            if now > deadline + step {
+                deadline = now;
+            }
+        }
+        wait_until(deadline);
         let now = Instant::now();
         if let Some(l) = last {
             log.gaps.push((now - l).as_secs_f64());
