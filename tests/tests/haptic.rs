@@ -36,9 +36,11 @@ fn tool_stiffness_is_the_derivative_of_the_tool_force() {
     let law = ContactLaw::stiff(200.0);
     let tools = [
         Tool::sphere(0.01, law).at(Pose::translation(Vec3::new(0.021, 0.019, 0.02 + 0.01 - 0.004))),
-        Tool::capsule(0.005, 0.008, law).at(
-            Pose::new(Vec3::new(0.018, 0.021, 0.02 + 0.005 - 0.0015), Vec3::new(1.3, 0.4, 0.0)).unwrap(),
-        ),
+        Tool::capsule(0.005, 0.008, law).at(Pose::new(
+            Vec3::new(0.018, 0.021, 0.02 + 0.005 - 0.0015),
+            Vec3::new(1.3, 0.4, 0.0),
+        )
+        .unwrap()),
     ];
     for tool in tools {
         let mut sys = block();
@@ -66,7 +68,10 @@ fn tool_stiffness_is_the_derivative_of_the_tool_force() {
             fd.set_column(j, &((fp - fm) / (2.0 * h)));
         }
         let err = (k - fd).norm() / k.norm();
-        assert!(err < 1e-8, "relative error {err:e}: stiffness\n{k}\nfinite difference\n{fd}");
+        assert!(
+            err < 1e-8,
+            "relative error {err:e}: stiffness\n{k}\nfinite difference\n{fd}"
+        );
         assert!((k - k.transpose()).norm() < 1e-12 * k.norm(), "symmetric");
         // the tool pushed further down feels a stiffer push up (shallow presses:
         // the spring term k·n nᵀ outweighs the turning term φ/r)

@@ -94,7 +94,8 @@ pub fn run_device(
         last_model = Some(model.published);
         let done = Instant::now();
         log.work.push((done - now).as_secs_f64());
-        log.ages.push(now.saturating_duration_since(model.published).as_secs_f64());
+        log.ages
+            .push(now.saturating_duration_since(model.published).as_secs_f64());
         log.forces.push((t, pose.translation, force));
     }
     log

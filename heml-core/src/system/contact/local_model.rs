@@ -197,6 +197,9 @@ mod tests {
         assert!(e.iter().all(|&l| l <= 0.0 && l >= -contact.norm()));
         assert_eq!(k, k.transpose());
         // losing contact forgets everything
-        assert_eq!(est.update(Vec3::zeros(), Vec3::zeros(), &Matrix3::zeros()), Matrix3::zeros());
+        assert_eq!(
+            est.update(Vec3::zeros(), Vec3::zeros(), &Matrix3::zeros()),
+            Matrix3::zeros()
+        );
     }
 }
