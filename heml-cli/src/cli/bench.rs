@@ -423,25 +423,43 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         .build()?;
     let mut integ = heml::integrator("symplectic_euler")?;
     let dt = 0.9 * sys.stable_dt();
-    let steps = (repeats * inner).clamp(20, 2000);
-    let step_times = pool(threads)?.install(|| -> heml::Result<Vec<f64>> {
-        for _ in 0..5 {
-            integ.step(&mut sys, dt)?;
+    for _ in 0..5 {
+        integ.step(&mut sys, dt)?;
+    }
+    // per round and thread count: `inner` force evaluations of the field alone, then
+    // `inner` full steps, so that the step/force ratio is taken under the same load
+    let rounds = repeats.clamp(5, 25);
+    let mut forces = vec![Vec::with_capacity(rounds); pools.len()];
+    let mut steps = vec![Vec::with_capacity(rounds); pools.len()];
+    let mut f = vec![Vec3::zeros(); x.len()];
+    for _ in 0..rounds {
+        for (k, p) in pools.iter().enumerate() {
+            p.install(|| -> heml::Result<()> {
+                let t = Instant::now();
+                for _ in 0..inner {
+                    f.fill(Vec3::zeros());
+                    std::hint::black_box(heml_field.add_forces(&x, &mut f)?);
+                }
+                forces[k].push(t.elapsed().as_secs_f64() / inner as f64);
+                let t = Instant::now();
+                for _ in 0..inner {
+                    integ.step(&mut sys, dt)?;
+                }
+                steps[k].push(t.elapsed().as_secs_f64() / inner as f64);
+                Ok(())
+            })?;
         }
-        let mut v = Vec::with_capacity(steps);
-        for _ in 0..steps {
-            let t = Instant::now();
-            integ.step(&mut sys, dt)?;
-            v.push(t.elapsed().as_secs_f64());
-        }
-        Ok(v)
-    })?;
-    let mut st = step_times;
-    let m = median(&mut st);
-    outln!(
-        "full step (symplectic_euler: forces + update + constraints, energies off, {threads} threads): {:.3} ms median of {steps}, {:.0} steps/s",
-        m * 1e3,
-        1.0 / m
-    );
+    }
+    outln!("full step (symplectic_euler: forces + update + constraints, energies off) vs the force evaluation alone, {rounds} rounds × {inner}:");
+    for (k, &n) in counts.iter().enumerate() {
+        let (tf, ts) = (median(&mut forces[k].clone()), median(&mut steps[k].clone()));
+        outln!(
+            "  {n} thread(s): step {:.3} ms, forces {:.3} ms, step/force {:.3}×, {:.0} steps/s",
+            ts * 1e3,
+            tf * 1e3,
+            median_ratio(&steps[k], &forces[k]),
+            1.0 / ts
+        );
+    }
     Ok(())
 }

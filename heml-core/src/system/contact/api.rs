@@ -70,6 +70,17 @@ impl System {
         self.model.tools.wrench(id).ok_or_else(|| self.unknown_tool(id))
     }
 
+    /// ∂F/∂t of tool `id`: how the force the tissue applies to it changes with its
+    /// translation, the tissue held still, from the contacts of the last force
+    /// evaluation ([`super::ToolSet::translation_stiffness`]; N/m, symmetric). What a
+    /// haptic device renders between simulation states ([`super::LocalModel`]).
+    pub fn tool_stiffness(&self, id: ToolId) -> Result<nalgebra::Matrix3<f64>> {
+        self.model
+            .tools
+            .translation_stiffness(id, &self.state.x)
+            .ok_or_else(|| self.unknown_tool(id))
+    }
+
     /// Removes tool `id` and returns it.
     pub fn remove_tool(&mut self, id: ToolId) -> Result<Tool> {
         self.check_between_steps("remove_tool")?;

@@ -15,6 +15,7 @@
 //! the time to the next boundary plus one step's compute time: at most two step
 //! periods, one on average.
 
+use super::local_model::LocalModel;
 use super::tool::{ToolId, Wrench};
 use crate::error::Result;
 use crate::system::control::Pose;
@@ -110,6 +111,7 @@ pub struct WrenchSample {
 pub struct DeviceEnd {
     poses: Publisher<PoseSample>,
     wrenches: Reader<WrenchSample>,
+    models: Reader<LocalModel>,
     seq: u64,
 }
 
@@ -118,6 +120,7 @@ pub struct DeviceEnd {
 pub struct SimulationEnd {
     poses: Reader<PoseSample>,
     wrenches: Publisher<WrenchSample>,
+    models: Publisher<LocalModel>,
     used: u64,
 }
 
@@ -142,15 +145,18 @@ pub fn haptic_link(initial: Pose) -> (DeviceEnd, SimulationEnd) {
         seq: 0,
     });
     let (wt, wr) = latest(WrenchSample::default());
+    let (mt, mr) = latest(LocalModel::empty(initial.translation));
     (
         DeviceEnd {
             poses: pt,
             wrenches: wr,
+            models: mr,
             seq: 0,
         },
         SimulationEnd {
             poses: pr,
             wrenches: wt,
+            models: mt,
             used: 0,
         },
     )
@@ -174,6 +180,12 @@ impl DeviceEnd {
     pub fn wrench(&mut self) -> WrenchSample {
         *self.wrenches.read()
     }
+
+    /// The newest local model the simulation published (wait-free): render it at
+    /// the device's pose with [`LocalModel::force_at`] every device period.
+    pub fn model(&mut self) -> LocalModel {
+        *self.models.read()
+    }
 }
 
 impl SimulationEnd {
@@ -191,6 +203,12 @@ impl SimulationEnd {
             step,
             pose_seq: self.used,
         });
+    }
+
+    /// Publishes a local model of the force around the tool's pose
+    /// ([`super::StiffnessEstimator::model`]).
+    pub fn publish_model(&mut self, model: LocalModel) {
+        self.models.publish(model);
     }
 
     /// The newest device pose, marked as the one the next published wrench

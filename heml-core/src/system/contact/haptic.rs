@@ -1,18 +1,27 @@
 //! A haptic loop: a device thread at a fixed rate (1 kHz) publishes a tool pose
-//! and reads the tool force, the simulation runs on its own thread in real time, a
-//! display thread takes position snapshots at 30–60 Hz — all three exchanging data
-//! through [`latest`] triple buffers, none waiting for another.
+//! and renders the force, the simulation runs on its own thread as fast as real
+//! time allows, a display thread takes position snapshots at 30–60 Hz — all three
+//! exchanging data through [`latest`] triple buffers, none waiting for another.
+//!
+//! **Multirate.** The device does not wait for the simulation: with each state the
+//! simulation publishes a [`LocalModel`] (the tool force and its stiffness around
+//! the tool's pose, [`StiffnessEstimator`]), and every device period the device
+//! renders the newest model at its current pose ([`run_device`]). The device loop's
+//! period is then the OS timer's, whatever a step costs; what a slow simulation
+//! costs is the model's staleness and the error of the first-order extrapolation,
+//! both measured ([`HapticReport`]).
 //!
 //! The device here is a stand-in: it follows a scripted path and records the force
-//! it would render. The simulation thread, at every device period T, picks up the
-//! newest pose, advances the system by T of simulated time (in substeps no longer
-//! than [`HapticOptions::max_substep`], e.g. the explicit stable step, the simulated
-//! tool following the device pose at most at [`HapticOptions::max_tool_speed`]), publishes
-//! the tool's wrench and a snapshot when one is due, then sleeps to the next period.
-//! It records how long each iteration computed: the loop keeps up with the device
-//! when p99 ≤ T.
+//! it renders. The simulation thread picks up the newest pose, advances the system
+//! by one device period T of simulated time (in substeps no longer than
+//! [`HapticOptions::max_substep`], e.g. the explicit stable step, the simulated tool
+//! following the device pose at most at [`HapticOptions::max_tool_speed`]),
+//! publishes the tool's wrench, the local model and a snapshot when one is due,
+//! then sleeps to the next period if it is ahead of real time.
 
-use super::handoff::{haptic_link, latest, WrenchSample};
+use super::device::run_device;
+use super::handoff::{haptic_link, latest};
+use super::local_model::{LocalModel, StiffnessEstimator};
 use super::tool::ToolId;
 use crate::error::{HemlError, Result};
 use crate::system::control::Pose;
@@ -39,6 +48,8 @@ pub struct HapticOptions {
     /// the device pose jumps between iterations, and a tool teleported millimetres
     /// into the tissue would meet it with forces an explicit step cannot take.
     pub max_tool_speed: f64,
+    /// Largest force the device renders (N, default 10: a desktop device's peak).
+    pub max_force: f64,
 }
 
 impl HapticOptions {
@@ -76,6 +87,7 @@ impl Default for HapticOptions {
             snapshot_rate: 60.0,
             max_substep: f64::INFINITY,
             max_tool_speed: 0.25,
+            max_force: 10.0,
         }
     }
 }
@@ -130,16 +142,32 @@ pub struct HapticReport {
     pub substeps: usize,
     /// Simulated time at the end (s).
     pub sim_time: f64,
-    /// Compute time of a simulation iteration (pose pickup, substeps, wrench
-    /// publication): the loop keeps up when p99 ≤ the device period.
+    /// Wall time of the run (s).
+    pub wall: f64,
+    /// Compute time of a simulation iteration (pose pickup, substeps, wrench and
+    /// model publication).
     pub compute: Percentiles,
-    /// Wall time between successive wrench publications.
+    /// Wall time between successive model publications.
     pub period: Percentiles,
-    /// Wall time between successive device ticks.
+    /// Wall time between successive device ticks: the haptic loop's period.
     pub device_period: Percentiles,
-    /// Fraction of device ticks that read a wrench newer than the previous tick's.
+    /// Wall time a device tick spends reading and rendering the model.
+    pub device_work: Percentiles,
+    /// Age of the model each device tick rendered (wall time since published).
+    pub staleness: Percentiles,
+    /// Fraction of device ticks that rendered a model newer than the previous tick's.
     pub fresh: f64,
-    /// The force the device felt at each tick: (device time, force on the tool).
+    /// Relative error of each published model's force, extrapolated to the tool
+    /// pose of the next state, against the force the simulation computed there
+    /// (|F_model(x₁) − F₁| / |F₁|, over states whose force is at least 10 % of the
+    /// run's peak: near lift-off the relative error of any predictor is meaningless).
+    pub model_error: Percentiles,
+    /// The same for a zero-order hold (the last force, no stiffness): the baseline.
+    pub hold_error: Percentiles,
+    /// The same with the contact stiffness of a still tissue
+    /// ([`System::tool_stiffness`]) instead of the estimated one.
+    pub still_error: Percentiles,
+    /// The force the device rendered at each tick: (device time, force on the tool).
     pub forces: Vec<(f64, Vec3)>,
     /// The largest tool force (norm, N) the simulation published.
     pub peak_force: f64,
@@ -149,47 +177,107 @@ pub struct HapticReport {
     pub snapshot_rate: f64,
 }
 
+impl HapticReport {
+    /// Simulation steps (substeps) per wall second.
+    pub fn steps_per_second(&self) -> f64 {
+        (self.iterations * self.substeps as u64) as f64 / self.wall.max(f64::MIN_POSITIVE)
+    }
+
+    /// Simulated time per wall second (1: real time).
+    pub fn real_time_factor(&self) -> f64 {
+        self.sim_time / self.wall.max(f64::MIN_POSITIVE)
+    }
+}
+
+/// `p50 a %, p99 b %` of relative errors.
+fn percent(p: &Percentiles) -> String {
+    format!("median {:.1} %, p99 {:.1} %", 100.0 * p.p50, 100.0 * p.p99)
+}
+
 impl std::fmt::Display for HapticReport {
-    /// Four lines: counts and real-time factor, compute time, wrench period, device
-    /// period with the fresh-wrench share, snapshots and peak force.
+    /// Five lines: counts and rates, the device loop, the simulation, staleness and
+    /// model error, snapshots and forces.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let felt = self.forces.iter().map(|(_, f)| f.norm()).fold(0.0, f64::max);
-        let run = self.forces.last().map_or(0.0, |(t, _)| *t);
         writeln!(
             f,
-            "{} device ticks, {} iterations × {} substeps, simulated {:.3} s in {:.3} s of device time",
-            self.ticks, self.iterations, self.substeps, self.sim_time, run
+            "{} device ticks, {} iterations × {} substeps: {:.0} steps/s, {:.3} s simulated per wall s",
+            self.ticks,
+            self.iterations,
+            self.substeps,
+            self.steps_per_second(),
+            self.real_time_factor()
         )?;
-        writeln!(f, "  compute per iteration: {}", self.compute)?;
-        writeln!(f, "  wrench period:         {}", self.period)?;
+        writeln!(
+            f,
+            "  device period:  {} (work per tick p99 {:.1} µs)",
+            self.device_period,
+            self.device_work.p99 * 1e6
+        )?;
+        writeln!(f, "  sim iteration:  {}", self.compute)?;
+        writeln!(
+            f,
+            "  model age:      {}; fresh on {:.0} % of ticks; model error {} (hold {}, still-tissue K {})",
+            self.staleness,
+            100.0 * self.fresh,
+            percent(&self.model_error),
+            percent(&self.hold_error),
+            percent(&self.still_error)
+        )?;
         write!(
             f,
-            "  device period:         {}; fresh wrench on {:.0} % of ticks; {} snapshots ({:.0} Hz); \
-             peak force {:.4} N (felt {felt:.4} N)",
-            self.device_period,
-            100.0 * self.fresh,
-            self.snapshots,
-            self.snapshot_rate,
-            self.peak_force
+            "  {} snapshots ({:.0} Hz); peak force {:.4} N (rendered {felt:.4} N)",
+            self.snapshots, self.snapshot_rate, self.peak_force
         )
     }
 }
 
-/// Sleeps until `deadline` (coarse: the OS's timer slack, ~0.05–0.1 ms).
-fn sleep_until(deadline: Instant) {
-    let now = Instant::now();
-    if deadline > now {
-        std::thread::sleep(deadline - now);
+/// Relative errors of the previous model against a new state, per predictor.
+#[derive(Default)]
+struct Errors {
+    /// (|F₁|, model, hold, still) per new state after a contact state.
+    samples: Vec<(f64, f64, f64, f64)>,
+}
+
+impl Errors {
+    fn add(&mut self, prev: &LocalModel, still: &nalgebra::Matrix3<f64>, new: &LocalModel) {
+        if prev.force == Vec3::zeros() || new.force == Vec3::zeros() {
+            return;
+        }
+        let n = new.force.norm();
+        let dx = new.position - prev.position;
+        let model = prev.force_at(new.position, f64::INFINITY);
+        let still = prev.force + still * dx;
+        self.samples.push((
+            n,
+            (model - new.force).norm() / n,
+            (prev.force - new.force).norm() / n,
+            (still - new.force).norm() / n,
+        ));
+    }
+
+    /// Percentiles of each predictor over the states with |F₁| ≥ 10 % of `peak`.
+    fn percentiles(&self, peak: f64) -> [Percentiles; 3] {
+        let pick = |k: usize| {
+            let mut v: Vec<f64> = self
+                .samples
+                .iter()
+                .filter(|s| s.0 >= 0.1 * peak)
+                .map(|s| [s.1, s.2, s.3][k])
+                .collect();
+            Percentiles::of(&mut v)
+        };
+        [pick(0), pick(1), pick(2)]
     }
 }
 
 /// Runs a device thread moving tool `tool` of `sys` along `path` (device time →
-/// pose) for [`HapticOptions::duration`], the simulation stepping with
-/// `integrator` on the calling thread's rayon pool (wrap the call in a pool's
-/// `install` to choose it) and a display thread reading snapshots. Returns when
-/// the device is done; the first simulation error stops the loop and is returned.
-/// One warm-up step of the simulation precedes the loop (one-time setup, such as
-/// an implicit integrator's operators, is not timed).
+/// pose) for [`HapticOptions::duration`] and rendering the simulation's local
+/// models, the simulation stepping with `integrator` on the calling thread's rayon
+/// pool (wrap the call in a pool's `install` to choose it) and a display thread
+/// reading snapshots. Returns when the device is done; the first simulation error
+/// stops the loop and is returned. One warm-up step of the simulation precedes the
+/// loop (one-time setup, such as an implicit integrator's operators, is not timed).
 pub fn run_haptic_loop(
     sys: &mut System,
     integrator: &mut dyn Integrator,
@@ -203,9 +291,11 @@ pub fn run_haptic_loop(
         || opts.max_tool_speed <= 0.0
         || opts.max_substep.is_nan()
         || opts.max_substep <= 0.0
+        || opts.max_force.is_nan()
+        || opts.max_force <= 0.0
     {
         return Err(HemlError::Invalid(format!(
-            "haptic loop: rates, duration and max_substep and max_tool_speed must be > 0: {opts:?}"
+            "haptic loop: rates, duration, max_substep, max_tool_speed and max_force must be > 0: {opts:?}"
         )));
     }
     let period = 1.0 / opts.device_rate;
@@ -218,6 +308,10 @@ pub fn run_haptic_loop(
     // integrator's tangent operators) is not part of the loop
     integrator.step(sys, h)?;
     let (mut device, mut sim) = haptic_link(first);
+    let mut estimator = StiffnessEstimator::default();
+    let mut model = estimator.model(sys, tool)?;
+    let mut still = sys.tool_stiffness(tool)?;
+    sim.publish_model(model);
     let (mut snap_tx, mut snap_rx) = latest((0.0f64, sys.positions().to_vec()));
     let done = AtomicBool::new(false);
     let ticks = (opts.duration * opts.device_rate).round() as u64;
@@ -226,26 +320,9 @@ pub fn run_haptic_loop(
 
     std::thread::scope(|s| -> Result<HapticReport> {
         let device_thread = s.spawn(|| {
-            let mut forces = Vec::with_capacity(ticks as usize);
-            let mut gaps = Vec::with_capacity(ticks as usize);
-            let (mut fresh, mut last_step, mut last) = (0u64, 0u64, start);
-            for k in 0..ticks {
-                sleep_until(at(k as f64));
-                let now = Instant::now();
-                if k > 0 {
-                    gaps.push((now - last).as_secs_f64());
-                }
-                last = now;
-                let t = k as f64 * period;
-                // a bad pose from the script is skipped: the device keeps the last one
-                let _ = device.publish_pose(path(t), t);
-                let w: WrenchSample = device.wrench();
-                fresh += u64::from(w.step > last_step);
-                last_step = w.step;
-                forces.push((t, w.wrench.force));
-            }
+            let log = run_device(&mut device, &path, opts.device_rate, ticks, opts.max_force, start);
             done.store(true, Ordering::Release);
-            (forces, gaps, fresh)
+            log
         });
         let display_thread = s.spawn(|| {
             let mut received = 0u64;
@@ -262,6 +339,7 @@ pub fn run_haptic_loop(
 
         let mut compute = Vec::with_capacity(ticks as usize);
         let mut periods = Vec::with_capacity(ticks as usize);
+        let mut errors = Errors::default();
         let snap_every = (opts.device_rate / opts.snapshot_rate).round().max(1.0) as u64;
         let mut iterations = 0u64;
         let mut peak_force = 0.0f64;
@@ -284,7 +362,13 @@ pub fn run_haptic_loop(
                 for _ in 0..substeps {
                     integrator.step(sys, h)?;
                 }
-                sim.publish(sys, tool)
+                sim.publish(sys, tool)?;
+                let next = estimator.model(sys, tool)?;
+                sim.publish_model(next);
+                errors.add(&model, &still, &next);
+                model = next;
+                still = sys.tool_stiffness(tool)?;
+                Ok(())
             })();
             if let Err(e) = step {
                 error = Some(e);
@@ -292,7 +376,7 @@ pub fn run_haptic_loop(
                 break;
             }
             let now = Instant::now();
-            peak_force = peak_force.max(sys.tool_wrench(tool).map_or(0.0, |w| w.force.norm()));
+            peak_force = peak_force.max(model.force.norm());
             compute.push((now - t0).as_secs_f64());
             if let Some(p) = last_publish {
                 periods.push((now - p).as_secs_f64());
@@ -308,25 +392,35 @@ pub fn run_haptic_loop(
                     buf.extend_from_slice(x);
                 });
             }
-            // real time: the next iteration starts at the next device period
-            sleep_until(at(iterations as f64));
+            // real time at most: the next iteration starts at the next device period
+            let next = at(iterations as f64);
+            if next > Instant::now() {
+                std::thread::sleep(next - Instant::now());
+            }
         }
-        let (forces, mut gaps, fresh) = device_thread.join().expect("the device thread does not panic");
+        let mut log = device_thread.join().expect("the device thread does not panic");
         let snapshots = display_thread.join().expect("the display thread does not panic");
         if let Some(e) = error {
             return Err(e);
         }
         let wall = start.elapsed().as_secs_f64();
+        let [model_error, hold_error, still_error] = errors.percentiles(peak_force);
         Ok(HapticReport {
             ticks,
             iterations,
             substeps,
             sim_time: sys.time(),
+            wall,
             compute: Percentiles::of(&mut compute),
             period: Percentiles::of(&mut periods),
-            device_period: Percentiles::of(&mut gaps),
-            fresh: fresh as f64 / ticks.max(1) as f64,
-            forces,
+            device_period: Percentiles::of(&mut log.gaps),
+            device_work: Percentiles::of(&mut log.work),
+            staleness: Percentiles::of(&mut log.ages),
+            fresh: log.fresh as f64 / ticks.max(1) as f64,
+            model_error,
+            hold_error,
+            still_error,
+            forces: log.forces.iter().map(|&(t, _, f)| (t, f)).collect(),
             peak_force,
             snapshots,
             snapshot_rate: snapshots as f64 / wall,

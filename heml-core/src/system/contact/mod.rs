@@ -22,8 +22,11 @@
 //! Each step reports, per tool, the [`Wrench`] the tissue applies to it
 //! ([`System::tool_wrench`]), separately from the support reactions. A device thread
 //! exchanges poses and wrenches with the simulation thread through [`haptic_link`],
-//! without locks (latency: one step); [`run_haptic_loop`] runs a device, the
-//! simulation and a display on three threads that way and measures the loop.
+//! without locks (latency: one step), and the simulation publishes with each
+//! state a [`LocalModel`] of the force around the tool's pose, which the device
+//! renders at its own rate without waiting for the next state;
+//! [`run_haptic_loop`] runs a device, the simulation and a display on three
+//! threads that way and measures the loop.
 //!
 //! ```
 //! use heml_core::mesh::generate::{box_mesh, HexSplit};
@@ -80,16 +83,20 @@
 //! [`System::tool_wrench`]: crate::system::System::tool_wrench
 
 mod api;
+mod device;
 mod handoff;
 mod haptic;
 mod law;
+mod local_model;
 mod set;
 mod shape;
 mod tool;
 
+pub use device::{run_device, DeviceLog};
 pub use handoff::{haptic_link, latest, DeviceEnd, PoseSample, Publisher, Reader, SimulationEnd, WrenchSample};
 pub use haptic::{run_haptic_loop, HapticOptions, HapticReport, Palpation, Percentiles};
 pub use law::ContactLaw;
+pub use local_model::{LocalModel, StiffnessEstimator};
 pub use set::{Contact, ToolSet};
 pub use shape::ToolShape;
 pub use tool::{Tool, ToolId, Wrench};

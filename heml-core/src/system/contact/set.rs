@@ -184,6 +184,34 @@ impl ToolSet {
         }
     }
 
+    /// ∂F/∂t: the derivative of the contact force F on tool `id` (the tissue's push,
+    /// minus the sum of the nodal contact forces) with respect to the tool's
+    /// translation t, the tissue nodes at `x` held where they are and at rest — the
+    /// stiffness the tool feels over times too short for the tissue to move. Of the
+    /// contacts of the last force evaluation (call it right after one, before the
+    /// tool moves). Each active contact (force φ·n, φ = k·d − c·v_n > 0) adds
+    /// −(k n nᵀ − φ R (∂n/∂p) Rᵀ): the depth grows by n·δ when the tool moves by δ
+    /// and the normal turns with the tool ([`ToolShape::normal_derivative`], R the
+    /// tool's rotation); the dashpot adds nothing at rest. A clamped contact (φ = 0)
+    /// adds nothing: the one-sided derivative of a force that only pushes.
+    /// Symmetric. Not always negative semidefinite: the turning term φ/r·(I − n nᵀ)
+    /// is positive sideways (a ball on a point slides off), which is why a haptic
+    /// renderer projects it ([`super::LocalModel`]).
+    ///
+    /// [`ToolShape::normal_derivative`]: super::ToolShape::normal_derivative
+    pub fn translation_stiffness(&self, id: ToolId, x: &[Vec3]) -> Option<Matrix3<f64>> {
+        let s = self.slot(id)?;
+        let pose = s.tool.pose;
+        let inv = pose.inverse();
+        let r = Matrix3::from_columns(&[pose.rotate(Vec3::x()), pose.rotate(Vec3::y()), pose.rotate(Vec3::z())]);
+        let mut k = Matrix3::zeros();
+        for c in self.contacts.iter().filter(|c| c.tool == id && c.stiffness > 0.0) {
+            let turn = r * s.tool.shape.normal_derivative(inv.apply(x[c.node])) * r.transpose();
+            k -= c.normal * c.normal.transpose() * c.stiffness - turn * c.force.norm();
+        }
+        Some(k)
+    }
+
     /// Adds the contact tangent (k + c·c_v)·n nᵀ of every active contact to the
     /// nodal 3×3 diagonal blocks; `cv` = ∂v/∂x of the scheme (0 for a static solve).
     /// The curvature term k·d·∂n/∂x is left out: it is negative (it would make the

@@ -3,6 +3,7 @@
 
 use crate::error::{HemlError, Result};
 use crate::Vec3;
+use nalgebra::Matrix3;
 
 /// The solid a rigid tool occupies, in the tool's own frame (its [`Pose`] places it).
 ///
@@ -71,6 +72,34 @@ impl ToolShape {
         let r = r2.sqrt();
         let n = if r > 0.0 { q / r } else { fallback };
         Some((radius - r, n))
+    }
+
+    /// ∂n/∂p: how the outward normal at the local point `p` (inside the tool) turns
+    /// as `p` moves, in the tool's frame. The depth's gradient is −n (d = radius − r
+    /// for the round shapes, −z for the half-space), so these two give the contact
+    /// force's derivative ([`super::ToolSet::translation_stiffness`]). Sphere and
+    /// spherical cap: (I − n nᵀ)/r, r the distance to the centre; beside a capsule's
+    /// shaft the axial motion does not turn n: (I − n nᵀ − z zᵀ)/r; half-space and
+    /// the (measure-zero) centre or axis: 0.
+    pub fn normal_derivative(&self, p: Vec3) -> Matrix3<f64> {
+        let (q, axial) = match *self {
+            ToolShape::HalfSpace => return Matrix3::zeros(),
+            ToolShape::Sphere { .. } => (p, false),
+            ToolShape::Capsule { half_length, .. } => {
+                let zc = p.z.clamp(-half_length, half_length);
+                (p - Vec3::new(0.0, 0.0, zc), p.z.abs() < half_length)
+            }
+        };
+        let r = q.norm();
+        if r == 0.0 {
+            return Matrix3::zeros();
+        }
+        let n = q / r;
+        let mut m = Matrix3::identity() - n * n.transpose();
+        if axial {
+            m -= Vec3::z() * Vec3::z().transpose();
+        }
+        m / r
     }
 }
 
