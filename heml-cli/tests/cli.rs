@@ -152,7 +152,7 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
             "{out}"
         );
     }
-    assert_eq!(out.matches("compute per iteration: p50").count(), 2, "{out}");
+    assert_eq!(out.matches("sim iteration:  p50").count(), 2, "{out}");
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
         .args(["bench", "--haptic"])
         .env("HEML_MESHES", &dir)
