@@ -77,7 +77,7 @@ plane = { point = [0, 0, 0], normal = [1, 0, 0] }
 [loads]
 gravity = [0, 0, -9.81]
 [solver]
-duration = 0.002
+duration = 0.05
 [output]
 vtu = false
 csv = false
