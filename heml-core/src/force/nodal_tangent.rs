@@ -49,23 +49,7 @@ impl<M: InvariantLaw> NodalVolumeTangent<M> {
     pub fn new(iso: Box<dyn TangentOperator>, nodal: NodalVolume<M>, project: bool) -> Self {
         let tets: Vec<[u32; 4]> = nodal.live_tets().collect();
         let n = iso.n_nodes();
-        let mut start = vec![0usize; n + 1];
-        for t in &tets {
-            for &i in t {
-                start[i as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut inc = vec![(0u32, 0u8); start[n]];
-        for (k, t) in tets.iter().enumerate() {
-            for (a, &i) in t.iter().enumerate() {
-                inc[fill[i as usize]] = (k as u32, a as u8);
-                fill[i as usize] += 1;
-            }
-        }
+        let (start, inc) = super::tangent::node_incidence(&tets, n);
         NodalVolumeTangent {
             iso,
             nodal,

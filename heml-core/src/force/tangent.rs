@@ -424,27 +424,35 @@ pub struct TangentField<H: TetHessian> {
     inc: Vec<(u32, u8)>,
 }
 
+/// The tets around each node of `tets` (over `n` nodes), in compressed rows: node i's
+/// incidences are `inc[start[i]..start[i + 1]]`, each (tet index in `tets`, local
+/// vertex), in tet order — what a node-ordered, thread-count-independent gather needs.
+pub(super) fn node_incidence(tets: &[[u32; 4]], n: usize) -> (Vec<usize>, Vec<(u32, u8)>) {
+    let mut start = vec![0usize; n + 1];
+    for t in tets {
+        for &i in t {
+            start[i as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut inc = vec![(0u32, 0u8); start[n]];
+    for (k, t) in tets.iter().enumerate() {
+        for (a, &i) in t.iter().enumerate() {
+            inc[fill[i as usize]] = (k as u32, a as u8);
+            fill[i as usize] += 1;
+        }
+    }
+    (start, inc)
+}
+
 impl<H: TetHessian> TangentField<H> {
     pub(super) fn build(kernel: H, mesh: &TetMesh, ids: Vec<usize>, project: bool) -> Self {
         let tets: Vec<[u32; 4]> = ids.iter().map(|&t| mesh.tets()[t]).collect();
         let n = mesh.n_nodes();
-        let mut start = vec![0usize; n + 1];
-        for t in &tets {
-            for &i in t {
-                start[i as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut inc = vec![(0u32, 0u8); start[n]];
-        for (k, t) in tets.iter().enumerate() {
-            for (a, &i) in t.iter().enumerate() {
-                inc[fill[i as usize]] = (k as u32, a as u8);
-                fill[i as usize] += 1;
-            }
-        }
+        let (start, inc) = node_incidence(&tets, n);
         TangentField {
             kernel,
             k: vec![TetStiffness::zeros(); tets.len()],
