@@ -273,7 +273,8 @@ pub struct Status {
     pub step_ms_p99: f64,
     /// Integrator name.
     pub integrator: String,
-    /// Time step (s).
+    /// Time step (s): the one the last step took (an explicit integrator steps
+    /// adaptively, so the next step may differ).
     pub dt: f64,
     /// Smallest volume ratio J over the tets.
     pub min_j: f64,
