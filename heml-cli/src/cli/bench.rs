@@ -159,10 +159,32 @@ pub(super) fn median_ratio(a: &[f64], b: &[f64]) -> f64 {
     median(&mut r)
 }
 
+/// `law` with the benchmark's fibres when it has fibre families: two families in the
+/// x–y plane at ±30° from x (x is stretched by the benchmark's deformation, so the
+/// fibres work in tension, exponential included).
+fn with_fibres(
+    law: Box<dyn heml::heml_core::Material>,
+    mesh: &heml::TetMesh,
+) -> heml::Result<Box<dyn heml::heml_core::Material>> {
+    if law.fibre_families() == 0 {
+        return Ok(law);
+    }
+    let (s, c) = 30f64.to_radians().sin_cos();
+    let dirs = [heml::Vec3::new(c, s, 0.0), heml::Vec3::new(c, -s, 0.0)];
+    law.with_fibres(std::sync::Arc::new(heml::heml_core::fibres::Fibres::uniform(
+        mesh.n_tets(),
+        &dirs,
+    )?))
+}
+
 /// `heml bench --scaling`: the cost per tet as the mesh grows, and on a shuffled
 /// mesh, all fields timed round-robin in one run so that machine noise hits them
 /// alike.
-fn scaling(args: &BenchArgs, law: &dyn Material, pool: &rayon::ThreadPool) -> heml::Result<()> {
+fn scaling(
+    args: &BenchArgs,
+    law: &dyn Fn() -> heml::Result<Box<dyn Material>>,
+    pool: &rayon::ThreadPool,
+) -> heml::Result<()> {
     let opts = ForceOptions::default();
     let mut cases: Vec<(String, TetMesh)> = Vec::new();
     for n in [10_000, 100_000, 1_000_000] {
@@ -174,7 +196,7 @@ fn scaling(args: &BenchArgs, law: &dyn Material, pool: &rayon::ThreadPool) -> he
     cases.push(("same, shuffled, order kept".into(), big));
     let fields: Vec<Box<dyn ElasticForces>> = cases
         .iter()
-        .map(|(_, m)| law.force_field(m, None, &opts))
+        .map(|(_, m)| with_fibres(law()?, m)?.force_field(m, None, &opts))
         .collect::<heml::Result<_>>()?;
     let xs: Vec<Vec<Vec3>> = cases.iter().map(|(_, m)| deformed(m)).collect();
     let timed: Vec<Case> = fields
@@ -214,21 +236,6 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     let params = tissue_params(entry)?;
     let law = entry.instantiate(&params)?;
     let opts = ForceOptions::default();
-    // fibre laws: two families in the x–y plane at ±30° from x (x is stretched by the
-    // benchmark's deformation, so the fibres work in tension, exponential included)
-    let with_fibres = |law: Box<dyn heml::heml_core::Material>,
-                       mesh: &heml::TetMesh|
-     -> heml::Result<Box<dyn heml::heml_core::Material>> {
-        if law.fibre_families() == 0 {
-            return Ok(law);
-        }
-        let (s, c) = 30f64.to_radians().sin_cos();
-        let dirs = [heml::Vec3::new(c, s, 0.0), heml::Vec3::new(c, -s, 0.0)];
-        law.with_fibres(std::sync::Arc::new(heml::heml_core::fibres::Fibres::uniform(
-            mesh.n_tets(),
-            &dirs,
-        )?))
-    };
     let threads = args
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -253,7 +260,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             entry.name,
             SimdLevel::detect().name()
         );
-        return scaling(&args, law.as_ref(), &pool(threads)?);
+        return scaling(&args, &|| entry.instantiate(&params), &pool(threads)?);
     }
     let mut mesh = match &args.mesh {
         Some(path) => heml::io::read_mesh(path)?.0,
