@@ -225,3 +225,50 @@ fn helical_fibres_build() {
         .collect();
     assert!(field.energy(&x).unwrap() > 0.0);
 }
+
+/// Directions typed as expressions of the rest position give the same body as the
+/// helix they spell out, and an expression without a direction somewhere, or with
+/// a name that is not a coordinate, is an error naming the tet or the name.
+#[test]
+fn fibre_expressions_spell_out_a_helix() {
+    let dir = std::env::temp_dir();
+    link();
+    let hgo = SCENE.replace("ti_mooney_rivlin", "holzapfel_gasser_ogden").replace(
+        "c1 = 1e3, c2 = 200.0, c3 = 500.0, c4 = 8.0, kappa = 5e4",
+        "c = 3e3, k1 = 2e3, k2 = 0.8, dispersion = 0.1, kappa = 5e4",
+    );
+    let energy = |fibres: &str| -> Result<f64> {
+        let sim = Scene::from_toml_str(&hgo.replace("FIBRES", fibres), &dir)?.build()?;
+        let x: Vec<Vec3> = sim
+            .system
+            .positions()
+            .iter()
+            .map(|p| Vec3::new(1.05 * p.x, p.y - 0.1 * p.z, 1.1 * p.z))
+            .collect();
+        sim.system.regions()[0].field().energy(&x)
+    };
+    let helix = energy("fibre_helix = { axis = [0.0, 0.0, 1.0], origin = [-1.0, 0.5, 0.0], angle = 30.0 }").unwrap();
+    // circumferential θ = z × r / |r| about the axis through (−1, 0.5), ± 30° towards z
+    let r = "sqrt((x + 1)^2 + (y - 0.5)^2)";
+    let family = |sign: &str| {
+        format!("[\"-(y - 0.5) * cos(PI / 6) / {r}\", \"(x + 1) * cos(PI / 6) / {r}\", \"{sign}sin(PI / 6)\"]")
+    };
+    let typed = energy(&format!("fibre_expressions = [{}, {}]", family(""), family("-"))).unwrap();
+    // the directions differ from the helix's by a few roundings (cos, sin, sqrt):
+    // 48 tets' energies summed, 1e-12 relative
+    assert!(
+        helix > 0.0 && (typed - helix).abs() <= 1e-12 * helix,
+        "{typed} vs {helix}"
+    );
+
+    let err = |fibres: &str| energy(fibres).unwrap_err().to_string();
+    let e = err("fibre_expressions = [[\"0 * x\", \"0\", \"0\"], [\"0\", \"0\", \"1\"]]");
+    assert!(
+        e.contains("family 1: the direction at tet 0") && e.contains("has no direction"),
+        "{e}"
+    );
+    let e = err("fibre_expressions = [[\"theta\", \"0\", \"0\"], [\"0\", \"0\", \"1\"]]");
+    assert!(e.contains("unknown variable 'theta'"), "{e}");
+    let e = err("fibre_expressions = [[\"1\", \"0\", \"0\"]]");
+    assert!(e.contains("1 direction(s); law holzapfel_gasser_ogden has 2"), "{e}");
+}

@@ -1,7 +1,9 @@
 //! The fibre directions of a `[[material]]` with a fibre law: a constant per
-//! region (`fibres`) or a helix around an axis (`fibre_helix`), evaluated at every
-//! tet's rest centroid (only the region's tets are read by its force field).
+//! region (`fibres`), a helix around an axis (`fibre_helix`), expressions of the
+//! position (`fibre_expressions`), evaluated at every tet's rest centroid (only the
+//! region's tets are read by its force field), or cell fields of the mesh file.
 
+use super::fibre_expr::DirectionExpr;
 use super::schema::MaterialSpec;
 use crate::error::{HemlError, Result};
 use crate::fibres::Fibres;
@@ -11,30 +13,34 @@ use crate::Vec3;
 /// The fibres of material `m` on `mesh`, checked against the law's `families`
 /// (0: not a fibre law, which may not have fibre keys).
 pub(super) fn material_fibres(m: &MaterialSpec, mesh: &TetMesh, families: usize) -> Result<Option<Fibres>> {
-    let given =
-        usize::from(m.fibres.is_some()) + usize::from(m.fibre_helix.is_some()) + usize::from(m.fibre_fields.is_some());
+    let given = usize::from(m.fibres.is_some())
+        + usize::from(m.fibre_helix.is_some())
+        + usize::from(m.fibre_fields.is_some())
+        + usize::from(m.fibre_expressions.is_some());
     let invalid = |msg: String| Err(HemlError::Invalid(msg));
     match (families, given) {
         (0, 0) => return Ok(None),
         (0, _) => {
             return invalid(format!(
-                "law {} is not a fibre law: remove `fibres`/`fibre_helix`/`fibre_fields`",
+                "law {} is not a fibre law: remove `fibres`/`fibre_helix`/`fibre_fields`/`fibre_expressions`",
                 m.law
             ))
         }
         (_, 0) => {
             return invalid(format!(
                 "law {} is fibre-reinforced ({families} famil{}): give its directions with \
-                 `fibres = [[x, y, z]{}]`, `fibre_helix = {{ axis = [..], angle = deg }}` or \
-                 `fibre_fields = [\"<cell field>\"]`",
+                 `fibres = [[x, y, z]{}]`, `fibre_helix = {{ axis = [..], angle = deg }}`, \
+                 `fibre_fields = [\"<cell field>\"]` or `fibre_expressions = [[\"-y\", \"x\", \"0\"]]`",
                 m.law,
                 if families == 1 { "y" } else { "ies" },
                 if families == 2 { ", [x, y, z]" } else { "" }
             ))
         }
         (_, 1) => {}
-        _ => return invalid("give one of `fibres`, `fibre_helix` and `fibre_fields`".into()),
+        _ => return invalid("give one of `fibres`, `fibre_helix`, `fibre_fields` and `fibre_expressions`".into()),
     }
+    // tets outside a tagged region are never read: any unit vector will do there
+    let outside = |t: usize| m.tag.is_some_and(|tag| mesh.tags()[t] != tag);
     if let Some(names) = &m.fibre_fields {
         if names.len() < families || names.len() > 2 {
             return invalid(format!(
@@ -55,8 +61,6 @@ pub(super) fn material_fibres(m: &MaterialSpec, mesh: &TetMesh, families: usize)
                 })
             })
             .collect::<Result<Vec<_>>>()?;
-        // tets outside a tagged region are never read: any unit vector will do there
-        let outside = |t: usize| m.tag.is_some_and(|tag| mesh.tags()[t] != tag);
         let dirs = (0..mesh.n_tets())
             .map(|t| {
                 if outside(t) {
@@ -69,6 +73,56 @@ pub(super) fn material_fibres(m: &MaterialSpec, mesh: &TetMesh, families: usize)
         return Fibres::new(names.len(), dirs)
             .map(Some)
             .map_err(|e| HemlError::Invalid(format!("`fibre_fields` {names:?}: {e}")));
+    }
+    if let Some(texts) = &m.fibre_expressions {
+        if texts.len() < families || texts.len() > 2 {
+            return invalid(format!(
+                "`fibre_expressions` has {} direction(s); law {} has {families} fibre famil{}",
+                texts.len(),
+                m.law,
+                if families == 1 { "y" } else { "ies" }
+            ));
+        }
+        let exprs = texts
+            .iter()
+            .enumerate()
+            .map(|(k, t)| DirectionExpr::parse(t, k))
+            .collect::<Result<Vec<_>>>()?;
+        let dirs = (0..mesh.n_tets())
+            .map(|t| {
+                if outside(t) {
+                    return Ok([Vec3::x(); 2]);
+                }
+                let p = mesh.tet_points(t);
+                let c = (p[0] + p[1] + p[2] + p[3]) / 4.0;
+                let mut d = [Vec3::x(); 2];
+                for (k, e) in exprs.iter().enumerate() {
+                    let a = Vec3::from(e.at([c.x, c.y, c.z]).map_err(|why| {
+                        HemlError::Invalid(format!(
+                            "`fibre_expressions`, family {}: at tet {t} (centroid {:?} m): {why}",
+                            k + 1,
+                            [c.x, c.y, c.z]
+                        ))
+                    })?);
+                    let n = a.norm();
+                    if !(n > 0.0 && n.is_finite()) {
+                        return Err(HemlError::Invalid(format!(
+                            "`fibre_expressions`, family {}: the direction at tet {t} (centroid {:?} m) is {:?}, \
+                             which has no direction",
+                            k + 1,
+                            [c.x, c.y, c.z],
+                            [a.x, a.y, a.z]
+                        )));
+                    }
+                    d[k] = a / n;
+                }
+                if exprs.len() == 1 {
+                    d[1] = d[0];
+                }
+                Ok(d)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        return Fibres::new(exprs.len(), dirs).map(Some);
     }
     if let Some(dirs) = &m.fibres {
         if dirs.len() < families || dirs.len() > 2 {

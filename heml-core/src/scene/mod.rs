@@ -41,6 +41,7 @@
 //! translations are in metres, on the converted mesh.
 
 mod build;
+mod fibre_expr;
 mod fibres;
 mod output;
 mod parse;

@@ -154,6 +154,10 @@ pub struct MaterialSpec {
     /// Fibre laws: the names of one or two 3-component cell fields of the mesh file
     /// (VTU `CellData`) holding each tet's fibre directions.
     pub fibre_fields: Option<Vec<String>>,
+    /// Fibre laws: one or two directions as expressions of the rest centroid's
+    /// coordinates x, y, z (metres), one `[ax, ay, az]` triple per family, e.g.
+    /// `[["-y", "x", "0"]]` (circumferential about z); normalised per tet.
+    pub fibre_expressions: Option<Vec<[String; 3]>>,
 }
 
 /// `fibre_helix = { axis = [0, 0, 1], origin = [0, 0, 0], angle = 40 }`.
