@@ -135,7 +135,7 @@ impl Mesh {
     /// `pyvista.PolyData.from_regular_faces(*mesh.surface())`).
     #[pyo3(signature = (padded = false))]
     fn surface<'py>(&self, py: Python<'py>, padded: bool) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyAny>)> {
-        let s = BoundarySurface::of_mesh(self.inner.tets());
+        let s = BoundarySurface::of_tet_mesh(&self.inner);
         surface_tuple(py, &s, self.inner.nodes(), padded)
     }
 
