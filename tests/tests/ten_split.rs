@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 
 use heml::force::Assembly;
-use heml::law::LawKind;
+use heml::law::{LawKind, Volumetric};
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::mesh::surface::BoundarySurface;
 use heml::nalgebra::Matrix3;
@@ -110,9 +110,22 @@ fn forces_and_tangent_are_derivatives_of_the_energy() {
     let mesh = ten_box([2, 1, 1]);
     let x = random_deformation(&mut rng, &mesh, 0.8, 1.25, 0.03);
     let opts = ForceOptions::default();
-    for name in ["neo_hookean", "mooney_rivlin", "mass_spring"] {
+    // the nodal (anti-locking) volumetric term averages J over ω-weighted volumes
+    let cases: [(&str, bool); 4] = [
+        ("neo_hookean", false),
+        ("mooney_rivlin", false),
+        ("mass_spring", false),
+        ("neo_hookean", true),
+    ];
+    for (name, nodal) in cases {
         let entry = heml::find_material(name).unwrap();
         let law = entry.instantiate(&sample_params(entry, &mut rng)).unwrap();
+        let law = if nodal {
+            law.with_volumetric(Volumetric::nodal()).unwrap()
+        } else {
+            law
+        };
+        let name = format!("{name}{}", if nodal { " (nodal volumetric)" } else { "" });
         let field = law.force_field(&mesh, None, &opts).unwrap();
         let (_, f) = field.forces(&x).unwrap();
         // h = 1e-6 on coordinates ~1: truncation ~h² and round-off ~ε·E/h, both
@@ -243,4 +256,37 @@ fn ten_split_shear_response_is_mirror_symmetric_and_five_is_not() {
     // ten: the Newton solve to 1e-12 of the load leaves ~1e-11 relative in u
     assert!(ten < 1e-9, "ten split: asymmetry {ten:e}");
     assert!(five > 1e-3, "five split: asymmetry {five:e}");
+}
+
+/// A cut on a ten-split body removes tets of both covers; the surface stays cover
+/// 0's boundary of what is left (as if extracted afresh), closed and outward.
+#[test]
+fn cutting_keeps_the_surface_of_cover_zero() {
+    let mesh = ten_box([3, 2, 2]);
+    let mut sys = System::builder(mesh.clone())
+        .material("neo_hookean", Params::from([("E", 1e4), ("nu", 0.3)]))
+        .unwrap()
+        .density(1000.0)
+        .build()
+        .unwrap();
+    // the tets (of both covers) with a corner on the far x face: a slab of cells
+    let slab: Vec<usize> = (0..mesh.n_tets())
+        .filter(|&t| mesh.tet_points(t).iter().any(|p| p.x > SIZE[0] - 1e-9))
+        .collect();
+    assert!(slab.iter().any(|&t| mesh.tet_cover(t) == 1));
+    sys.remove_tets(&slab).unwrap();
+    let fresh = BoundarySurface::of_tets(mesh.tets(), |t| sys.tet_alive(t) && mesh.tet_cover(t) == 0);
+    let sorted = |s: &BoundarySurface| {
+        let mut v = s.triangles().to_vec();
+        v.sort_unstable();
+        v
+    };
+    assert_eq!(sorted(sys.surface()), sorted(&fresh));
+    assert!(sys.surface().is_closed());
+    // two of the three cell layers along x are left
+    let left = SIZE.iter().product::<f64>() * 2.0 / 3.0;
+    assert!((sys.surface().enclosed_volume(mesh.nodes()) - left).abs() < 1e-14);
+    // and the removed tets took their weighted mass with them (round-off of the
+    // subtraction, relative 1e-13)
+    assert!((sys.total_mass() - 1000.0 * left).abs() < 1e-13 * 1000.0 * left, "{}", sys.total_mass());
 }
