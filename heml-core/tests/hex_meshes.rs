@@ -61,7 +61,9 @@ fn assert_conforming_box(mesh: &TetMesh, what: &str) {
     // overlapping covers (the ten split): the surface is cover 0's, and the faces
     // used once are each cover's boundary, one copy per cover
     let surface = BoundarySurface::of_tet_mesh(mesh);
-    let covers = mesh.overlap().map_or(1, |o| 1 + *o.covers.iter().max().unwrap_or(&0) as usize);
+    let covers = mesh
+        .overlap()
+        .map_or(1, |o| 1 + *o.covers.iter().max().unwrap_or(&0) as usize);
     assert!(surface.is_closed(), "{what}: boundary not closed");
     assert_eq!(surface.n_triangles() * covers, boundary, "{what}");
     let area: f64 = (0..surface.n_triangles())

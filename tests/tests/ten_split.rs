@@ -36,7 +36,11 @@ fn mass_is_the_bodys_and_the_mean_of_the_two_cuttings() {
         .build()
         .unwrap();
     let m = sys.total_mass();
-    assert!((m - rho * volume).abs() <= 1e-14 * rho * volume, "{m} vs {}", rho * volume);
+    assert!(
+        (m - rho * volume).abs() <= 1e-14 * rho * volume,
+        "{m} vs {}",
+        rho * volume
+    );
     // node by node: the ten split's lumped mass is the half-sum of the masses of the
     // five split and of its mirror (cover 1 alone); the covers' tets are the first and
     // last five of each cell
@@ -71,7 +75,11 @@ fn homogeneous_energy_is_volume_times_density_on_every_path() {
     let opts = ForceOptions::default();
     let mut checked = 0;
     for entry in heml::materials_list() {
-        let law = fibred(entry.instantiate(&sample_params(entry, &mut rng)).unwrap(), &mesh, &mut rng);
+        let law = fibred(
+            entry.instantiate(&sample_params(entry, &mut rng)).unwrap(),
+            &mesh,
+            &mut rng,
+        );
         if law.kind() == LawKind::Link || law.fibre_families() > 0 {
             // no continuum density (link laws); fibre laws read per-tet directions
             continue;
@@ -95,7 +103,12 @@ fn homogeneous_energy_is_volume_times_density_on_every_path() {
                 .position(|p| (0..3).all(|k| p[k] > 1e-9 && p[k] < SIZE[k] - 1e-9))
                 .unwrap();
             let scale = max_norm(&forces);
-            assert!(forces[interior].norm() <= 1e-12 * scale, "{}: {}", entry.name, forces[interior]);
+            assert!(
+                forces[interior].norm() <= 1e-12 * scale,
+                "{}: {}",
+                entry.name,
+                forces[interior]
+            );
         }
         checked += 1;
     }
@@ -134,7 +147,11 @@ fn forces_and_tangent_are_derivatives_of_the_energy() {
         let g = fd_gradient(&x, 1e-6, |y| field.energy(y).unwrap());
         let minus_g: Vec<Vec3> = g.iter().map(|v| -v).collect();
         let scale = max_norm(&f);
-        assert!(max_diff(&f, &minus_g) <= 1e-7 * scale, "{name}: {:e}", max_diff(&f, &minus_g) / scale);
+        assert!(
+            max_diff(&f, &minus_g) <= 1e-7 * scale,
+            "{name}: {:e}",
+            max_diff(&f, &minus_g) / scale
+        );
         // tangent: K u = −(f(x + h u) − f(x − h u)) / 2h
         let mut k = law.tangent(&mesh, None, &opts, false).unwrap().unwrap();
         k.update(&x).unwrap();
@@ -149,7 +166,11 @@ fn forces_and_tangent_are_derivatives_of_the_energy() {
         let (fp, fm) = (shifted(h), shifted(-h));
         let fd: Vec<Vec3> = fp.iter().zip(&fm).map(|(a, b)| -(a - b) / (2.0 * h)).collect();
         let scale = max_norm(&fd);
-        assert!(max_diff(&ku, &fd) <= 1e-6 * scale, "{name}: K u off by {:e}", max_diff(&ku, &fd) / scale);
+        assert!(
+            max_diff(&ku, &fd) <= 1e-6 * scale,
+            "{name}: K u off by {:e}",
+            max_diff(&ku, &fd) / scale
+        );
     }
 }
 
@@ -162,7 +183,11 @@ fn heml_equals_p1_on_a_ten_split_box() {
     let opts = ForceOptions::default();
     let mut compared = 0;
     for entry in heml::materials_list() {
-        let law = fibred(entry.instantiate(&sample_params(entry, &mut rng)).unwrap(), &mesh, &mut rng);
+        let law = fibred(
+            entry.instantiate(&sample_params(entry, &mut rng)).unwrap(),
+            &mesh,
+            &mut rng,
+        );
         let Some(fem) = law.fem_field(&mesh, None, &opts).unwrap() else {
             continue;
         };
@@ -175,7 +200,12 @@ fn heml_equals_p1_on_a_ten_split_box() {
         // relative for strains of a few percent; Ogden's eigenvalues cost another 1e2
         let rel = if law.kind() == LawKind::Stretch { 1e-10 } else { 1e-12 };
         let scale = max_norm(&ff);
-        assert!(max_diff(&fh, &ff) <= rel * scale, "{}: {:e}", entry.name, max_diff(&fh, &ff) / scale);
+        assert!(
+            max_diff(&fh, &ff) <= rel * scale,
+            "{}: {:e}",
+            entry.name,
+            max_diff(&fh, &ff) / scale
+        );
         assert!((eh - ef).abs() <= rel * ef.abs(), "{}: {eh} vs {ef}", entry.name);
         compared += 1;
     }
@@ -288,5 +318,9 @@ fn cutting_keeps_the_surface_of_cover_zero() {
     assert!((sys.surface().enclosed_volume(mesh.nodes()) - left).abs() < 1e-14);
     // and the removed tets took their weighted mass with them (round-off of the
     // subtraction, relative 1e-13)
-    assert!((sys.total_mass() - 1000.0 * left).abs() < 1e-13 * 1000.0 * left, "{}", sys.total_mass());
+    assert!(
+        (sys.total_mass() - 1000.0 * left).abs() < 1e-13 * 1000.0 * left,
+        "{}",
+        sys.total_mass()
+    );
 }

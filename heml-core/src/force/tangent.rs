@@ -463,7 +463,9 @@ impl<H: TetHessian> TangentField<H> {
             project,
             start,
             inc,
-            weights: mesh.overlap().map(|_| ids.iter().map(|&t| mesh.tet_weight(t)).collect()),
+            weights: mesh
+                .overlap()
+                .map(|_| ids.iter().map(|&t| mesh.tet_weight(t)).collect()),
             ids,
         }
     }

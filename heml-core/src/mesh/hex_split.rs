@@ -109,11 +109,18 @@ pub fn split_hexes(nodes: &mut Vec<Vec3>, hexes: &[[usize; 8]], split: HexSplit)
         HexSplit::Five | HexSplit::Ten => {
             let colour = two_colouring(n, hexes, split)?;
             // `ten`: cover 1 is the mirror cutting, central tet on the colour-0 corners
-            let covers: &[bool] = if split == HexSplit::Ten { &[true, false] } else { &[true] };
+            let covers: &[bool] = if split == HexSplit::Ten {
+                &[true, false]
+            } else {
+                &[true]
+            };
             for hex in hexes {
                 let c = corners(hex);
                 for &centre_colour in covers {
-                    let central: Vec<usize> = (0..8).filter(|&b| colour[c[b]] == centre_colour).map(|b| c[b]).collect();
+                    let central: Vec<usize> = (0..8)
+                        .filter(|&b| colour[c[b]] == centre_colour)
+                        .map(|b| c[b])
+                        .collect();
                     tets.push([central[0], central[1], central[2], central[3]]);
                     for b in (0..8).filter(|&b| colour[c[b]] != centre_colour) {
                         tets.push([c[b], c[b ^ 1], c[b ^ 2], c[b ^ 4]]);
