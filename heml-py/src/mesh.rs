@@ -135,7 +135,7 @@ impl Mesh {
     /// `pyvista.PolyData.from_regular_faces(*mesh.surface())`).
     #[pyo3(signature = (padded = false))]
     fn surface<'py>(&self, py: Python<'py>, padded: bool) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyAny>)> {
-        let s = BoundarySurface::of_mesh(self.inner.tets());
+        let s = BoundarySurface::of_tet_mesh(&self.inner);
         surface_tuple(py, &s, self.inner.nodes(), padded)
     }
 
@@ -235,13 +235,15 @@ pub fn write_mesh(path: PathBuf, mesh: &Mesh) -> PyResult<()> {
 }
 
 /// A box `size` (m, 3 numbers) cut into `cells` (3 integers) hexahedra, each split
-/// into tets: `split` is `"five"`, `"six"` (default) or `"twentyfour"`.
+/// into tets: `split` is `"five"`, `"six"` (default), `"ten"` (both five-tet
+/// cuttings, each tet weighted ½) or `"twentyfour"`.
 #[pyfunction]
 #[pyo3(signature = (size, cells, split = "six"))]
 pub fn box_mesh(size: [f64; 3], cells: [usize; 3], split: &str) -> PyResult<Mesh> {
     let split = match split {
         "five" => HexSplit::Five,
         "six" => HexSplit::Six,
+        "ten" => HexSplit::Ten,
         "twentyfour" => HexSplit::TwentyFour,
         other => {
             return Err(PyValueError::new_err(format!(

@@ -139,7 +139,7 @@ impl<K: Formulation> ElasticForces for TetField<K> {
                 .live_positions()
                 .map(|k| {
                     let (rest, lane, p) = self.tet_at(k, x);
-                    self.kernel.tet_energy(rest, lane, &p)
+                    self.layout.weight(k) * self.kernel.tet_energy(rest, lane, &p)
                 })
                 .sum())
         } else {
@@ -181,7 +181,8 @@ impl<K: Formulation> ElasticForces for TetField<K> {
             .ok_or_else(|| HemlError::Invalid(format!("tet {t} is not in this force field")))?;
         let (rest, lane, p) = self.tet_at(k, x);
         let mut f = [Vec3::zeros(); 4];
-        self.kernel.tet(rest, lane, &p, |a, fa| f[a] += fa);
+        let w = self.layout.weight(k);
+        self.kernel.tet(rest, lane, &p, |a, fa| f[a] += w * fa);
         Ok(f)
     }
 

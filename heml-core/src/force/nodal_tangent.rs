@@ -36,6 +36,8 @@ pub struct NodalVolumeTangent<M> {
     /// Incidences of node i: `inc[start[i]..start[i + 1]]`, as (tet, corner).
     start: Vec<usize>,
     inc: Vec<(u32, u8)>,
+    /// Integration weight ω_t of each tet (1 unless tets overlap): v_a = ¼ Σ ω_t vol_t.
+    weights: Vec<f64>,
     /// Corner positions of each tet at the last update.
     pts: Vec<[Vec3; 4]>,
     /// p̄_t = ¼ Σ_{a∈t} (1 − β) U′(J_a) (0 when projecting).
@@ -50,8 +52,10 @@ impl<M: InvariantLaw> NodalVolumeTangent<M> {
         let tets: Vec<[u32; 4]> = nodal.live_tets().collect();
         let n = iso.n_nodes();
         let (start, inc) = super::tangent::node_incidence(&tets, n);
+        let weights = nodal.live_weights().collect();
         NodalVolumeTangent {
             iso,
+            weights,
             nodal,
             project,
             pts: vec![[Vec3::zeros(); 4]; tets.len()],
@@ -63,16 +67,17 @@ impl<M: InvariantLaw> NodalVolumeTangent<M> {
         }
     }
 
-    /// ∇v_a·u summed by node: s_t = ∇vol_t·u per tet, then ¼ Σ_{t∋a} s_t.
+    /// ∇v_a·u summed by node: s_t = ω_t ∇vol_t·u per tet, then ¼ Σ_{t∋a} s_t.
     fn nodal_rates(&self, u: &[Vec3]) -> Vec<f64> {
         let s: Vec<f64> = self
             .pts
             .par_iter()
             .zip(&self.tets)
+            .zip(&self.weights)
             .with_min_len(MIN_LEN)
-            .map(|(p, t)| {
+            .map(|((p, t), w)| {
                 let g = volume_gradient(p);
-                (0..4).map(|a| g[a].dot(&u[t[a] as usize])).sum()
+                w * (0..4).map(|a| g[a].dot(&u[t[a] as usize])).sum::<f64>()
             })
             .collect();
         (0..self.kn.len())
@@ -149,6 +154,10 @@ impl<M: InvariantLaw> TangentOperator for NodalVolumeTangent<M> {
                 t.iter().map(|&i| p[i as usize]).sum::<f64>() * 0.25
             };
         }
+        // the tet's weight on its volume terms: ω_t ∇vol_t and ω_t p̄_t ∇²vol_t
+        for (pb, w) in self.pbar.iter_mut().zip(&self.weights) {
+            *pb *= w;
+        }
         Ok(())
     }
 
@@ -174,7 +183,8 @@ impl<M: InvariantLaw> TangentOperator for NodalVolumeTangent<M> {
             .tets
             .par_iter()
             .with_min_len(MIN_LEN)
-            .map(|t| t.iter().map(|&b| self.kn[b as usize] * dv[b as usize]).sum::<f64>() * 0.25)
+            .zip(&self.weights)
+            .map(|(t, w)| w * t.iter().map(|&b| self.kn[b as usize] * dv[b as usize]).sum::<f64>() * 0.25)
             .collect();
         y.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(i, yi)| {
             for &(k, a) in &self.inc[self.start[i]..self.start[i + 1]] {
@@ -207,10 +217,11 @@ impl<M: InvariantLaw> TangentOperator for NodalVolumeTangent<M> {
             ring.clear();
             for &(k, _) in &self.inc[self.start[b]..self.start[b + 1]] {
                 let g = volume_gradient(&self.pts[k as usize]);
+                let q = 0.25 * self.weights[k as usize];
                 for (a, &i) in self.tets[k as usize].iter().enumerate() {
                     match ring.iter_mut().find(|e| e.0 == i) {
-                        Some(e) => e.1 += g[a] * 0.25,
-                        None => ring.push((i, g[a] * 0.25)),
+                        Some(e) => e.1 += g[a] * q,
+                        None => ring.push((i, g[a] * q)),
                     }
                 }
             }

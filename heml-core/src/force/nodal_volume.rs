@@ -223,6 +223,12 @@ impl<M: InvariantLaw> NodalVolume<M> {
         self.layout.live_positions().map(|k| self.tets[k])
     }
 
+    /// Integration weights of the live tets, in field order (1 unless the mesh's
+    /// tets overlap, see [`crate::mesh::overlap`]).
+    pub(crate) fn live_weights(&self) -> impl Iterator<Item = f64> + '_ {
+        self.layout.live_positions().map(|k| self.layout.weight(k))
+    }
+
     /// Lumped current volumes v_a at `x` (the driver's sum, deterministic).
     fn lumped(&self, x: &[Vec3], parallel: bool) -> Vec<f64> {
         let mut buf = vec![Vec3::zeros(); x.len()];
@@ -290,7 +296,8 @@ impl<M: InvariantLaw> NodalVolume<M> {
         let idx = self.tets[k];
         let pbar = idx.iter().map(|&i| p[i as usize]).sum::<f64>() / 4.0;
         let g = volume_gradient(&idx.map(|i| x[i as usize]));
-        Ok(g.map(|ga| -ga * pbar))
+        let w = self.layout.weight(k);
+        Ok(g.map(|ga| -ga * (w * pbar)))
     }
 
     /// Removes the tets `tets` (global ids) and recomputes the lumped rest volumes.

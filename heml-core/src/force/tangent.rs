@@ -422,6 +422,8 @@ pub struct TangentField<H: TetHessian> {
     /// Incidences of node i: `inc[start[i]..start[i + 1]]`, as (tet, local vertex).
     start: Vec<usize>,
     inc: Vec<(u32, u8)>,
+    /// Weight of each tet when the mesh's tets overlap (`crate::mesh::overlap`).
+    weights: Option<Vec<f64>>,
 }
 
 /// The tets around each node of `tets` (over `n` nodes), in compressed rows: node i's
@@ -456,12 +458,15 @@ impl<H: TetHessian> TangentField<H> {
         TangentField {
             kernel,
             k: vec![TetStiffness::zeros(); tets.len()],
-            ids,
             tets,
             n_nodes: n,
             project,
             start,
             inc,
+            weights: mesh
+                .overlap()
+                .map(|_| ids.iter().map(|&t| mesh.tet_weight(t)).collect()),
+            ids,
         }
     }
 }
@@ -524,7 +529,7 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
 
     fn update(&mut self, x: &[Vec3]) -> Result<()> {
         check_sizes(self.n_nodes, x, None)?;
-        let (kernel, tets, project) = (&self.kernel, &self.tets, self.project);
+        let (kernel, tets, project, weights) = (&self.kernel, &self.tets, self.project, &self.weights);
         self.k.par_iter_mut().enumerate().with_min_len(64).for_each(|(k, out)| {
             let p = tets[k].map(|i| x[i as usize]);
             *out = if project {
@@ -532,6 +537,9 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
             } else {
                 kernel.hessian(k, &p)
             };
+            if let Some(w) = weights {
+                *out *= w[k];
+            }
         });
         if let Some(k) = self.k.iter().position(|m| !m.iter().all(|c| c.is_finite())) {
             return Err(HemlError::Numerical(format!(

@@ -54,6 +54,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{HemlError, Result};
 use crate::mesh::generate::HexSplit;
 use crate::mesh::hex_split::split_hexes;
+use crate::mesh::overlap::Overlap;
 use crate::mesh::TetMesh;
 use crate::Vec3;
 
@@ -81,6 +82,9 @@ pub struct MeshData {
     pub cell_vectors: BTreeMap<String, Vec<Vec3>>,
     /// The same fields per hexahedron, copied to its tets when it is split.
     pub hex_vectors: BTreeMap<String, Vec<Vec3>>,
+    /// Per-tet weights and covers when tets overlap (hexahedra split
+    /// [`HexSplit::Ten`]); `None`: every tet weight 1, cover 0.
+    pub overlap: Option<crate::mesh::overlap::Overlap>,
 }
 
 impl MeshData {
@@ -93,7 +97,10 @@ impl MeshData {
         for (name, v) in self.cell_vectors {
             mesh = mesh.with_cell_vectors(name, v)?;
         }
-        Ok(mesh)
+        match self.overlap {
+            Some(o) => mesh.with_overlap(o),
+            None => Ok(mesh),
+        }
     }
 
     /// Replaces the hexahedra by tets cut with `split` (conforming between
@@ -131,6 +138,16 @@ impl MeshData {
         let tags = std::mem::take(&mut self.hex_tags);
         let tets = split_hexes(&mut self.nodes, &hexes, split).map_err(HemlError::Mesh)?;
         let per = split.tets_per_cell();
+        if let Some(o) = split.overlap(hexes.len()) {
+            let n = self.tets.len();
+            let all = self.overlap.get_or_insert_with(|| Overlap::plain(n));
+            all.weights.extend(o.weights);
+            all.covers.extend(o.covers);
+        } else if let Some(all) = &mut self.overlap {
+            let more = Overlap::plain(tets.len());
+            all.weights.extend(more.weights);
+            all.covers.extend(more.covers);
+        }
         self.tets.extend(tets);
         self.tags.extend(tags.iter().flat_map(|&t| std::iter::repeat_n(t, per)));
         for (name, v) in std::mem::take(&mut self.hex_vectors) {
@@ -148,6 +165,7 @@ impl MeshData {
             nodes: mesh.nodes().to_vec(),
             tets: mesh.tets().iter().map(|t| t.map(|i| i as usize)).collect(),
             tags: mesh.tags().to_vec(),
+            overlap: mesh.overlap().cloned(),
             ..MeshData::default()
         }
     }

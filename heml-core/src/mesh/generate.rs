@@ -28,26 +28,41 @@ pub enum HexSplit {
     /// its centre, and each triangle is joined to the cell centre. The result is
     /// invariant under all symmetries of the cube (reflections included) and
     /// conforming, because face centres are shared by the two cells of a face.
-    ///
-    /// The method's symmetric 10-tet split (both 5-tet cuttings of a cell,
-    /// overlapping, each tet at half stiffness and half mass) is not offered: it
-    /// needs a per-tet weight on the rest volume that the mesh, the rest data and
-    /// the force kernels do not carry yet. This is the smallest split with the full
-    /// cube symmetry that needs no weights.
+    /// The smallest symmetric split that needs no weights (compare [`HexSplit::Ten`]).
     TwentyFour,
+    /// The method's symmetric ten-tet split: both [`HexSplit::Five`] cuttings of every
+    /// cell, the two mirror images (the central tet on one or the other set of
+    /// alternating corners), all ten tets kept and each weighted ½ in stiffness and
+    /// mass (see [`super::overlap`]). Each cutting alone is a conforming tiling
+    /// (cover 0: the `five` split's, cover 1: its mirror), so the half-sum integrates
+    /// a homogeneous deformation exactly and has no preferred face diagonal; the
+    /// boundary surface is cover 0's. No added nodes, twice the tets of `five`.
+    Ten,
 }
 
 impl HexSplit {
     /// Every split, for tests and parameter sweeps.
-    pub const ALL: [HexSplit; 3] = [HexSplit::Five, HexSplit::Six, HexSplit::TwentyFour];
+    pub const ALL: [HexSplit; 4] = [HexSplit::Five, HexSplit::Six, HexSplit::TwentyFour, HexSplit::Ten];
 
     /// Number of tets per hexahedral cell.
     pub fn tets_per_cell(self) -> usize {
         match self {
             HexSplit::Five => 5,
             HexSplit::Six => 6,
+            HexSplit::Ten => 10,
             HexSplit::TwentyFour => 24,
         }
+    }
+
+    /// The weights and covers of `n_cells` cells cut by this split, the tets of
+    /// each cell in the order the split makes them: `None` unless the split's tets
+    /// overlap ([`HexSplit::Ten`]: the first five tets of a cell are cover 0, the
+    /// last five cover 1, all of weight ½).
+    pub fn overlap(self, n_cells: usize) -> Option<super::overlap::Overlap> {
+        (self == HexSplit::Ten).then(|| super::overlap::Overlap {
+            weights: vec![0.5; n_cells * 10],
+            covers: (0..n_cells).flat_map(|_| [0, 0, 0, 0, 0, 1, 1, 1, 1, 1]).collect(),
+        })
     }
 }
 
@@ -203,17 +218,22 @@ pub fn box_mesh_limited(size: [f64; 3], cells: [usize; 3], split: HexSplit, max_
                             tets.push([corner(0), corner(a), corner(a | b), corner(7)]);
                         }
                     }
-                    HexSplit::Five => {
+                    HexSplit::Five | HexSplit::Ten => {
                         // Global parity of corner b is (i+j+k + popcount(b)) % 2. The central
                         // tet joins the 4 odd corners; each even corner gets a corner tet with
                         // its 3 neighbours. Every face diagonal thus joins the two globally
-                        // odd corners of the face, the same from both cells sharing it.
-                        let parity = (i + j + k) % 2;
-                        let odd = |b: usize| (parity + (b as u32).count_ones() as usize) % 2 == 1;
-                        let central: Vec<usize> = (0..8).filter(|&b| odd(b)).map(corner).collect();
-                        tets.push([central[0], central[1], central[2], central[3]]);
-                        for b in (0..8).filter(|&b| !odd(b)) {
-                            tets.push([corner(b), corner(b ^ 1), corner(b ^ 2), corner(b ^ 4)]);
+                        // odd corners of the face, the same from both cells sharing it. `ten`
+                        // adds the mirror cutting (central tet on the even corners), itself
+                        // conforming by the same argument.
+                        let covers = if split == HexSplit::Ten { 2 } else { 1 };
+                        for cover in 0..covers {
+                            let parity = (i + j + k + cover) % 2;
+                            let odd = |b: usize| (parity + (b as u32).count_ones() as usize) % 2 == 1;
+                            let central: Vec<usize> = (0..8).filter(|&b| odd(b)).map(corner).collect();
+                            tets.push([central[0], central[1], central[2], central[3]]);
+                            for b in (0..8).filter(|&b| !odd(b)) {
+                                tets.push([corner(b), corner(b ^ 1), corner(b ^ 2), corner(b ^ 4)]);
+                            }
                         }
                     }
                     HexSplit::TwentyFour => {
@@ -266,7 +286,11 @@ pub fn box_mesh_limited(size: [f64; 3], cells: [usize; 3], split: HexSplit, max_
             t.swap(2, 3);
         }
     }
-    TetMesh::new(nodes, tets)
+    let mesh = TetMesh::new(nodes, tets)?;
+    match split.overlap(nx * ny * nz) {
+        Some(o) => mesh.with_overlap(o),
+        None => Ok(mesh),
+    }
 }
 
 /// A beam `[0, length] × [0, width] × [0, height]` along x with
@@ -450,13 +474,14 @@ mod tests {
         assert!(beam(0.0, 1.0, 1.0, 3, HexSplit::Six).is_err());
         assert!(box_mesh([1.0, f64::NAN, 1.0], [1, 1, 1], HexSplit::Six).is_err());
         assert_eq!(serde_json_like(HexSplit::TwentyFour), "twentyfour");
+        assert_eq!(serde_json_like(HexSplit::Ten), "ten");
     }
 
     /// The serde name of a variant, found by deserializing candidate names with
     /// `serde::de::value` (no format crate needed).
     fn serde_json_like(split: HexSplit) -> &'static str {
         use serde::de::{value::StrDeserializer, Deserialize};
-        for name in ["five", "six", "twentyfour"] {
+        for name in ["five", "six", "ten", "twentyfour"] {
             let d: StrDeserializer<'_, serde::de::value::Error> = StrDeserializer::new(name);
             if HexSplit::deserialize(d).ok() == Some(split) {
                 return name;

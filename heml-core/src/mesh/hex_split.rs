@@ -18,6 +18,10 @@
 //!   diagonal, from both sides. A structured grid is always 2-colourable; a mesh
 //!   whose edge graph has an odd cycle is not, and is refused with the hex where
 //!   the colouring fails (use `six`).
+//! * [`HexSplit::Ten`] — the same colouring, and both five-tet cuttings of each
+//!   hex: the first five tets (cover 0) as `five`, the last five (cover 1) its
+//!   mirror with the central tet on the colour-0 corners; each cover conforms on
+//!   its own. The tets overlap and weigh ½ each ([`HexSplit::overlap`]).
 //! * [`HexSplit::TwentyFour`] — a node at each face centre (shared by the two hexes
 //!   of the face) and one at the hex centre; each face is cut into four triangles
 //!   around its centre, each joined to the hex centre. Conforming without any
@@ -102,14 +106,25 @@ pub fn split_hexes(nodes: &mut Vec<Vec3>, hexes: &[[usize; 8]], split: HexSplit)
                 }
             }
         }
-        HexSplit::Five => {
-            let colour = two_colouring(n, hexes)?;
+        HexSplit::Five | HexSplit::Ten => {
+            let colour = two_colouring(n, hexes, split)?;
+            // `ten`: cover 1 is the mirror cutting, central tet on the colour-0 corners
+            let covers: &[bool] = if split == HexSplit::Ten {
+                &[true, false]
+            } else {
+                &[true]
+            };
             for hex in hexes {
                 let c = corners(hex);
-                let central: Vec<usize> = (0..8).filter(|&b| colour[c[b]]).map(|b| c[b]).collect();
-                tets.push([central[0], central[1], central[2], central[3]]);
-                for b in (0..8).filter(|&b| !colour[c[b]]) {
-                    tets.push([c[b], c[b ^ 1], c[b ^ 2], c[b ^ 4]]);
+                for &centre_colour in covers {
+                    let central: Vec<usize> = (0..8)
+                        .filter(|&b| colour[c[b]] == centre_colour)
+                        .map(|b| c[b])
+                        .collect();
+                    tets.push([central[0], central[1], central[2], central[3]]);
+                    for b in (0..8).filter(|&b| colour[c[b]] != centre_colour) {
+                        tets.push([c[b], c[b ^ 1], c[b ^ 2], c[b ^ 4]]);
+                    }
                 }
             }
         }
@@ -148,7 +163,7 @@ pub fn split_hexes(nodes: &mut Vec<Vec3>, hexes: &[[usize; 8]], split: HexSplit)
 /// A 2-colouring of the nodes along the hex edges (`true` = colour 1), by a
 /// union-find that keeps each node's parity relative to its root; an edge whose
 /// ends already have the same parity is an odd cycle, reported with its hex.
-fn two_colouring(n: usize, hexes: &[[usize; 8]]) -> Result<Vec<bool>, String> {
+fn two_colouring(n: usize, hexes: &[[usize; 8]], split: HexSplit) -> Result<Vec<bool>, String> {
     let mut parent: Vec<usize> = (0..n).collect();
     let mut parity = vec![false; n];
     // root of x and the parity of x relative to it, compressing the path
@@ -180,9 +195,10 @@ fn two_colouring(n: usize, hexes: &[[usize; 8]]) -> Result<Vec<bool>, String> {
                 if rx == ry {
                     if px == py {
                         return Err(format!(
-                            "hex_split = \"five\" needs the hex corners 2-coloured along the edges (as in a \
+                            "hex_split = \"{}\" needs the hex corners 2-coloured along the edges (as in a \
                              structured grid), but the edge {x}-{y} of hexahedron {h} closes an odd cycle; \
-                             use \"six\" or \"twentyfour\""
+                             use \"six\" or \"twentyfour\"",
+                            if split == HexSplit::Ten { "ten" } else { "five" }
                         ));
                     }
                 } else {
@@ -249,7 +265,8 @@ mod tests {
             for (h, chunk) in tets.chunks(split.tets_per_cell()).enumerate() {
                 // unit cubes: the tets of a hex sum to 1 (exact dyadic arithmetic for
                 // corners and centres at multiples of 1/2; 1e-14 for the sum's rounding)
-                let v: f64 = chunk.iter().map(|t| volume(&nodes, t)).sum();
+                let w = split.overlap(1).map_or(1.0, |o| o.weights[0]);
+                let v: f64 = chunk.iter().map(|t| w * volume(&nodes, t)).sum();
                 assert!((v - 1.0).abs() < 1e-14, "{split:?}: hex {h} volume {v}");
                 assert!(chunk.iter().all(|t| volume(&nodes, t) > 0.0), "{split:?}: hex {h}");
             }

@@ -3,6 +3,7 @@
 
 pub mod generate;
 pub mod hex_split;
+pub mod overlap;
 pub mod quality;
 pub mod reorder;
 pub mod surface;
@@ -26,6 +27,8 @@ pub struct TetMesh {
     /// Named 3-vector fields per tet read from the file's cell data (fibre
     /// directions, say), in tet order.
     cell_vectors: std::collections::BTreeMap<String, Vec<Vec3>>,
+    /// Per-tet weights and covers when tets overlap (see [`overlap`]).
+    overlap: Option<overlap::Overlap>,
 }
 
 impl TetMesh {
@@ -137,6 +140,7 @@ impl TetMesh {
             tags,
             reoriented,
             cell_vectors: Default::default(),
+            overlap: None,
         })
     }
 
@@ -171,21 +175,24 @@ impl TetMesh {
         self.tets[t].map(|i| self.nodes[i as usize])
     }
 
-    /// Rest volume of tet `t` (positive).
+    /// Rest volume of tet `t` (positive): its geometric volume, whatever its
+    /// weight (see [`TetMesh::weighted_volume`]).
     pub fn tet_volume(&self, t: usize) -> f64 {
         signed_six_volume(&self.nodes, &self.tets[t]) / 6.0
     }
 
-    /// Total rest volume.
+    /// Total rest volume of the body, Σ ω_k·Vol_k (overlapping tets count with
+    /// their weight ω, see [`overlap`]).
     pub fn total_volume(&self) -> f64 {
-        (0..self.n_tets()).map(|t| self.tet_volume(t)).sum()
+        (0..self.n_tets()).map(|t| self.weighted_volume(t)).sum()
     }
 
-    /// Lumped masses m_i = Σ ρ·Vol_k / 4 over the tets k around node i.
+    /// Lumped masses m_i = Σ ρ·ω_k·Vol_k / 4 over the tets k around node i
+    /// (ω_k = 1 unless tets overlap, see [`overlap`]).
     pub fn lumped_masses(&self, density: f64) -> Vec<f64> {
         let mut m = vec![0.0; self.n_nodes()];
         for t in 0..self.n_tets() {
-            let share = density * self.tet_volume(t) / 4.0;
+            let share = density * self.weighted_volume(t) / 4.0;
             for &i in &self.tets[t] {
                 m[i as usize] += share;
             }
@@ -231,6 +238,7 @@ impl TetMesh {
             .map_err(|e| HemlError::Invalid(format!("scaling the mesh by {factor:e}: {e}")))?;
         out.reoriented = self.reoriented;
         out.cell_vectors = self.cell_vectors.clone();
+        out.overlap = self.overlap.clone();
         Ok(out)
     }
 

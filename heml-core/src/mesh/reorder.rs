@@ -157,7 +157,8 @@ pub fn morton_node_order(mesh: &TetMesh) -> Permutation {
 
 impl TetMesh {
     /// The same mesh with nodes renumbered by `nodes` and tets reordered by `tets`
-    /// (e.g. [`morton_node_order`], [`morton_order`]); tags follow their tets.
+    /// (e.g. [`morton_node_order`], [`morton_order`]); tags, cell vectors and
+    /// weights follow their tets.
     /// Node `i` of `self` is node `nodes.old_to_new[i]` of the result.
     pub fn renumbered(&self, nodes: &Permutation, tets: &Permutation) -> Result<TetMesh> {
         if nodes.len() != self.n_nodes() || tets.len() != self.n_tets() {
@@ -176,6 +177,12 @@ impl TetMesh {
         let mut out = TetMesh::with_tags(new_nodes, new_tets, tets.apply(self.tags()))?;
         for (name, v) in self.cell_vectors() {
             out = out.with_cell_vectors(name.clone(), tets.apply(v))?;
+        }
+        if let Some(o) = self.overlap() {
+            out = out.with_overlap(super::overlap::Overlap {
+                weights: tets.apply(&o.weights),
+                covers: tets.apply(&o.covers),
+            })?;
         }
         Ok(out)
     }

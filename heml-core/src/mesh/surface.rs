@@ -40,6 +40,24 @@ impl BoundarySurface {
         Self::of_tets(tets, |_| true)
     }
 
+    /// Extracts the boundary of a mesh: of all its tets, or, when its tets overlap
+    /// (several covers of the body, e.g. [`super::generate::HexSplit::Ten`]), of the
+    /// tets of cover 0 alone, a conforming tiling whose boundary is a closed,
+    /// consistently oriented manifold (see [`super::overlap`]).
+    ///
+    /// ```
+    /// use heml_core::mesh::generate::{box_mesh, HexSplit};
+    /// use heml_core::mesh::surface::BoundarySurface;
+    /// let mesh = box_mesh([1.0, 1.0, 1.0], [2, 2, 2], HexSplit::Ten)?;
+    /// let s = BoundarySurface::of_tet_mesh(&mesh);
+    /// assert_eq!(s.n_triangles(), 48);
+    /// assert!(s.is_closed());
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    pub fn of_tet_mesh(mesh: &super::TetMesh) -> Self {
+        Self::of_tets(mesh.tets(), |t| mesh.tet_cover(t) == 0)
+    }
+
     /// Extracts the boundary of the tets for which `alive(t)` holds (e.g. the ones a
     /// cut left). Deterministic: triangles come sorted by owning tet, then by the
     /// local vertex they are opposite. Cost O(m log m) in the number of tets.

@@ -38,9 +38,10 @@ pub struct MeshSpec {
     pub renumber: bool,
     /// How the hexahedra of a mesh file are cut into tets at load: `"six"`
     /// (default, conforming on any hex mesh), `"five"` (needs corners 2-colourable
-    /// along the edges, as in a structured grid) or `"twentyfour"` (adds face and
-    /// cell centres, no preferred direction). Only for `file`: a generated mesh
-    /// has `generate.split`.
+    /// along the edges, as in a structured grid), `"ten"` (the same colouring, both
+    /// five-tet cuttings overlapping, each tet weighted ½: no preferred diagonal) or
+    /// `"twentyfour"` (adds face and cell centres, no preferred direction). Only for
+    /// `file`: a generated mesh has `generate.split`.
     pub hex_split: Option<crate::mesh::generate::HexSplit>,
 }
 
@@ -106,7 +107,8 @@ pub struct GenerateSpec {
     pub size: [f64; 3],
     /// Hexahedral cells: `[nx, ny, nz]`, or `[n]` along the length of a beam.
     pub cells: Vec<usize>,
-    /// Tets per cell: `five`, `six` (default) or `twentyfour`.
+    /// Tets per cell: `five`, `six` (default), `ten` (both five-tet cuttings, each
+    /// tet weighted ½) or `twentyfour`.
     #[serde(default)]
     pub split: HexSplit,
     /// Largest number of tets to generate (default

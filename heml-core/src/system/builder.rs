@@ -433,7 +433,7 @@ impl SystemBuilder {
             let field = spec.material.force_field(&mesh, Some(&tets), &self.opts)?;
             let mut in_region = vec![false; n];
             for &t in &tets {
-                let share = density * mesh.tet_volume(t) / 4.0;
+                let share = density * mesh.weighted_volume(t) / 4.0;
                 for &i in &mesh.tets()[t] {
                     mass[i as usize] += share;
                     in_region[i as usize] = true;
@@ -514,7 +514,7 @@ impl SystemBuilder {
                 force_options: self.opts,
                 length_scale: (hi - lo).norm(),
                 input_ids: self.input_ids,
-                surface: BoundarySurface::of_mesh(mesh.tets()),
+                surface: BoundarySurface::of_tet_mesh(&mesh),
                 mesh,
                 grasps: Grasps::default(),
                 revision: 0,

@@ -86,7 +86,7 @@ impl Recording {
         let dir = pvd.parent().unwrap_or(Path::new("."));
         let first_path = dir.join(&entries[0].1);
         let mesh = heml::io::vtu::read(&first_path)?.into_mesh()?;
-        let surface = BoundarySurface::of_mesh(mesh.tets());
+        let surface = BoundarySurface::of_tet_mesh(&mesh);
         let rest = mesh.nodes().to_vec();
         let nodes = surface.nodes().to_vec();
         let mut frames = Vec::with_capacity(entries.len());

@@ -67,7 +67,9 @@ impl Layout {
         for t in self.live_positions() {
             let idx = self.global_tet(t);
             let p = idx.map(|i| x[i as usize]);
-            energy += k.tet(t, &p, |a, fa| f[idx[a] as usize] += fa);
+            // the tet's weight (1 unless tets overlap; ×1 is exact)
+            let w = self.weight(t);
+            energy += w * k.tet(t, &p, |a, fa| f[idx[a] as usize] += w * fa);
         }
         Ok(energy)
     }
@@ -97,7 +99,8 @@ impl Layout {
             }
             bufs.f_mut().fill(Node4::default());
             let dead = &self.dead[blk.batch_start..blk.batch_end];
-            *e = run_block(isa, k, blk.batch_start, n_tets, dead, bufs);
+            let weights = self.weights.as_ref().map(|w| &w[blk.batch_start..blk.batch_end]);
+            *e = run_block(isa, k, blk.batch_start, n_tets, dead, weights, bufs);
         };
         if parallel {
             tasks.into_par_iter().with_max_len(1).for_each(one);
@@ -124,7 +127,15 @@ impl Layout {
 }
 
 /// Runs the batches of one block with the driver compiled for `isa`.
-fn run_block<K: BatchKernel>(isa: Isa, k: &K, batch0: usize, n_tets: usize, dead: &[u8], blk: BlockBuffers) -> f64 {
+fn run_block<K: BatchKernel>(
+    isa: Isa,
+    k: &K,
+    batch0: usize,
+    n_tets: usize,
+    dead: &[u8],
+    weights: Option<&[[f64; LANES]]>,
+    blk: BlockBuffers,
+) -> f64 {
     // separate references, so that the driver knows the buffers do not alias
     let (tets, x, f) = blk.into_parts();
     match isa {
@@ -132,13 +143,13 @@ fn run_block<K: BatchKernel>(isa: Isa, k: &K, batch0: usize, n_tets: usize, dead
         // SAFETY: the token proves the CPU has avx512f, avx512dq, avx512vl, avx2 and
         // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
         // of one `BlockBuffers`, so every index is below both buffers' length.
-        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, dead, tets, x, f) },
+        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, dead, weights, tets, x, f) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the token proves the CPU has avx2 and fma, the features
         // `block_avx2` enables; the indices as above.
-        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, dead, tets, x, f) },
+        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f) },
         // SAFETY: the indices as above (and the portable I/O checks them anyway).
-        _ => unsafe { block_body(Portable, k, batch0, n_tets, dead, tets, x, f) },
+        _ => unsafe { block_body(Portable, k, batch0, n_tets, dead, weights, tets, x, f) },
     }
 }
 
@@ -158,12 +169,13 @@ macro_rules! block_with_features {
             batch0: usize,
             n_tets: usize,
             dead: &[u8],
+            weights: Option<&[[f64; LANES]]>,
             tets: &[LocalBatch],
             x: &[Node4],
             f: &mut [Node4],
         ) -> f64 {
             // SAFETY: the caller's preconditions.
-            unsafe { block_body(io, k, batch0, n_tets, dead, tets, x, f) }
+            unsafe { block_body(io, k, batch0, n_tets, dead, weights, tets, x, f) }
         }
     };
 }
@@ -172,7 +184,9 @@ block_with_features!(block_avx2, "avx2,fma");
 
 /// The batches of one block: gather, kernel, scatter (all lanes at once for full
 /// batches, lane by lane for the padded last one and for batches with removed tets,
-/// whose lanes `dead` masks, one byte per batch of the block).
+/// whose lanes `dead` masks, one byte per batch of the block). With `weights` (one
+/// array per batch of the block, when the mesh's tets overlap) each lane's forces
+/// and energy are scaled by its tet's weight before the scatter.
 ///
 /// # Safety
 /// Every index of `tets` is below `x.len()` and `f.len()` (the parts of one
@@ -185,6 +199,7 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
     batch0: usize,
     n_tets: usize,
     dead: &[u8],
+    weights: Option<&[[f64; LANES]]>,
     tets: &[LocalBatch],
     x: &[Node4],
     f: &mut [Node4],
@@ -198,6 +213,19 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
         // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
         unsafe { io.gather(idx, x, &mut p) };
         k.batch(b, &p, &mut fl, &mut el);
+        if let Some(w) = weights {
+            let w = &w[bo];
+            for fa in fl.iter_mut() {
+                for fc in fa.iter_mut() {
+                    for l in 0..LANES {
+                        fc[l] *= w[l];
+                    }
+                }
+            }
+            for l in 0..LANES {
+                el[l] *= w[l];
+            }
+        }
         let count = (n_tets - b * LANES).min(LANES);
         let mask = dead[bo];
         if count == LANES && mask == 0 {

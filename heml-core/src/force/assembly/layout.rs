@@ -158,6 +158,9 @@ pub(crate) struct Layout {
     /// batch `b`; one byte per batch.
     pub(super) dead: Vec<u8>,
     n_dead: usize,
+    /// Integration weight of each field tet, one array per batch (padding lanes 1),
+    /// when the mesh's tets overlap (see [`crate::mesh::overlap`]); `None`: all 1.
+    pub(super) weights: Option<Vec<[f64; LANES]>>,
     /// The global ids of the live tets in field order, made on first use after a
     /// removal (`ids` itself when nothing was removed).
     live_ids: OnceLock<Vec<usize>>,
@@ -178,6 +181,7 @@ impl Clone for Layout {
             scratch: Mutex::new(Scratch::default()),
             dead: self.dead.clone(),
             n_dead: self.n_dead,
+            weights: self.weights.clone(),
             live_ids: self.live_ids.clone(),
             position_of: self.position_of.clone(),
         }
@@ -266,6 +270,13 @@ impl Layout {
                 *p += 1;
             }
         }
+        let weights = mesh.overlap().map(|_| {
+            let mut w = vec![[1.0; LANES]; n_batches];
+            for (k, &t) in ids.iter().enumerate() {
+                w[k / LANES][k % LANES] = mesh.tet_weight(t);
+            }
+            w
+        });
         Layout {
             n_nodes: mesh.n_nodes(),
             n_tets: n,
@@ -277,9 +288,17 @@ impl Layout {
             scratch: Mutex::new(Scratch::default()),
             dead: vec![0; n_batches],
             n_dead: 0,
+            weights,
             live_ids: OnceLock::new(),
             position_of: OnceLock::new(),
         }
+    }
+
+    /// Integration weight of field tet `k` (1 unless the mesh's tets overlap): the
+    /// factor on its energy and forces.
+    #[inline]
+    pub(crate) fn weight(&self, k: usize) -> f64 {
+        self.weights.as_ref().map_or(1.0, |w| w[k / LANES][k % LANES])
     }
 
     /// Whether field position `k` holds a live (not removed) tet.

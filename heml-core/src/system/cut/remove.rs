@@ -36,12 +36,17 @@ impl System {
                 region_of[t] = r as u32;
             }
         }
-        let topo = Topology::new(
+        let mut topo = Topology::new(
             self.model.mesh.tets(),
             self.model.mesh.n_nodes(),
             region_of,
             &self.model.surface,
         );
+        // overlapping covers: the surface stays cover 0's (`BoundarySurface::of_tet_mesh`)
+        if self.model.mesh.overlap().is_some() {
+            let mesh = &self.model.mesh;
+            topo.off_surface = (0..mesh.n_tets()).map(|t| mesh.tet_cover(t) != 0).collect();
+        }
         for r in &mut self.model.regions {
             // builds the field's id index (a field that cannot remove tets says so
             // when a cut reaches it)
@@ -222,7 +227,7 @@ impl System {
         for &t in &removed {
             topo.alive[t] = false;
             let density = self.model.regions[topo.region_of[t] as usize].density;
-            let share = density * self.model.mesh.tet_volume(t) / 4.0;
+            let share = density * self.model.mesh.weighted_volume(t) / 4.0;
             removed_mass += 4.0 * share;
             for &i in &self.model.mesh.tets()[t] {
                 let i = i as usize;

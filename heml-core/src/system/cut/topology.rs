@@ -34,6 +34,9 @@ pub(crate) struct Topology {
     slot: Vec<u32>,
     /// Surface triangles per node.
     surf_count: Vec<u32>,
+    /// Tets whose faces never join the surface (covers other than 0 of a mesh whose
+    /// tets overlap, see [`crate::mesh::overlap`]); empty when there are none.
+    pub(crate) off_surface: Vec<bool>,
 }
 
 impl Topology {
@@ -76,6 +79,7 @@ impl Topology {
             tet_count,
             slot,
             surf_count,
+            off_surface: Vec::new(),
         }
     }
 
@@ -102,7 +106,7 @@ impl Topology {
                     }
                 }
                 let u = self.neighbors[t][k];
-                if u != NONE && self.alive[u as usize] {
+                if u != NONE && self.alive[u as usize] && !self.off_surface.get(u as usize).copied().unwrap_or(false) {
                     let ku = self.neighbors[u as usize]
                         .iter()
                         .position(|&v| v == t as u32)

@@ -78,7 +78,7 @@ impl Stiffness {
                     }
                 }
                 g[0] = std::array::from_fn(|j| -(g[1][j] + g[2][j] + g[3][j]));
-                let vol = sys.model.mesh.tet_volume(t);
+                let vol = sys.model.mesh.weighted_volume(t);
                 for na in 0..4 {
                     for i in 0..3 {
                         let Some(row) = dofs.get(idx[na], i) else {
