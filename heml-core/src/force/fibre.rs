@@ -28,14 +28,14 @@ use super::assembly::{LaneForces, LanePoints, LANES};
 use super::field::{Formulation, TetField};
 use super::heml::{invariant_terms, scatter_links, signed_j, volume_terms};
 use super::kernel::TetKernel;
-use super::lanes::{add_volume_forces, link_forces, squared_lengths, volume_lanes};
+use super::lanes::{add_volume_forces, i2_lanes, link_forces, squared_lengths, volume_lanes};
 use super::p1::cofactor;
 use super::ForceOptions;
 use crate::error::Result;
 use crate::fibres::Fibres;
 use crate::law::{i4_index, FibreDerivs, FibreLaw, FIBRE_VARS};
 use crate::mesh::TetMesh;
-use crate::rest::{b_from_vtr, d_of_lengths, edge_vectors, i2_terms, rest_edge_matrix, RestTet};
+use crate::rest::{b_from_vtr, d_of_lengths, edge_vectors, rest_edge_matrix, RestTet};
 use crate::Vec3;
 use nalgebra::Matrix3;
 use std::sync::Arc;
@@ -372,20 +372,12 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
             }
         }
         q[0] = i1;
-        let mut ml = [[0.0; L]; 6];
-        if M::USES_I2 {
-            for l in 0..L {
-                let vtr: [f64; 6] = std::array::from_fn(|e| r.vtr[e][l]);
-                let le: [f64; 6] = std::array::from_fn(|e| len[e][l]);
-                let (tr_c2, m) = i2_terms(&vtr, &le);
-                for e in 0..6 {
-                    ml[e][l] = m[e];
-                }
-                q[1][l] = 0.5 * (i1[l] * i1[l] - tr_c2);
-            }
+        let (i2, ml) = if M::USES_I2 {
+            i2_lanes(&r.vtr, &len, &i1)
         } else {
-            q[1] = [0.0; L];
-        }
+            ([0.0; L], [[0.0; L]; 6])
+        };
+        q[1] = i2;
         // c4_k = edge_form(b_k, b_k) and I4_k = c4_k·l; I5_k and its l-gradient
         let mut c4 = [[[0.0; L]; 6]; 2];
         let mut g5 = [[[0.0; L]; 6]; 2];

@@ -142,3 +142,25 @@ pub(crate) fn add_volume_forces(cr: &[[[f64; LANES]; 3]; 3], wj: &[f64; LANES], 
         }
     }
 }
+
+/// I2 = ½(I1² − tr C²) and Mtr·l (`[edge][lane]`) of a batch's tets from their rest
+/// traces `vtr`, squared lengths `len` and I1 (through [`crate::rest::i2_terms`],
+/// no `Mtr` stored). Shared by the invariant and fibre batch kernels.
+#[inline(always)]
+pub(crate) fn i2_lanes(
+    vtr: &[[f64; LANES]; 6],
+    len: &[[f64; LANES]; 6],
+    i1: &[f64; LANES],
+) -> ([f64; LANES], [[f64; LANES]; 6]) {
+    let (mut i2, mut ml) = ([0.0; LANES], [[0.0; LANES]; 6]);
+    for l in 0..LANES {
+        let v: [f64; 6] = std::array::from_fn(|e| vtr[e][l]);
+        let le: [f64; 6] = std::array::from_fn(|e| len[e][l]);
+        let (tr_c2, m) = crate::rest::i2_terms(&v, &le);
+        for e in 0..6 {
+            ml[e][l] = m[e];
+        }
+        i2[l] = 0.5 * (i1[l] * i1[l] - tr_c2);
+    }
+    (i2, ml)
+}
