@@ -1,4 +1,3 @@
-use heml_core::force::fastmath;
 use heml_core::law::{
     MaterialInfo, Moduli, OpCount, ParamInfo, SmallStrain, StretchDerivs, StretchLaw, StretchSecond, STRETCH_PAIRS,
 };
@@ -176,22 +175,15 @@ impl Ogden {
 
 impl StretchLaw for Ogden {
     const INVERSION_FIX: bool = true;
-    /// Counted for three terms without the extension: four `ln` (the stretches,
-    /// J), three `exp` per term, a handful of products per term.
+    /// Counted for three terms: per term four `powf` (three stretches, J), a handful
+    /// of products; plus ln J.
     const OPS: OpCount = OpCount {
-        add: 24,
-        mul: 36,
-        div: 7,
+        add: 20,
+        mul: 40,
+        div: 4,
         func: 13,
     };
 
-    /// One `ln` per squared stretch (and of J), one `exp` per stretch and term:
-    /// f·e_i^a = exp(a·ln e_i + b·ln J) with a = α/2, b = −α/3 (the isochoric
-    /// λ̄_i^α), so ∂/∂e_i = a·(that)/e_i and ∂/∂J = b·(that)/J; below J0 the
-    /// Taylor polynomial f of J^b multiplies e_i^a = exp(a·ln e_i). The branch-free
-    /// `ln`/`exp` of `fastmath` (≤ 2 ulp): 4 `ln` + 9 `exp` for three terms, where
-    /// `powf` per stretch and term cost 12 `powf` (each an `ln` and an `exp`).
-    #[allow(clippy::needless_range_loop)]
     fn dw(&self, e: [f64; 3], j: f64, ext: Option<f64>) -> StretchDerivs {
         let [u, u1, _] = self.volumetric(j, ext);
         let mut out = StretchDerivs {
@@ -199,38 +191,17 @@ impl StretchLaw for Ogden {
             de: [0.0; 3],
             dj: u1,
         };
-        // explicit element-wise code, not `[f64; 3]::map`: its closures were not
-        // inlined (measured: a third of the Ogden kernel's time in `try_map`)
-        let le = [fastmath::ln(e[0]), fastmath::ln(e[1]), fastmath::ln(e[2])];
-        let inv_e = [1.0 / e[0], 1.0 / e[1], 1.0 / e[2]];
-        let lj = fastmath::ln(j);
         for (mu, alpha) in self.terms() {
-            let (a, b, c) = (0.5 * alpha, -alpha / 3.0, mu / alpha);
-            // t_i = f(J)·e_i^a, and f'(J)·Σ_i e_i^a
-            let mut t = [0.0; 3];
-            let dfs = match ext {
-                None => {
-                    let blj = b * lj;
-                    for i in 0..3 {
-                        t[i] = fastmath::exp(a * le[i] + blj);
-                    }
-                    b / j * (t[0] + t[1] + t[2])
-                }
-                Some(_) => {
-                    let [f, f1, _] = Self::jpow(alpha, j, ext);
-                    let mut s = 0.0;
-                    for i in 0..3 {
-                        let ea = fastmath::exp(a * le[i]);
-                        s += ea;
-                        t[i] = f * ea;
-                    }
-                    f1 * s
-                }
-            };
-            out.w += c * (t[0] + t[1] + t[2] - 3.0);
-            out.dj += c * dfs;
-            for i in 0..3 {
-                out.de[i] += 0.5 * mu * t[i] * inv_e[i];
+            let a = 0.5 * alpha;
+            let [f, f1, _] = Self::jpow(alpha, j, ext);
+            // e^(a−1), then e^a = e·e^(a−1)
+            let pm = e.map(|x| x.powf(a - 1.0));
+            let s: f64 = (0..3).map(|i| e[i] * pm[i]).sum();
+            let c = mu / alpha;
+            out.w += c * (f * s - 3.0);
+            out.dj += c * f1 * s;
+            for (de, p) in out.de.iter_mut().zip(pm) {
+                *de += 0.5 * mu * f * p;
             }
         }
         out
