@@ -280,6 +280,21 @@ pub trait FibreLaw: MaterialInfo {
     fn dw_ext(&self, q: &[f64; FIBRE_VARS], j0: f64) -> FibreDerivs;
     /// The Taylor extension's second derivatives.
     fn d2w_ext(&self, q: &[f64; FIBRE_VARS], j0: f64) -> [[f64; FIBRE_VARS]; FIBRE_VARS];
+
+    /// [`Self::dw`] with the branch-free `ln`/`exp`/`powf` of
+    /// [`crate::force::fastmath`] (equal to round-off), so that the batch kernel's
+    /// loop over the lanes of a batch of tets vectorises, as
+    /// [`InvariantLaw::dw_fast`]. `#[heml::material]` generates it; the default
+    /// falls back to [`Self::dw`].
+    #[inline(always)]
+    fn dw_fast(&self, q: &[f64; FIBRE_VARS]) -> FibreDerivs {
+        self.dw(q)
+    }
+    /// [`Self::dw_ext`] with the fast functions (see [`Self::dw_fast`]).
+    #[inline(always)]
+    fn dw_ext_fast(&self, q: &[f64; FIBRE_VARS], j0: f64) -> FibreDerivs {
+        self.dw_ext(q, j0)
+    }
 }
 
 /// The rest state of a fibre law with parameter values `values`: the energy at

@@ -1,7 +1,9 @@
 //! Fibre laws: an energy that names a fibre invariant (`I4`, `I5`, `I4bar`, … of
 //! one or two families) implements `FibreLaw` over the seven variables
 //! (I1, I2, J, I4_1, I5_1, I4_2, I5_2) instead of `InvariantLaw`: value,
-//! gradient and 7×7 Hessian, and their J0 extension, all from the one graph.
+//! gradient and 7×7 Hessian, their J0 extension, and the value and gradient with
+//! the vectorisable fast functions (`dw_fast`, for the batch kernel), all from the
+//! one graph.
 
 use crate::emit_law::allows;
 use crate::expr::{Graph, Id, Var};
@@ -120,7 +122,28 @@ fn fns(core: &TokenStream, k: &FibreKernels, names: &Names, d: &FibreDerivatives
         #[inline]
         fn #fn_d2w(&self, #args) -> [[f64; 7]; 7] { #un #lets [#(#rows),*] }
     };
-    quote!(#w_fn #dw_fn #d2w_fn)
+
+    // the value and gradient again with the vectorisable ln/exp/powf, for the
+    // batch kernel's loop over lanes (`max` and its step are selects already)
+    let fast = Names {
+        params: names.params,
+        receiver: None,
+        fast: Some(core),
+    };
+    let roots = d.value_and_grad();
+    let (args, un) = unpack(g, &roots, ext);
+    let b = straight_line::block(g, &fast, &roots);
+    let (lets, o) = (b.lets, &b.outputs);
+    let (w, grad) = (&o[0], &o[1..]);
+    let fn_fast = quote::format_ident!("dw{}_fast", sfx);
+    let fast_fn = quote! {
+        #[inline(always)]
+        fn #fn_fast(&self, #args) -> #core::law::FibreDerivs {
+            #un #lets
+            #core::law::FibreDerivs { w: #w, d: [#(#grad),*] }
+        }
+    };
+    quote!(#w_fn #dw_fn #d2w_fn #fast_fn)
 }
 
 /// `impl FibreLaw`.
@@ -143,6 +166,10 @@ pub fn fibre_law(core: &TokenStream, decl: &crate::attr::Declaration, k: &FibreK
             #[inline]
             fn d2w_ext(&self, q: &[f64; 7], _j0: f64) -> [[f64; 7]; 7] {
                 <Self as #core::law::FibreLaw>::d2w(self, q)
+            }
+            #[inline(always)]
+            fn dw_ext_fast(&self, q: &[f64; 7], _j0: f64) -> #core::law::FibreDerivs {
+                <Self as #core::law::FibreLaw>::dw_fast(self, q)
             }
         },
     };

@@ -246,6 +246,7 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
             ));
         }
     }
+    super::fibre_tube::run(opts.quick, report)?;
     report.notes.push(format!(
         "unit cube, {cells}^3 cells x 6 tets; along: stretches {along:?} (compression switches the fibres off); \
          across: {across:?}; HGO {HGO:?}; TI-MR {TIMR:?}"

@@ -34,6 +34,7 @@
 mod cantilever;
 mod energy;
 mod equivalence;
+mod fibre_tube;
 mod fibres;
 pub mod fixtures;
 mod inversion;
@@ -232,7 +233,7 @@ pub const CASES: &[CaseInfo] = &[
     },
     CaseInfo {
         name: "fibres",
-        title: "uniaxial cube along/across the fibres vs closed forms (Holzapfel-Gasser-Ogden, TI Mooney-Rivlin)",
+        title: "uniaxial cube along/across the fibres vs closed forms (Holzapfel-Gasser-Ogden, TI Mooney-Rivlin); HGO tube with helical fibres inflated by pressure vs a 1D reference",
         run: fibres::run,
     },
     CaseInfo {

@@ -14,7 +14,12 @@
 //! the same law from F with P = ∂Ψ/∂F, ∂I4/∂F = 2F a⊗a and
 //! ∂I5/∂F = 2F(Ca⊗a + a⊗Ca).
 //!
-//! The batch kernel runs the plain kernel lane by lane (equal to the bit).
+//! The batch kernel ([`FibreKernel`]'s `batch`) runs the same steps over the
+//! [`LANES`] tets of a batch at once, structure of arrays, like the invariant
+//! laws' kernel: the law's `dw_fast` (branch-free `ln`/`exp`/`powf`, `max` as a
+//! select) in a loop over lanes the compiler vectorises. The rest data per tet is
+//! the volume, `vtr` and b_k (13 numbers); c4_k = edge_form(b_k, b_k) is formed in
+//! the kernel, cheaper than streaming it from memory.
 
 // The kernels index fixed-size arrays in lock-step on purpose.
 #![allow(clippy::needless_range_loop)]
@@ -23,6 +28,7 @@ use super::assembly::{LaneForces, LanePoints, LANES};
 use super::field::{Formulation, TetField};
 use super::heml::{invariant_terms, scatter_links, signed_j, volume_terms};
 use super::kernel::TetKernel;
+use super::lanes::{add_volume_forces, i2_lanes, link_forces, squared_lengths, volume_lanes};
 use super::p1::cofactor;
 use super::ForceOptions;
 use crate::error::Result;
@@ -94,13 +100,6 @@ impl FibreTet {
             b,
         }
     }
-
-    const PAD: FibreTet = FibreTet {
-        vol: 1.0,
-        vtr: [0.0; 6],
-        c4: [[0.0; 6]; 2],
-        b: [[0.0; 3]; 2],
-    };
 }
 
 /// What a fibre tet's energy depends on, at the current edge vectors: the variables
@@ -182,11 +181,28 @@ pub struct FibreKernel<M: FibreLaw> {
 
 impl<M: FibreLaw> Formulation for FibreKernel<M> {}
 
-/// Rest data of `LANES` tets (array of structures: the batch kernel is the plain
-/// kernel per lane).
+/// Rest data of `LANES` tets, structure of arrays: volume, `vtr` and b_k = V⁻¹a_k
+/// (the c4_k of [`FibreTet`] are formed from b_k where needed).
 #[derive(Debug, Clone, Copy)]
 pub struct FibreBatch {
-    tets: [FibreTet; LANES],
+    vol: [f64; LANES],
+    vtr: [[f64; LANES]; 6],
+    b: [[[f64; LANES]; 3]; 2],
+}
+
+impl FibreBatch {
+    /// The rest data of lane `l` as one tet (c4 formed exactly as [`FibreTet::new`]
+    /// does, so the plain kernel sees the same numbers).
+    #[inline(always)]
+    fn tet(&self, l: usize) -> FibreTet {
+        let b: [[f64; 3]; 2] = std::array::from_fn(|k| std::array::from_fn(|i| self.b[k][i][l]));
+        FibreTet {
+            vol: self.vol[l],
+            vtr: std::array::from_fn(|e| self.vtr[e][l]),
+            c4: b.map(|b| edge_form(&b, &b)),
+            b,
+        }
+    }
 }
 
 impl<M: FibreLaw> FibreField<M> {
@@ -229,6 +245,47 @@ impl<M: FibreLaw> FibreKernel<M> {
     }
 }
 
+impl<M: FibreLaw> FibreKernel<M> {
+    /// w and ∂w/∂q (`[var][lane]`) of the law at the lanes' variables `q`: the
+    /// fast kernel in a branch-free loop (vectorised) when no lane is below J0,
+    /// else each lane picks its own, as the invariant kernels' `law_lanes!`.
+    #[inline(always)]
+    fn law_lanes(&self, q: &[[f64; LANES]; FIBRE_VARS]) -> ([f64; LANES], [[f64; LANES]; FIBRE_VARS]) {
+        let (mut w, mut d) = ([0.0; LANES], [[0.0; LANES]; FIBRE_VARS]);
+        let j0 = self.opts.j0;
+        let fix = M::INVERSION_FIX && self.opts.inversion_fix;
+        let mut any_ext = false;
+        if fix {
+            for l in 0..LANES {
+                any_ext |= q[2][l] < j0;
+            }
+        }
+        let lane = |l: usize| -> [f64; FIBRE_VARS] { std::array::from_fn(|a| q[a][l]) };
+        if any_ext {
+            for l in 0..LANES {
+                let r = if q[2][l] < j0 {
+                    self.law.dw_ext_fast(&lane(l), j0)
+                } else {
+                    self.law.dw_fast(&lane(l))
+                };
+                w[l] = r.w;
+                for a in 0..FIBRE_VARS {
+                    d[a][l] = r.d[a];
+                }
+            }
+        } else {
+            for l in 0..LANES {
+                let r = self.law.dw_fast(&lane(l));
+                w[l] = r.w;
+                for a in 0..FIBRE_VARS {
+                    d[a][l] = r.d[a];
+                }
+            }
+        }
+        (w, d)
+    }
+}
+
 /// A batch kernel made of a plain one: `tet(lane, corners)` gives each lane's
 /// energy and corner forces, stored in the batch's layout.
 #[inline(always)]
@@ -259,16 +316,27 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
     type Batch = FibreBatch;
 
     const PAD: FibreBatch = FibreBatch {
-        tets: [FibreTet::PAD; LANES],
+        vol: [1.0; LANES],
+        vtr: [[0.0; LANES]; 6],
+        b: [[[0.0; LANES]; 3]; 2],
     };
 
     fn store_rest(&mut self, mesh: &TetMesh, t: usize, _k: usize, batch: &mut FibreBatch, lane: usize) {
-        batch.tets[lane] = FibreTet::new(&mesh.tet_points(t), tet_dirs(&self.fibres, t));
+        let r = FibreTet::new(&mesh.tet_points(t), tet_dirs(&self.fibres, t));
+        batch.vol[lane] = r.vol;
+        for e in 0..6 {
+            batch.vtr[e][lane] = r.vtr[e];
+        }
+        for k in 0..2 {
+            for i in 0..3 {
+                batch.b[k][i][lane] = r.b[k][i];
+            }
+        }
     }
 
     #[inline(always)]
     fn tet(&self, rest: &FibreBatch, lane: usize, p: &[Vec3; 4], mut add: impl FnMut(usize, Vec3)) -> f64 {
-        let (e, _, f) = self.eval(&rest.tets[lane], p);
+        let (e, _, f) = self.eval(&rest.tet(lane), p);
         for (a, fa) in f.into_iter().enumerate() {
             add(a, fa);
         }
@@ -276,18 +344,94 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
     }
 
     fn tet_state(&self, rest: &FibreBatch, lane: usize, _k: usize, p: &[Vec3; 4]) -> (f64, f64) {
-        let r = &rest.tets[lane];
-        let (e, j, _) = self.eval(r, p);
+        let r = rest.tet(lane);
+        let (e, j, _) = self.eval(&r, p);
         let j = if M::USES_J { j } else { signed_j(p, r.vol) };
         (j, e / r.vol)
     }
 
+    /// The plain kernel's steps over the lanes (see the module doc); equal to it to
+    /// round-off (the fast `ln`/`exp`/`powf`, sums in another order).
     #[inline(always)]
     fn batch(&self, r: &FibreBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
-        per_lane(p, f, en, |l, pts| {
-            let (e, _, fl) = self.eval(&r.tets[l], pts);
-            (e, fl)
-        });
+        const L: usize = LANES;
+        // J first, as in the invariant kernel: the law's longest chain starts from it
+        let (j, cr) = if M::USES_J {
+            volume_lanes(p, &r.vol)
+        } else {
+            ([1.0; L], [[[0.0; L]; 3]; 3])
+        };
+        let len = squared_lengths(p);
+        // q[var][lane]; the variables of absent families stay 1
+        let mut q = [[1.0; L]; FIBRE_VARS];
+        q[2] = j;
+        let mut i1 = [0.0; L];
+        for e in 0..6 {
+            for l in 0..L {
+                i1[l] += r.vtr[e][l] * len[e][l];
+            }
+        }
+        q[0] = i1;
+        let (i2, ml) = if M::USES_I2 {
+            i2_lanes(&r.vtr, &len, &i1)
+        } else {
+            ([0.0; L], [[0.0; L]; 6])
+        };
+        q[1] = i2;
+        // c4_k = edge_form(b_k, b_k) and I4_k = c4_k·l; I5_k and its l-gradient
+        let mut c4 = [[[0.0; L]; 6]; 2];
+        let mut g5 = [[[0.0; L]; 6]; 2];
+        for k in 0..M::FAMILIES {
+            let i = i4_index(k);
+            let mut i4 = [0.0; L];
+            for l in 0..L {
+                let b = [r.b[k][0][l], r.b[k][1][l], r.b[k][2][l]];
+                let c = edge_form(&b, &b);
+                for e in 0..6 {
+                    c4[k][e][l] = c[e];
+                    i4[l] += c[e] * len[e][l];
+                }
+            }
+            q[i] = i4;
+            if M::USES_I5 {
+                for l in 0..L {
+                    let b = [r.b[k][0][l], r.b[k][1][l], r.b[k][2][l]];
+                    let vtr: [f64; 6] = std::array::from_fn(|e| r.vtr[e][l]);
+                    let le: [f64; 6] = std::array::from_fn(|e| len[e][l]);
+                    let (i5, g) = i5_terms(&b, &b_from_vtr(&vtr), &le);
+                    q[i + 1][l] = i5;
+                    for e in 0..6 {
+                        g5[k][e][l] = g[e];
+                    }
+                }
+            }
+        }
+        let (w, d) = self.law_lanes(&q);
+        // 2·g_e = 2·Vol·Σ_v w_v ∂v/∂l_e
+        let mut g2 = [[0.0; L]; 6];
+        for e in 0..6 {
+            for l in 0..L {
+                let mut ge = d[0][l] * r.vtr[e][l];
+                if M::USES_I2 {
+                    ge += d[1][l] * (i1[l] * r.vtr[e][l] - ml[e][l]);
+                }
+                for k in 0..M::FAMILIES {
+                    let i = i4_index(k);
+                    ge += d[i][l] * c4[k][e][l];
+                    if M::USES_I5 {
+                        ge += d[i + 1][l] * g5[k][e][l];
+                    }
+                }
+                g2[e][l] = 2.0 * r.vol[l] * ge;
+            }
+        }
+        link_forces(p, &g2, f);
+        if M::USES_J {
+            add_volume_forces(&cr, &d[2], f);
+        }
+        for l in 0..L {
+            en[l] = r.vol[l] * w[l];
+        }
     }
 
     fn side_bytes(&self) -> usize {

@@ -161,44 +161,14 @@ impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
     #[inline(always)]
     fn batch(&self, r: &HemlBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
         const L: usize = LANES;
-        let mut j = [1.0; L];
-        let mut cr = [[[0.0; L]; 3]; 3];
-        if M::USES_J {
-            // J first: the law's longest chain (ln J, J^(−2/3)…) starts from it, and
-            // the lengths and invariants below overlap with it (measured: 7–12 %
-            // faster for neo-Hookean, 20–36 % for Mooney–Rivlin, than J after them).
-            // J = det/(6·vol) as a product: the division depends on rest data only
-            // and runs early, off the chain positions → J → law → forces
-            let mut inv_6vol = [0.0; L];
-            for l in 0..L {
-                inv_6vol[l] = 1.0 / (6.0 * r.vol[l]);
-            }
-            // crosses v2×v3, v3×v1, v1×v2
-            // v_a = p_{a+1} − p_0 (EDGES 0..3)
-            for (a, (s, t)) in [(2, 3), (3, 1), (1, 2)].into_iter().enumerate() {
-                for l in 0..L {
-                    let (ux, uy, uz) = (
-                        p[s][0][l] - p[0][0][l],
-                        p[s][1][l] - p[0][1][l],
-                        p[s][2][l] - p[0][2][l],
-                    );
-                    let (wx, wy, wz) = (
-                        p[t][0][l] - p[0][0][l],
-                        p[t][1][l] - p[0][1][l],
-                        p[t][2][l] - p[0][2][l],
-                    );
-                    cr[a][0][l] = uy * wz - uz * wy;
-                    cr[a][1][l] = uz * wx - ux * wz;
-                    cr[a][2][l] = ux * wy - uy * wx;
-                }
-            }
-            for l in 0..L {
-                let det = (p[1][0][l] - p[0][0][l]) * cr[0][0][l]
-                    + (p[1][1][l] - p[0][1][l]) * cr[0][1][l]
-                    + (p[1][2][l] - p[0][2][l]) * cr[0][2][l];
-                j[l] = det * inv_6vol[l];
-            }
-        }
+        // J first: the law's longest chain (ln J, J^(−2/3)…) starts from it, and
+        // the lengths and invariants below overlap with it (measured: 7–12 %
+        // faster for neo-Hookean, 20–36 % for Mooney–Rivlin, than J after them)
+        let (j, cr) = if M::USES_J {
+            super::lanes::volume_lanes(p, &r.vol)
+        } else {
+            ([1.0; L], [[[0.0; L]; 3]; 3])
+        };
         // Edge vectors are not kept: recomputing them from `p` where needed is cheaper
         // than a 1 kB array (its zeroing alone measured 10 instructions per tet).
         let len = super::lanes::squared_lengths(p);
@@ -208,20 +178,11 @@ impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
                 i1[l] += r.vtr[e][l] * len[e][l];
             }
         }
-        let mut i2 = [0.0; L];
-        let mut ml = [[0.0; L]; 6];
-        if M::USES_I2 {
-            // factorised through B = V⁻¹V⁻ᵀ (see `rest::i2_terms`): no Mtr to load
-            for l in 0..L {
-                let vtr: [f64; 6] = std::array::from_fn(|e| r.vtr[e][l]);
-                let le: [f64; 6] = std::array::from_fn(|e| len[e][l]);
-                let (tr_c2, m) = i2_terms(&vtr, &le);
-                for e in 0..6 {
-                    ml[e][l] = m[e];
-                }
-                i2[l] = 0.5 * (i1[l] * i1[l] - tr_c2);
-            }
-        }
+        let (i2, ml) = if M::USES_I2 {
+            super::lanes::i2_lanes(&r.vtr, &len, &i1)
+        } else {
+            ([0.0; L], [[0.0; L]; 6])
+        };
         super::lanes::law_lanes!(self.law, self.opts, i1, i2, j => w, w1, w2, wj);
         // 2·g_e = 2·Vol·(w1·vtr_e + w2·(I1·vtr_e − (Mtr l)_e)), with the per-tet
         // factors 2·Vol·w1 and 2·Vol·w2 formed once
@@ -241,23 +202,9 @@ impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
             }
         }
         // node forces, summed in the plain kernel's order (links, then volume term)
-        let mut s = [0.0; L];
-        for l in 0..L {
-            s[l] = wj[l] * (1.0 / 6.0);
-        }
         super::lanes::link_forces(p, &g2, f);
         if M::USES_J {
-            for c in 0..3 {
-                for l in 0..L {
-                    let (c0, c1, c2) = (cr[0][c][l] * s[l], cr[1][c][l] * s[l], cr[2][c][l] * s[l]);
-                    f[1][c][l] -= c0;
-                    f[0][c][l] += c0;
-                    f[2][c][l] -= c1;
-                    f[0][c][l] += c1;
-                    f[3][c][l] -= c2;
-                    f[0][c][l] += c2;
-                }
-            }
+            super::lanes::add_volume_forces(&cr, &wj, f);
         }
         for l in 0..L {
             en[l] = r.vol[l] * w[l];

@@ -82,3 +82,85 @@ pub(crate) fn squared_lengths(p: &LanePoints) -> [[f64; LANES]; 6] {
     }
     len
 }
+
+/// J = det(v1, v2, v3)/(6·vol) of a batch's tets and the cross products v2×v3,
+/// v3×v1, v1×v2 (`[a][component][lane]`; ∂vol/∂x_{a+1} = cr[a]/6), as in the plain
+/// kernel's [`super::heml::volume_terms`]. The division depends on rest data only,
+/// so it runs early, off the chain positions → J → law → forces.
+#[inline(always)]
+pub(crate) fn volume_lanes(p: &LanePoints, vol: &[f64; LANES]) -> ([f64; LANES], [[[f64; LANES]; 3]; 3]) {
+    let mut inv_6vol = [0.0; LANES];
+    for l in 0..LANES {
+        inv_6vol[l] = 1.0 / (6.0 * vol[l]);
+    }
+    let mut cr = [[[0.0; LANES]; 3]; 3];
+    for (a, (s, t)) in [(2, 3), (3, 1), (1, 2)].into_iter().enumerate() {
+        for l in 0..LANES {
+            let (ux, uy, uz) = (
+                p[s][0][l] - p[0][0][l],
+                p[s][1][l] - p[0][1][l],
+                p[s][2][l] - p[0][2][l],
+            );
+            let (wx, wy, wz) = (
+                p[t][0][l] - p[0][0][l],
+                p[t][1][l] - p[0][1][l],
+                p[t][2][l] - p[0][2][l],
+            );
+            cr[a][0][l] = uy * wz - uz * wy;
+            cr[a][1][l] = uz * wx - ux * wz;
+            cr[a][2][l] = ux * wy - uy * wx;
+        }
+    }
+    let mut j = [0.0; LANES];
+    for l in 0..LANES {
+        let det = (p[1][0][l] - p[0][0][l]) * cr[0][0][l]
+            + (p[1][1][l] - p[0][1][l]) * cr[0][1][l]
+            + (p[1][2][l] - p[0][2][l]) * cr[0][2][l];
+        j[l] = det * inv_6vol[l];
+    }
+    (j, cr)
+}
+
+/// Adds the volume term of a batch's forces, −∂J/∂x·w_J·vol = −(cr/6)·w_J at the
+/// corners 1..3 and the opposite sum at corner 0, from the cross products `cr` of
+/// [`volume_lanes`].
+#[inline(always)]
+pub(crate) fn add_volume_forces(cr: &[[[f64; LANES]; 3]; 3], wj: &[f64; LANES], f: &mut LaneForces) {
+    let mut s = [0.0; LANES];
+    for l in 0..LANES {
+        s[l] = wj[l] * (1.0 / 6.0);
+    }
+    for c in 0..3 {
+        for l in 0..LANES {
+            let (c0, c1, c2) = (cr[0][c][l] * s[l], cr[1][c][l] * s[l], cr[2][c][l] * s[l]);
+            f[1][c][l] -= c0;
+            f[0][c][l] += c0;
+            f[2][c][l] -= c1;
+            f[0][c][l] += c1;
+            f[3][c][l] -= c2;
+            f[0][c][l] += c2;
+        }
+    }
+}
+
+/// I2 = ½(I1² − tr C²) and Mtr·l (`[edge][lane]`) of a batch's tets from their rest
+/// traces `vtr`, squared lengths `len` and I1 (through [`crate::rest::i2_terms`],
+/// no `Mtr` stored). Shared by the invariant and fibre batch kernels.
+#[inline(always)]
+pub(crate) fn i2_lanes(
+    vtr: &[[f64; LANES]; 6],
+    len: &[[f64; LANES]; 6],
+    i1: &[f64; LANES],
+) -> ([f64; LANES], [[f64; LANES]; 6]) {
+    let (mut i2, mut ml) = ([0.0; LANES], [[0.0; LANES]; 6]);
+    for l in 0..LANES {
+        let v: [f64; 6] = std::array::from_fn(|e| vtr[e][l]);
+        let le: [f64; 6] = std::array::from_fn(|e| len[e][l]);
+        let (tr_c2, m) = crate::rest::i2_terms(&v, &le);
+        for e in 0..6 {
+            ml[e][l] = m[e];
+        }
+        i2[l] = 0.5 * (i1[l] * i1[l] - tr_c2);
+    }
+    (i2, ml)
+}

@@ -49,7 +49,11 @@ pub fn sym_eigen(a: &Matrix3<f64>) -> ([f64; 3], [Vec3; 3]) {
     let n1 = u * c - v * sn;
     let n2 = u * sn + v * c;
     let rayleigh = |n: &Vec3| n.dot(&(bn * n));
-    let e = [rayleigh(&n0), rayleigh(&n1), rayleigh(&n2)].map(|x| (q + p * x) * scale);
+    let e = [
+        (q + p * rayleigh(&n0)) * scale,
+        (q + p * rayleigh(&n1)) * scale,
+        (q + p * rayleigh(&n2)) * scale,
+    ];
     (e, [n0, n1, n2])
 }
 

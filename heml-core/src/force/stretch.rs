@@ -90,7 +90,7 @@ pub(crate) fn spectral_state<M: StretchLaw>(c: &Matrix3<f64>, j: f64, opts: &For
     let (e, n) = sym_eigen(c);
     let floor = STRETCH_FLOOR * c.trace().abs();
     Spectral {
-        e: e.map(|x| x.max(floor)),
+        e: [e[0].max(floor), e[1].max(floor), e[2].max(floor)],
         n,
         ext: opts.extend(M::INVERSION_FIX, j).then_some(opts.j0),
     }
@@ -240,14 +240,16 @@ impl<M: StretchLaw> StretchHemlKernel<M> {
     #[inline(always)]
     fn eval(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4], f: &mut [Vec3; 4]) -> (f64, f64) {
         let v = edge_vectors(p);
-        let l = v.map(|e| e.norm_squared());
+        // element-wise, not `array::map` (its closures were not inlined here)
+        let l: [f64; 6] = std::array::from_fn(|e| v[e].norm_squared());
         let vol = r.vol[lane];
         let vinv = r.vinv(lane);
         let (j, crosses) = volume_terms(&v, vol);
         let s = spectral_state::<M>(&c_of_lengths(&vinv, &l), j, &self.opts);
         let d = self.law.dw(s.e, j, s.ext);
         let gh = vinv * gradient_c(&s, &d) * vinv.transpose();
-        let g = edge_contraction(&gh).map(|x| vol * x);
+        let gc = edge_contraction(&gh);
+        let g: [f64; 6] = std::array::from_fn(|e| vol * gc[e]);
         scatter_links(f, &g, &v);
         let sj = d.dj / 6.0;
         for a in 0..3 {
