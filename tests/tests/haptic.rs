@@ -8,7 +8,10 @@ use heml::prelude::*;
 use heml::system::contact::{haptic_link, run_device, ContactLaw, Palpation, StiffnessEstimator, Tool};
 use heml::system::control::Pose;
 use heml::system::System;
-use std::time::Instant;
+use std::time::{Duration, Instant};
+
+/// The device's busy-wait before each tick, as `run_haptic_loop`'s default.
+const SPIN: Duration = Duration::from_micros(200);
 
 fn link() {
     let _ = (heml::integrators_list(), heml::materials_list());
@@ -107,7 +110,15 @@ fn the_device_never_waits_for_a_stalled_simulation() {
         while device.model().step != model.step || device.model().force != model.force {
             std::thread::yield_now();
         }
-        let log = run_device(&mut device, |t| path.at(t), 1000.0, ticks, max_force, Instant::now());
+        let log = run_device(
+            &mut device,
+            |t| path.at(t),
+            1000.0,
+            ticks,
+            max_force,
+            Instant::now(),
+            SPIN,
+        );
         release.send(()).unwrap();
         log
     });
@@ -142,4 +153,76 @@ fn the_device_never_waits_for_a_stalled_simulation() {
     let (a, b) = (log.forces[0].1, log.forces[ticks as usize - 1].1);
     assert!((a - b).norm() < 1e-12, "the path is closed");
     assert!(work.abs() < 2e-3 * max_force, "work {work} J around a closed path");
+}
+
+/// A device that jumps 1 cm into the tissue and sweeps there while the simulation
+/// stalls on one model: the rendered force stays within the model's documented
+/// bound |F₀| + ‖K‖_F × reach (far below what the unbounded first-order model
+/// extrapolates there), reaches it, and within the reach the model is rendered
+/// unchanged.
+#[test]
+fn a_device_far_from_a_stalled_model_renders_a_bounded_force() {
+    link();
+    let mut sys = block();
+    let (tool, path) = Palpation::on_top(&mut sys, 0.004, 0.01, ContactLaw::stiff(200.0), 0.1).unwrap();
+    // the model halfway down the press, tissue at rest (the still-tissue K: the
+    // stiffest the estimator publishes, so the unbounded extrapolation is largest)
+    sys.set_tool_pose(tool, path.at(0.03)).unwrap();
+    sys.compute_forces().unwrap();
+    let model = StiffnessEstimator::default().model(&sys, tool).unwrap();
+    let x0 = model.position;
+    assert!(model.force.z > 0.0 && model.stiffness.norm() > 0.0, "{model:?}");
+    assert_eq!(model.reach, 2.5e-4);
+    let max_force = 10.0; // a desktop device's peak: not the active limit here
+    let bound = model.bound(max_force);
+    assert!(bound < max_force);
+    // ticks 0–19 within the reach (0.1 mm down), then a jump 1 cm down sweeping
+    // ±5 mm along x for 80 ticks
+    let within = Vec3::new(0.0, 0.0, -1e-4);
+    let pose = move |t: f64| {
+        let k = (t * 1000.0).round();
+        if k < 20.0 {
+            return Pose::translation(x0 + within);
+        }
+        let phase = (k - 20.0) / 80.0 * std::f64::consts::TAU;
+        Pose::translation(x0 + Vec3::new(0.005 * phase.sin(), 0.0, -0.01))
+    };
+    let far = x0 + Vec3::new(0.0, 0.0, -0.01);
+    // what the model says without the bound: several times more
+    let unbounded = (model.force + model.stiffness * (far - x0)).norm();
+    assert!(unbounded > 3.0 * bound, "unbounded {unbounded} N, bound {bound} N");
+    let (mut device, mut sim) = haptic_link(pose(0.0));
+    let (release, stalled) = std::sync::mpsc::channel::<()>();
+    let ticks = 100u64;
+    let log = std::thread::scope(|s| {
+        s.spawn(move || {
+            sim.publish_model(model);
+            stalled.recv().unwrap(); // stalled until the device is done
+        });
+        while device.model().force != model.force {
+            std::thread::yield_now();
+        }
+        let log = run_device(&mut device, pose, 1000.0, ticks, max_force, Instant::now(), SPIN);
+        release.send(()).unwrap();
+        log
+    });
+    assert_eq!(log.forces.len() as u64, ticks);
+    assert_eq!(log.fresh, 0, "the simulation stalled");
+    // within the reach the model is rendered as computed (one product and sum:
+    // round-off of a few ulps of |F|, 1e-14 relative leaves margin)
+    let exact = model.force + model.stiffness * within;
+    for (_, _, f) in &log.forces[..20] {
+        assert!((f - exact).norm() <= 1e-14 * exact.norm(), "{f:?} vs {exact:?}");
+    }
+    // beyond: never above the bound (up to one rescaling's round-off), never
+    // pulling, and at the bound right after the jump
+    for (_, x, f) in &log.forces[20..] {
+        assert!(f.norm() <= bound * (1.0 + 1e-12), "{f:?} at {x:?}: bound {bound}");
+        assert!(f.dot(&model.force) >= 0.0, "pulls: {f:?}");
+    }
+    assert!(
+        (log.forces[20].2.norm() - bound).abs() <= 1e-12 * bound,
+        "{:?}",
+        log.forces[20]
+    );
 }
