@@ -135,8 +135,9 @@ fn a_closed_pipe_ends_the_report_quietly() {
 }
 
 /// `heml bench --haptic` on a small box (coordinates in mm, as the kidney files):
-/// one report per integrator with the loop's percentiles; without the shared
-/// meshes it names the missing file and the variable to set.
+/// one report per integrator and device timing (sleep or sleep + spin, normal or
+/// real-time priority, saying which it got) with the loop's percentiles; without
+/// the shared meshes it names the missing file and the variable to set.
 #[test]
 fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
     use heml::io::write_mesh;
@@ -147,12 +148,17 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
     let (ok, out, err) = heml(&["bench", "--haptic", "--threads", "1", "--mesh", path.to_str().unwrap()]);
     assert!(ok, "{err}");
     for name in ["symplectic_euler", "backward_euler"] {
-        assert!(
-            out.contains(&format!("block_mm.vtu (192 tets), {name}: 3000 device ticks")),
-            "{out}"
-        );
+        for wait in ["device sleep, ", "device sleep + 200 µs spin, "] {
+            let head = format!("block_mm.vtu (192 tets), {name}, {wait}");
+            let runs: Vec<&str> = out.lines().filter(|l| l.starts_with(&head)).collect();
+            // normal priority, then real time (granted, or refused and said so)
+            assert_eq!(runs.len(), 2, "{head}\n{out}");
+            assert!(runs.iter().all(|l| l.contains(": 3000 device ticks")), "{out}");
+            assert!(runs[0].contains("normal priority"), "{out}");
+            assert!(runs[1].contains("SCHED_FIFO"), "{out}");
+        }
     }
-    assert_eq!(out.matches("sim iteration:  p50").count(), 2, "{out}");
+    assert_eq!(out.matches("sim iteration:  p50").count(), 8, "{out}");
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
         .args(["bench", "--haptic"])
         .env("HEML_MESHES", &dir)

@@ -5,10 +5,15 @@
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::nalgebra::Matrix3;
 use heml::prelude::*;
-use heml::system::contact::{haptic_link, run_device, ContactLaw, Palpation, StiffnessEstimator, Tool};
+use heml::system::contact::{
+    haptic_link, run_device, ContactLaw, DeviceLog, LocalModel, Palpation, StiffnessEstimator, Tool,
+};
 use heml::system::control::Pose;
 use heml::system::System;
-use std::time::Instant;
+use std::time::{Duration, Instant};
+
+/// The device's busy-wait before each tick, as `run_haptic_loop`'s default.
+const SPIN: Duration = Duration::from_micros(200);
 
 fn link() {
     let _ = (heml::integrators_list(), heml::materials_list());
@@ -25,6 +30,37 @@ fn force_at(sys: &mut System, tool: heml::system::contact::ToolId, base: Pose, t
     sys.set_tool_pose(tool, Pose { translation: t, ..base }).unwrap();
     sys.compute_forces().unwrap();
     sys.tool_wrench(tool).unwrap().force
+}
+
+/// The palpation of the block (0.1 s per press) and the local model of its tool
+/// at device time `t`, tissue at rest.
+fn model_at(t: f64) -> (Palpation, LocalModel) {
+    let mut sys = block();
+    let (tool, path) = Palpation::on_top(&mut sys, 0.004, 0.01, ContactLaw::stiff(200.0), 0.1).unwrap();
+    sys.set_tool_pose(tool, path.at(t)).unwrap();
+    sys.compute_forces().unwrap();
+    let model = StiffnessEstimator::default().model(&sys, tool).unwrap();
+    assert!(model.force.z > 0.0, "the tool must touch: {model:?}");
+    (path, model)
+}
+
+/// A device of `ticks` ticks at 1 kHz moving along `pose` while the simulation
+/// publishes `model` and then stalls (blocked on a channel until the device is done).
+fn render_stalled(model: LocalModel, pose: impl Fn(f64) -> Pose, ticks: u64, max_force: f64) -> DeviceLog {
+    let (mut device, mut sim) = haptic_link(pose(0.0));
+    let (release, stalled) = std::sync::mpsc::channel::<()>();
+    std::thread::scope(|s| {
+        s.spawn(move || {
+            sim.publish_model(model);
+            stalled.recv().unwrap(); // stalled until the device is done
+        });
+        while device.model().step != model.step || device.model().force != model.force {
+            std::thread::yield_now();
+        }
+        let log = run_device(&mut device, pose, 1000.0, ticks, max_force, Instant::now(), SPIN);
+        release.send(()).unwrap();
+        log
+    })
 }
 
 /// `System::tool_stiffness` equals a central finite difference of the tool force
@@ -86,31 +122,13 @@ fn tool_stiffness_is_the_derivative_of_the_tool_force() {
 #[test]
 fn the_device_never_waits_for_a_stalled_simulation() {
     link();
-    let mut sys = block();
-    let (tool, path) = Palpation::on_top(&mut sys, 0.004, 0.01, ContactLaw::stiff(200.0), 0.1).unwrap();
-    // the model at the deepest point of the press (device time 0.05 s), tissue at rest
-    sys.set_tool_pose(tool, path.at(0.05)).unwrap();
-    sys.compute_forces().unwrap();
-    let model = StiffnessEstimator::default().model(&sys, tool).unwrap();
-    assert!(model.force.z > 0.0, "the tool must touch: {model:?}");
-    let (mut device, mut sim) = haptic_link(path.at(0.0));
-    let (release, stalled) = std::sync::mpsc::channel::<()>();
+    // the model at the deepest point of the press (device time 0.05 s)
+    let (path, model) = model_at(0.05);
     // half the deepest force: the clamp must act
     let max_force = 0.5 * model.force.norm();
     // 0.2 s of device time at 1 kHz: two presses, the path closes at tick 200
     let ticks = 201u64;
-    let log = std::thread::scope(|s| {
-        s.spawn(move || {
-            sim.publish_model(model);
-            stalled.recv().unwrap(); // stalled until the device is done
-        });
-        while device.model().step != model.step || device.model().force != model.force {
-            std::thread::yield_now();
-        }
-        let log = run_device(&mut device, |t| path.at(t), 1000.0, ticks, max_force, Instant::now());
-        release.send(()).unwrap();
-        log
-    });
+    let log = render_stalled(model, |t| path.at(t), ticks, max_force);
     // every tick ran, none rendered a newer model, and the model only aged
     assert_eq!(log.forces.len() as u64, ticks);
     assert_eq!(log.fresh, 0);
@@ -142,4 +160,59 @@ fn the_device_never_waits_for_a_stalled_simulation() {
     let (a, b) = (log.forces[0].1, log.forces[ticks as usize - 1].1);
     assert!((a - b).norm() < 1e-12, "the path is closed");
     assert!(work.abs() < 2e-3 * max_force, "work {work} J around a closed path");
+}
+
+/// A device that jumps 1 cm into the tissue and sweeps there while the simulation
+/// stalls on one model: the rendered force stays within the model's documented
+/// bound |F₀| + ‖K‖_F × reach (far below what the unbounded first-order model
+/// extrapolates there), reaches it, and within the reach the model is rendered
+/// unchanged.
+#[test]
+fn a_device_far_from_a_stalled_model_renders_a_bounded_force() {
+    link();
+    // the model halfway down the press (the still-tissue K: the stiffest the
+    // estimator publishes, so the unbounded extrapolation is largest)
+    let (_, model) = model_at(0.03);
+    let x0 = model.position;
+    assert!(model.stiffness.norm() > 0.0, "{model:?}");
+    assert_eq!(model.reach, 2.5e-4);
+    let max_force = 10.0; // a desktop device's peak: not the active limit here
+    let bound = model.bound(max_force);
+    assert!(bound < max_force);
+    // ticks 0–19 within the reach (0.1 mm down), then a jump 1 cm down sweeping
+    // ±5 mm along x for 80 ticks
+    let within = Vec3::new(0.0, 0.0, -1e-4);
+    let pose = move |t: f64| {
+        let k = (t * 1000.0).round();
+        if k < 20.0 {
+            return Pose::translation(x0 + within);
+        }
+        let phase = (k - 20.0) / 80.0 * std::f64::consts::TAU;
+        Pose::translation(x0 + Vec3::new(0.005 * phase.sin(), 0.0, -0.01))
+    };
+    let far = x0 + Vec3::new(0.0, 0.0, -0.01);
+    // what the model says without the bound: several times more
+    let unbounded = (model.force + model.stiffness * (far - x0)).norm();
+    assert!(unbounded > 3.0 * bound, "unbounded {unbounded} N, bound {bound} N");
+    let ticks = 100u64;
+    let log = render_stalled(model, pose, ticks, max_force);
+    assert_eq!(log.forces.len() as u64, ticks);
+    assert_eq!(log.fresh, 0, "the simulation stalled");
+    // within the reach the model is rendered as computed (one product and sum:
+    // round-off of a few ulps of |F|, 1e-14 relative leaves margin)
+    let exact = model.force + model.stiffness * within;
+    for (_, _, f) in &log.forces[..20] {
+        assert!((f - exact).norm() <= 1e-14 * exact.norm(), "{f:?} vs {exact:?}");
+    }
+    // beyond: never above the bound (up to one rescaling's round-off), never
+    // pulling, and at the bound right after the jump
+    for (_, x, f) in &log.forces[20..] {
+        assert!(f.norm() <= bound * (1.0 + 1e-12), "{f:?} at {x:?}: bound {bound}");
+        assert!(f.dot(&model.force) >= 0.0, "pulls: {f:?}");
+    }
+    assert!(
+        (log.forces[20].2.norm() - bound).abs() <= 1e-12 * bound,
+        "{:?}",
+        log.forces[20]
+    );
 }

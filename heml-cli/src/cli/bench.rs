@@ -246,7 +246,8 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         Placement::Os => "placed by the OS",
     };
     if args.haptic {
-        return super::haptic::run(args.mesh.as_ref(), &pool(threads)?, threads);
+        let pinned = placement_for(threads, placement) == Placement::Pinned;
+        return super::haptic::run(args.mesh.as_ref(), &pool(threads)?, threads, pinned);
     }
     if !args.implicit.is_empty() {
         return super::bench_implicit::run(&args.implicit, args.implicit_scale, threads, placement);

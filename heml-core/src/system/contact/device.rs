@@ -8,19 +8,21 @@ use crate::system::control::Pose;
 use crate::Vec3;
 use std::time::{Duration, Instant};
 
-/// Spin (yielding) instead of sleeping for the last part of a wait: an OS sleep
-/// overshoots by the timer slack and the scheduler's wake-up latency, 0.05–0.1 ms
-/// idle and more under load, which a 1 ms period cannot absorb.
-const SPIN: Duration = Duration::from_micros(200);
-
-/// Waits until `deadline`: sleeps until [`SPIN`] before it, then yields until it.
-fn wait_until(deadline: Instant) {
+/// Waits until `deadline`: sleeps until `spin` before it, then busy-waits.
+///
+/// Why busy-wait: an OS sleep overshoots by the timer slack (50 µs by default)
+/// and the scheduler's wake-up latency, 0.05–0.1 ms idle and milliseconds when the
+/// simulation's threads fill every core, which a 1 ms period cannot absorb; and
+/// yielding while waiting (`sched_yield`) hands the core to a runnable simulation
+/// thread for a whole time slice. Busy-waiting costs a core for `spin` per period
+/// (200 µs at 1 kHz: 20 % of one core) and keeps it.
+fn wait_until(deadline: Instant, spin: Duration) {
     let now = Instant::now();
-    if deadline > now + SPIN {
-        std::thread::sleep(deadline - now - SPIN);
+    if deadline > now + spin {
+        std::thread::sleep(deadline - now - spin);
     }
     while Instant::now() < deadline {
-        std::thread::yield_now();
+        std::hint::spin_loop();
     }
 }
 
@@ -31,6 +33,9 @@ pub struct DeviceLog {
     pub gaps: Vec<f64>,
     /// Wall time each tick spent reading the model and rendering it (s).
     pub work: Vec<f64>,
+    /// How late each tick started after its deadline (s): the wake-up latency
+    /// the device period's jitter comes from.
+    pub late: Vec<f64>,
     /// Age of the rendered model at each tick (s): wall time since the
     /// simulation published it.
     pub ages: Vec<f64>,
@@ -45,7 +50,10 @@ pub struct DeviceLog {
 /// off the CPU for more than a period): each tick publishes the pose `path(t)` (t = k/rate, device
 /// time; a non-finite pose is skipped and the last one kept) and renders the
 /// newest local model at that pose ([`LocalModel::force_at`], clamped to
-/// `max_force`). Wait-free on the simulation: a stalled simulation leaves the
+/// `max_force`, and to the model's reach: [`LocalModel::bound`]). Each wait
+/// sleeps until `spin` before the tick, then busy-waits (0: sleep only; see the
+/// module source for the cost). Wait-free on the simulation and allocation-free
+/// per tick (the log is reserved up front): a stalled simulation leaves the
 /// device rendering its last model, which only ages.
 pub fn run_device(
     device: &mut DeviceEnd,
@@ -54,11 +62,13 @@ pub fn run_device(
     ticks: u64,
     max_force: f64,
     start: Instant,
+    spin: Duration,
 ) -> DeviceLog {
     let n = ticks as usize;
     let mut log = DeviceLog {
         gaps: Vec::with_capacity(n),
         work: Vec::with_capacity(n),
+        late: Vec::with_capacity(n),
         ages: Vec::with_capacity(n),
         forces: Vec::with_capacity(n),
         fresh: 0,
@@ -69,8 +79,11 @@ pub fn run_device(
     let step = Duration::from_secs_f64(period);
     let mut deadline = start;
     for k in 0..ticks {
+        // when the tick was due, before a missed period moves the deadline
+        let mut due = deadline;
         if k > 0 {
             deadline += step;
+            due = deadline;
             // a device thread the OS kept off the CPU for more than a period
             // resumes one period from now rather than bursting through the ticks
             // it missed (a burst renders nothing the motors could follow)
@@ -79,8 +92,9 @@ pub fn run_device(
                 deadline = now;
             }
         }
-        wait_until(deadline);
+        wait_until(deadline, spin);
         let now = Instant::now();
+        log.late.push(now.saturating_duration_since(due).as_secs_f64());
         if let Some(l) = last {
             log.gaps.push((now - l).as_secs_f64());
         }

@@ -50,6 +50,11 @@ pub struct HapticOptions {
     pub max_tool_speed: f64,
     /// Largest force the device renders (N, default 10: a desktop device's peak).
     pub max_force: f64,
+    /// How long before each device tick the device thread stops sleeping and
+    /// busy-waits (s, default 200 µs; 0: sleep only). An OS sleep wakes 50 µs to
+    /// milliseconds late when the simulation fills the cores; the busy-wait costs
+    /// this much CPU per period (20 % of a core at 1 kHz by default).
+    pub device_spin: f64,
 }
 
 impl HapticOptions {
@@ -88,6 +93,7 @@ impl Default for HapticOptions {
             max_substep: f64::INFINITY,
             max_tool_speed: 0.25,
             max_force: 10.0,
+            device_spin: 2e-4,
         }
     }
 }
@@ -153,6 +159,8 @@ pub struct HapticReport {
     pub device_period: Percentiles,
     /// Wall time a device tick spends reading and rendering the model.
     pub device_work: Percentiles,
+    /// How late device ticks started after their deadlines (wake-up latency).
+    pub device_late: Percentiles,
     /// Age of the model each device tick rendered (wall time since published).
     pub staleness: Percentiles,
     /// Fraction of device ticks that rendered a model newer than the previous tick's.
@@ -175,6 +183,8 @@ pub struct HapticReport {
     pub snapshots: u64,
     /// Their rate (Hz) over the run.
     pub snapshot_rate: f64,
+    /// Wall time between the snapshots the display received.
+    pub snapshot_interval: Percentiles,
 }
 
 impl HapticReport {
@@ -210,8 +220,10 @@ impl std::fmt::Display for HapticReport {
         )?;
         writeln!(
             f,
-            "  device period:  {} (work per tick p99 {:.1} µs)",
+            "  device period:  {} (late p50 {:.1} µs, p99 {:.1} µs; work per tick p99 {:.1} µs)",
             self.device_period,
+            self.device_late.p50 * 1e6,
+            self.device_late.p99 * 1e6,
             self.device_work.p99 * 1e6
         )?;
         writeln!(f, "  sim iteration:  {}", self.compute)?;
@@ -226,8 +238,12 @@ impl std::fmt::Display for HapticReport {
         )?;
         write!(
             f,
-            "  {} snapshots ({:.0} Hz); peak force {:.4} N (rendered {felt:.4} N)",
-            self.snapshots, self.snapshot_rate, self.peak_force
+            "  {} snapshots ({:.1} Hz, interval p50 {:.1} ms, max {:.1} ms); peak force {:.4} N (rendered {felt:.4} N)",
+            self.snapshots,
+            self.snapshot_rate,
+            self.snapshot_interval.p50 * 1e3,
+            self.snapshot_interval.max * 1e3,
+            self.peak_force
         )
     }
 }
@@ -278,12 +294,32 @@ impl Errors {
 /// reading snapshots. Returns when the device is done; the first simulation error
 /// stops the loop and is returned. One warm-up step of the simulation precedes the
 /// loop (one-time setup, such as an implicit integrator's operators, is not timed).
+///
+/// Snapshots are taken by the wall clock: after the first iteration that ends at
+/// least 1/[`HapticOptions::snapshot_rate`] after the last snapshot, so a display
+/// gets them at that rate whenever the simulation iterates faster, and after every
+/// iteration when it iterates slower.
 pub fn run_haptic_loop(
     sys: &mut System,
     integrator: &mut dyn Integrator,
     tool: ToolId,
     path: impl Fn(f64) -> Pose + Sync,
     opts: &HapticOptions,
+) -> Result<HapticReport> {
+    run_haptic_loop_with(sys, integrator, tool, path, opts, || {})
+}
+
+/// [`run_haptic_loop`], with `device_setup` called first on the device thread:
+/// the place for what the library does not do itself, such as raising the
+/// thread's scheduling priority or pinning it to a core (`heml bench --haptic`
+/// gives it a real-time priority when the OS allows).
+pub fn run_haptic_loop_with(
+    sys: &mut System,
+    integrator: &mut dyn Integrator,
+    tool: ToolId,
+    path: impl Fn(f64) -> Pose + Sync,
+    opts: &HapticOptions,
+    device_setup: impl FnOnce() + Send,
 ) -> Result<HapticReport> {
     let rate_ok = |r: f64| r.is_finite() && r > 0.0;
     if !(rate_ok(opts.device_rate) && rate_ok(opts.snapshot_rate) && rate_ok(opts.duration))
@@ -293,9 +329,10 @@ pub fn run_haptic_loop(
         || opts.max_substep <= 0.0
         || opts.max_force.is_nan()
         || opts.max_force <= 0.0
+        || !(opts.device_spin.is_finite() && opts.device_spin >= 0.0)
     {
         return Err(HemlError::Invalid(format!(
-            "haptic loop: rates, duration, max_substep, max_tool_speed and max_force must be > 0: {opts:?}"
+            "haptic loop: rates, duration, max_substep, max_tool_speed and max_force must be > 0, device_spin finite and ≥ 0: {opts:?}"
         )));
     }
     let period = 1.0 / opts.device_rate;
@@ -308,11 +345,16 @@ pub fn run_haptic_loop(
     // integrator's tangent operators) is not part of the loop
     integrator.step(sys, h)?;
     let (mut device, mut sim) = haptic_link(first);
+    // the simulated tool travels at most this far per iteration: the next state's
+    // force is computed within it of the model's pose, and no further is vouched for
     let mut estimator = StiffnessEstimator::default();
+    estimator.reach = opts.max_tool_speed * period;
     let mut model = estimator.model(sys, tool)?;
     let mut still = sys.tool_stiffness(tool)?;
     sim.publish_model(model);
     let (mut snap_tx, mut snap_rx) = latest((0.0f64, sys.positions().to_vec()));
+    let frame = Duration::from_secs_f64(1.0 / opts.snapshot_rate);
+    let spin = Duration::from_secs_f64(opts.device_spin);
     let done = AtomicBool::new(false);
     let ticks = (opts.duration * opts.device_rate).round() as u64;
     let start = Instant::now();
@@ -320,18 +362,28 @@ pub fn run_haptic_loop(
 
     std::thread::scope(|s| -> Result<HapticReport> {
         let device_thread = s.spawn(|| {
-            let log = run_device(&mut device, &path, opts.device_rate, ticks, opts.max_force, start);
+            device_setup();
+            let log = run_device(&mut device, &path, opts.device_rate, ticks, opts.max_force, start, spin);
             done.store(true, Ordering::Release);
             log
         });
         let display_thread = s.spawn(|| {
-            let mut received = 0u64;
-            let frame = Duration::from_secs_f64(1.0 / opts.snapshot_rate);
+            // a display refreshing at twice the snapshot rate (a 120 Hz screen for
+            // 60 Hz snapshots) sees each snapshot the simulation publishes
+            let refresh = frame / 2;
+            let mut received: Vec<Instant> =
+                Vec::with_capacity((2.0 * opts.duration / frame.as_secs_f64()) as usize + 2);
+            let mut next = Instant::now();
             while !done.load(Ordering::Acquire) {
-                std::thread::sleep(frame);
+                next += refresh;
+                if let Some(wait) = next.checked_duration_since(Instant::now()) {
+                    std::thread::sleep(wait);
+                }
                 if snap_rx.updated() {
                     let (_, x) = snap_rx.read();
-                    received += u64::from(!x.is_empty());
+                    if !x.is_empty() {
+                        received.push(Instant::now());
+                    }
                 }
             }
             received
@@ -340,7 +392,7 @@ pub fn run_haptic_loop(
         let mut compute = Vec::with_capacity(ticks as usize);
         let mut periods = Vec::with_capacity(ticks as usize);
         let mut errors = Errors::default();
-        let snap_every = (opts.device_rate / opts.snapshot_rate).round().max(1.0) as u64;
+        let mut last_snapshot = start;
         let mut iterations = 0u64;
         let mut peak_force = 0.0f64;
         let mut last_publish: Option<Instant> = None;
@@ -383,7 +435,8 @@ pub fn run_haptic_loop(
             }
             last_publish = Some(now);
             iterations += 1;
-            if iterations.is_multiple_of(snap_every) {
+            if now >= last_snapshot + frame {
+                last_snapshot = now;
                 let time = sys.time();
                 let x = sys.positions();
                 snap_tx.publish_with(|(t, buf)| {
@@ -399,7 +452,7 @@ pub fn run_haptic_loop(
             }
         }
         let mut log = device_thread.join().expect("the device thread does not panic");
-        let snapshots = display_thread.join().expect("the display thread does not panic");
+        let snapshot_times = display_thread.join().expect("the display thread does not panic");
         if let Some(e) = error {
             return Err(e);
         }
@@ -415,6 +468,7 @@ pub fn run_haptic_loop(
             period: Percentiles::of(&mut periods),
             device_period: Percentiles::of(&mut log.gaps),
             device_work: Percentiles::of(&mut log.work),
+            device_late: Percentiles::of(&mut log.late),
             staleness: Percentiles::of(&mut log.ages),
             fresh: log.fresh as f64 / ticks.max(1) as f64,
             model_error,
@@ -422,8 +476,14 @@ pub fn run_haptic_loop(
             still_error,
             forces: log.forces.iter().map(|&(t, _, f)| (t, f)).collect(),
             peak_force,
-            snapshots,
-            snapshot_rate: snapshots as f64 / wall,
+            snapshots: snapshot_times.len() as u64,
+            snapshot_rate: snapshot_times.len() as f64 / wall,
+            snapshot_interval: Percentiles::of(
+                &mut snapshot_times
+                    .windows(2)
+                    .map(|w| (w[1] - w[0]).as_secs_f64())
+                    .collect::<Vec<_>>(),
+            ),
         })
     })
 }

@@ -18,12 +18,27 @@
 //! motion, bounded between 0 and the contact stiffness.
 //!
 //! **Rendering: bounded and passive.** [`LocalModel::force_at`] renders a
-//! symmetric negative semidefinite K (the estimator projects it so), clamps the
-//! force to a maximum, and never pulls (a contact only pushes: the force is zero
-//! where the model would reverse F₀). Within one model the rendered field is the
-//! gradient of a convex potential in the push direction, so the device gains no
-//! energy around a closed path; a new model can only change the force by what the
-//! simulation computed. A device with virtual coupling adds its own damping on top.
+//! symmetric negative semidefinite K (the estimator projects it so), never pulls (a
+//! contact only pushes: the force is zero where the model would reverse F₀), and
+//! bounds the extrapolation: the model is exact only near x₀, and a device that
+//! runs ahead of a slow or stalled simulation would otherwise render K·(x − x₀)
+//! over centimetres the simulation never computed (measured before this bound: a
+//! 25 ms-old model rendered 1.23 N where the simulation computed 0.10 N). So each
+//! model carries a **reach** r, the tool travel from x₀ the simulation vouches for
+//! (in [`super::run_haptic_loop`], the simulated tool's largest travel in one
+//! iteration: the next state's tool lies within r of x₀), and the rendered force is
+//! clamped to the ball
+//!
+//! |F(x)| ≤ min(F_max, |F₀| + ‖K‖_F · r),
+//!
+//! which leaves F₀ + K·(x − x₀) untouched within r of x₀ (there |K·(x − x₀)| ≤
+//! ‖K‖_F·r) and stops it growing beyond; unloading (the tool backing out to lift-off)
+//! is never clamped. Passivity: the unclamped field F₀ + K·(x − x₀) is the gradient
+//! of a concave potential (K symmetric negative semidefinite), and for an isotropic
+//! K the radial clamp keeps it a gradient (the projection onto a ball of a gradient
+//! map with a scalar Jacobian), so the device gains no energy around a closed path;
+//! a new model can only change the force by what the simulation computed. A device
+//! with virtual coupling adds its own damping on top.
 
 use crate::Vec3;
 use nalgebra::{Matrix3, SymmetricEigen};
@@ -39,6 +54,11 @@ pub struct LocalModel {
     pub position: Vec3,
     /// ∂F/∂x that the device renders (N/m): symmetric, negative semidefinite.
     pub stiffness: Matrix3<f64>,
+    /// The tool travel from [`LocalModel::position`] the simulation vouches for (m):
+    /// [`LocalModel::force_at`] renders at most |F₀| + ‖K‖_F × reach
+    /// ([module docs](self)). 0 renders a zero-order hold beyond F₀'s size;
+    /// infinity, the unbounded first-order model.
+    pub reach: f64,
     /// Simulated time of the state (s).
     pub time: f64,
     /// Step count of the state.
@@ -54,26 +74,44 @@ impl LocalModel {
             force: Vec3::zeros(),
             position,
             stiffness: Matrix3::zeros(),
+            reach: 0.0,
             time: 0.0,
             step: 0,
             published: Instant::now(),
         }
     }
 
+    /// The largest force [`LocalModel::force_at`] renders with a device limit of
+    /// `max_force` (N): min(`max_force`, |F₀| + ‖K‖_F × [`LocalModel::reach`]).
+    pub fn bound(&self, max_force: f64) -> f64 {
+        let k = self.stiffness.norm();
+        // 0 × ∞ is no extrapolation (K = 0 with an unbounded reach), not NaN
+        let extrapolation = if k > 0.0 && self.reach > 0.0 {
+            k * self.reach
+        } else {
+            0.0
+        };
+        max_force.min(self.force.norm() + extrapolation)
+    }
+
     /// The force to render at the device's tool translation `x`:
     /// F₀ + K·(x − x₀), zero where it would point against F₀ (contact never pulls),
-    /// and no longer than `max_force` (N).
+    /// and no longer than [`LocalModel::bound`] (`max_force` in N, or less when the
+    /// device has travelled beyond the model's reach).
     ///
     /// ```
     /// use heml_core::system::contact::LocalModel;
     /// use heml_core::Vec3;
     /// use nalgebra::Matrix3;
     /// let mut m = LocalModel::empty(Vec3::zeros());
-    /// m.force = Vec3::new(0.0, 0.0, 1.0); // 1 N up, 100 N/m along z
+    /// m.force = Vec3::new(0.0, 0.0, 1.0); // 1 N up, 100 N/m along z, vouched for 5 mm
     /// m.stiffness = Matrix3::from_diagonal(&Vec3::new(0.0, 0.0, -100.0));
+    /// m.reach = 0.005;
     /// assert_eq!(m.force_at(Vec3::new(0.0, 0.0, -0.002), 10.0).z, 1.2); // pressed 2 mm further
     /// assert_eq!(m.force_at(Vec3::new(0.0, 0.0, 0.05), 10.0), Vec3::zeros()); // lifted off: no pull
-    /// assert_eq!(m.force_at(Vec3::new(0.0, 0.0, -1.0), 10.0).z, 10.0); // clamped
+    /// // a metre beyond the reach: 1 N + 100 N/m × 5 mm, not 101 N (to a rescaling's round-off)
+    /// assert!((m.force_at(Vec3::new(0.0, 0.0, -1.0), 10.0).z - 1.5).abs() < 1e-15);
+    /// assert_eq!(m.bound(1.2), 1.2); // or the device's limit, when lower
     /// ```
     pub fn force_at(&self, x: Vec3, max_force: f64) -> Vec3 {
         if self.force == Vec3::zeros() {
@@ -84,8 +122,9 @@ impl LocalModel {
             return Vec3::zeros();
         }
         let n = f.norm();
-        if n > max_force {
-            f * (max_force / n)
+        let bound = self.bound(max_force);
+        if n > bound {
+            f * (bound / n)
         } else {
             f
         }
@@ -110,12 +149,17 @@ fn renderable(k: &Matrix3<f64>, max: f64) -> Matrix3<f64> {
 /// `min_motion`), the secant condition K Δx = ΔF is imposed along Δx (Broyden:
 /// K += (ΔF − K Δx) Δxᵀ / |Δx|²), and K is projected onto symmetric matrices with
 /// eigenvalues in [−‖K_c‖, 0]: the tissue can only make the contact softer, never
-/// stiffer nor unstable.
+/// stiffer nor unstable. Each model carries [`StiffnessEstimator::reach`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct StiffnessEstimator {
     /// Smallest tool motion (m) between states that updates K (default 1 µm):
     /// below it, the force change is the tissue's own motion, not a response.
     pub min_motion: f64,
+    /// The [`LocalModel::reach`] of the models (m). Default 0.25 mm: the travel of
+    /// a tool following its device at 0.25 m/s for one 1 ms period, as
+    /// [`super::run_haptic_loop`]'s simulated tool does by default (it sets this
+    /// from its options).
+    pub reach: f64,
     last: Option<(Vec3, Vec3)>,
     k: Matrix3<f64>,
 }
@@ -124,6 +168,7 @@ impl Default for StiffnessEstimator {
     fn default() -> Self {
         StiffnessEstimator {
             min_motion: 1e-6,
+            reach: 2.5e-4,
             last: None,
             k: Matrix3::zeros(),
         }
@@ -165,6 +210,7 @@ impl StiffnessEstimator {
             force,
             position,
             stiffness: self.update(position, force, &contact),
+            reach: self.reach,
             time: sys.time(),
             step: sys.step_count(),
             published: Instant::now(),

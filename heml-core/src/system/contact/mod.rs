@@ -94,7 +94,7 @@ mod tool;
 
 pub use device::{run_device, DeviceLog};
 pub use handoff::{haptic_link, latest, DeviceEnd, PoseSample, Publisher, Reader, SimulationEnd, WrenchSample};
-pub use haptic::{run_haptic_loop, HapticOptions, HapticReport, Palpation, Percentiles};
+pub use haptic::{run_haptic_loop, run_haptic_loop_with, HapticOptions, HapticReport, Palpation, Percentiles};
 pub use law::ContactLaw;
 pub use local_model::{LocalModel, StiffnessEstimator};
 pub use set::{Contact, ToolSet};
