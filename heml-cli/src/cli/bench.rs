@@ -68,6 +68,10 @@ pub struct BenchArgs {
     /// millimetre files, as the generated organ meshes).
     #[arg(long, default_value_t = 1e-3)]
     pub implicit_scale: f64,
+    /// CG preconditioner of the --implicit runs: parallel_gauss_seidel (default),
+    /// symmetric_gauss_seidel (sequential) or block_jacobi.
+    #[arg(long, default_value = "parallel_gauss_seidel", value_name = "NAME")]
+    pub preconditioner: String,
     /// Instead of the usual table: this energy declared at run time against the
     /// compiled --law, one thread, timed round-robin (same energy: same forces).
     #[arg(long, value_name = "TEXT")]
@@ -245,7 +249,8 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     }
     if let Some(meshes) = &args.implicit {
         let meshes = super::bench_implicit::meshes(meshes, args.implicit_scale)?;
-        return super::bench_implicit::run(&meshes, threads, placement);
+        let preconditioner = super::bench_implicit::preconditioner(&args.preconditioner)?;
+        return super::bench_implicit::run(&meshes, preconditioner, threads, placement);
     }
     if let Some(energy) = &args.energy {
         return super::bench_energy::run(&args, energy, &pool(1)?);

@@ -12,7 +12,7 @@
 
 use crate::threads::{thread_pool, Placement};
 use heml::prelude::*;
-use heml::system::{ImplicitScheme, ImplicitSettings, ImplicitSolver, PhaseTimes, System};
+use heml::system::{CgPreconditioner, ImplicitScheme, ImplicitSettings, ImplicitSolver, PhaseTimes, System};
 use heml_validation::fixtures::renumbered_at_load;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -43,6 +43,18 @@ pub fn meshes(paths: &[PathBuf], scale: f64) -> heml::Result<Vec<(PathBuf, f64)>
         )));
     }
     Ok(list)
+}
+
+/// The preconditioner named `name` (snake case, as `CgPreconditioner` serialises).
+pub fn preconditioner(name: &str) -> heml::Result<CgPreconditioner> {
+    match name {
+        "parallel_gauss_seidel" => Ok(CgPreconditioner::ParallelGaussSeidel),
+        "symmetric_gauss_seidel" => Ok(CgPreconditioner::SymmetricGaussSeidel),
+        "block_jacobi" => Ok(CgPreconditioner::BlockJacobi),
+        _ => Err(HemlError::Invalid(format!(
+            "--preconditioner {name}: expected parallel_gauss_seidel, symmetric_gauss_seidel or block_jacobi"
+        ))),
+    }
 }
 
 /// Implicit step size.
@@ -130,7 +142,12 @@ fn explicit_case(mesh: &TetMesh, pool: &rayon::ThreadPool) -> heml::Result<(Stri
 
 /// Runs the implicit benchmark on `meshes` (each with its scale to metres) at 1 and
 /// `threads` threads.
-pub fn run(meshes: &[(PathBuf, f64)], threads: usize, placement: Placement) -> heml::Result<()> {
+pub fn run(
+    meshes: &[(PathBuf, f64)],
+    preconditioner: CgPreconditioner,
+    threads: usize,
+    placement: Placement,
+) -> heml::Result<()> {
     let mut counts = vec![1];
     if threads != 1 {
         counts.push(threads);
@@ -140,7 +157,10 @@ pub fn run(meshes: &[(PathBuf, f64)], threads: usize, placement: Placement) -> h
          neo-Hookean E = 3 kPa, ν = 0.49, ρ = 1000, gravity, α = 15/s, 10 % clamped",
         DT * 1e3
     );
-    outln!("implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]); explicit: {EXPLICIT_STEPS} steps");
+    outln!(
+        "implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]), CG preconditioner {preconditioner:?}; \
+         explicit: {EXPLICIT_STEPS} steps"
+    );
     outln!();
     outln!(
         "{:<30} {:>3} {:<11} {:>24} {:>22} {:>30} {:>9} {:>26} {:>8}",
@@ -171,6 +191,10 @@ pub fn run(meshes: &[(PathBuf, f64)], threads: usize, placement: Placement) -> h
                 ("default", ImplicitSettings::default()),
                 ("interactive", ImplicitSettings::interactive()),
             ] {
+                let settings = ImplicitSettings {
+                    preconditioner,
+                    ..settings
+                };
                 let (times, cgs, phases) = implicit_case(&mesh, settings, &pool)?;
                 let (m, lo, hi) = stats(&times);
                 let (cg, cg_lo, cg_hi) = stats(&cgs);

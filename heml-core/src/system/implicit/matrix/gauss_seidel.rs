@@ -165,13 +165,12 @@ fn set(z: &mut [f64], i: usize, v: Vector3<f64>) {
 #[cfg(test)]
 mod tests {
     use super::super::tests::{assert_inverts_splitting, rnd, setup};
-    use super::*;
 
     /// The parallel sweeps apply the inverse of the symmetric Gauss–Seidel splitting
     /// of the matrix in their ordering (interior nodes, then the separator: every
-    /// coupling kept), built densely, and return rᵀz; with 2 and 3 parts on a 36-node
-    /// box, whose separators are proper subsets (the ordering differs from the node
-    /// order). Bounds as in `assert_inverts_splitting`; rᵀz is a sum of 100 O(1)
+    /// coupling kept), built densely, and return rᵀz; with 2 parts on a 36-node box
+    /// (a separator with interior nodes on both sides: the ordering differs from the
+    /// node order) and 3 (all separator). Bounds as in `assert_inverts_splitting`; rᵀz is a sum of 100 O(1)
     /// terms, 1e-12 relative is ~100× its round-off.
     #[test]
     fn parallel_gauss_seidel_inverts_the_splitting_of_its_ordering() {
@@ -181,9 +180,11 @@ mod tests {
         for parts in [2, 3] {
             let ord = m.gauss_seidel_ordering(Some(parts));
             assert_eq!(ord.bounds.len(), parts + 1);
+            // on this small box 2 parts leave interior nodes; with 3, every node is
+            // next to another part (the ordering is then the node order)
             let n_sep = ord.separator_nodes.len();
             assert!(
-                n_sep > 0 && n_sep < m.n_nodes(),
+                n_sep > 0 && (parts == 3 || n_sep < m.n_nodes()),
                 "{parts} parts: {n_sep} separator nodes"
             );
             let mut order: Vec<usize> = (0..m.n_nodes()).filter(|&i| !ord.separator[i]).collect();
