@@ -153,16 +153,22 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
         );
     }
     assert_eq!(out.matches("sim iteration:  p50").count(), 2, "{out}");
+    assert_names_missing_shared_mesh("--haptic", &dir);
+}
+
+/// `heml bench FLAG` with $HEML_MESHES at `dir` (no shared meshes there) fails and
+/// names the first missing mesh and the variable.
+fn assert_names_missing_shared_mesh(flag: &str, dir: &std::path::Path) {
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
-        .args(["bench", "--haptic"])
-        .env("HEML_MESHES", &dir)
+        .args(["bench", flag])
+        .env("HEML_MESHES", dir)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&status.stderr);
     assert!(!status.status.success());
     assert!(
         err.contains("gen_kidney_20k.msh not found") && err.contains("HEML_MESHES"),
-        "{err}"
+        "{flag}: {err}"
     );
 }
 
@@ -202,17 +208,7 @@ fn bench_implicit_reports_rows_and_names_bad_input() {
     }
     let (ok, _, err) = heml(&["bench", "--implicit", path.to_str().unwrap(), "--preconditioner", "ilu"]);
     assert!(!ok && err.contains("--preconditioner ilu: expected"), "{err}");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
-        .args(["bench", "--implicit"])
-        .env("HEML_MESHES", &dir)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&status.stderr);
-    assert!(!status.status.success());
-    assert!(
-        err.contains("gen_kidney_20k.msh not found") && err.contains("HEML_MESHES"),
-        "{err}"
-    );
+    assert_names_missing_shared_mesh("--implicit", &dir);
 }
 
 /// `heml materials --energy` checks a text, prints its derivatives and rest state,

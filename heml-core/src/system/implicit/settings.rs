@@ -105,7 +105,10 @@ impl ImplicitSettings {
     /// bounded amount of work; the price is a small force imbalance per step, which
     /// the next steps keep correcting (the residual is always the exact one), so a
     /// steady state is still reached exactly — only the transient differs from the
-    /// accurate default's.
+    /// accurate default's. The cap usually binds before the tolerance: on a
+    /// 20k-tet kidney at ν = 0.49 and 10 ms the 30 iterations reach a relative
+    /// residual of ~1e-2 (6e-2 on 90k tets; [`super::PhaseTimes::cg_residual`] reports
+    /// it per step), 1e-3 on the 596-tet SOFA liver.
     ///
     /// ```
     /// use heml_core::system::{CgFailure, ImplicitSettings};
