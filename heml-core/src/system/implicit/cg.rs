@@ -142,10 +142,10 @@ fn update_x_r(alpha: f64, p: &[f64], ap: &[f64], x: &mut [f64], r: &mut [f64]) -
         .zip(p.par_chunks(CHUNK).zip(ap.par_chunks(CHUNK)))
         .map(|((x, r), (p, ap))| {
             let mut rr = 0.0;
-            for i in 0..x.len() {
-                x[i] += alpha * p[i];
-                r[i] -= alpha * ap[i];
-                rr += r[i] * r[i];
+            for (((x, r), p), ap) in x.iter_mut().zip(r.iter_mut()).zip(p).zip(ap) {
+                *x += alpha * p;
+                *r -= alpha * ap;
+                rr += *r * *r;
             }
             rr
         })
