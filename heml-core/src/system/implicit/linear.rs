@@ -143,12 +143,15 @@ impl TangentSolve {
     }
 }
 
+/// The nonlocal couplings: the tangents, c_k and the diagonal blocks the matrix holds.
+type Nonlocal<'a> = (&'a [Box<dyn TangentOperator>], f64, &'a [Matrix3<f64>]);
+
 /// The assembled system matrix as a CG operator: its product (plus the nonlocal
 /// couplings it does not hold: the tangents, c_k and the diagonal blocks already in
 /// the matrix) and the chosen preconditioner.
 struct Assembled<'a> {
     matrix: &'a BlockMatrix,
-    nonlocal: Option<(&'a [Box<dyn TangentOperator>], f64, &'a [Matrix3<f64>])>,
+    nonlocal: Option<Nonlocal<'a>>,
     preconditioner: CgPreconditioner,
     /// The parallel Gauss–Seidel ordering (built when that preconditioner is used).
     ordering: Option<&'a GsOrdering>,
