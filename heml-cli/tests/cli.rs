@@ -159,17 +159,62 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
         }
     }
     assert_eq!(out.matches("sim iteration:  p50").count(), 8, "{out}");
+    assert_names_missing_shared_mesh("--haptic", &dir);
+}
+
+/// `heml bench FLAG` with $HEML_MESHES at `dir` (no shared meshes there) fails and
+/// names the first missing mesh and the variable.
+fn assert_names_missing_shared_mesh(flag: &str, dir: &std::path::Path) {
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
-        .args(["bench", "--haptic"])
-        .env("HEML_MESHES", &dir)
+        .args(["bench", flag])
+        .env("HEML_MESHES", dir)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&status.stderr);
     assert!(!status.status.success());
     assert!(
         err.contains("gen_kidney_20k.msh not found") && err.contains("HEML_MESHES"),
-        "{err}"
+        "{flag}: {err}"
     );
+}
+
+/// `heml bench --implicit` on a small block (mm) prints a row per thread count and
+/// preset with CG iterations and the residual reached, each preconditioner reaches
+/// the default preset's tolerance in the same number of steps' worth of rows, and
+/// without meshes it names the missing shared mesh and a bad preconditioner name.
+#[test]
+fn bench_implicit_reports_rows_and_names_bad_input() {
+    use heml::io::write_mesh;
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = support::temp_dir("cli", "implicit");
+    let path = dir.join("block_mm.vtu");
+    write_mesh(&path, &box_mesh([40.0, 40.0, 20.0], [4, 4, 2], HexSplit::Six).unwrap()).unwrap();
+    for pc in ["parallel_gauss_seidel", "symmetric_gauss_seidel", "block_jacobi"] {
+        let (ok, out, err) = heml(&[
+            "bench",
+            "--implicit",
+            path.to_str().unwrap(),
+            "--threads",
+            "2",
+            "--preconditioner",
+            pc,
+        ]);
+        assert!(ok, "{err}");
+        let rows: Vec<&str> = out
+            .lines()
+            .filter(|l| l.starts_with("block_mm (192, ×0.001 m)"))
+            .collect();
+        assert_eq!(rows.len(), 4, "1 and 2 threads × default, interactive:\n{out}");
+        // the default preset converges to 1e-6: the residual column shows it
+        for row in rows.iter().filter(|r| r.contains(" default ")) {
+            let res = row.split('(').nth(2).and_then(|t| t.split(')').next()).unwrap();
+            let res: f64 = res.trim().parse().unwrap_or_else(|_| panic!("residual in {row}"));
+            assert!(res <= 1e-6 && res > 0.0, "{pc}: {row}");
+        }
+    }
+    let (ok, _, err) = heml(&["bench", "--implicit", path.to_str().unwrap(), "--preconditioner", "ilu"]);
+    assert!(!ok && err.contains("--preconditioner ilu: expected"), "{err}");
+    assert_names_missing_shared_mesh("--implicit", &dir);
 }
 
 /// `heml materials --energy` checks a text, prints its derivatives and rest state,

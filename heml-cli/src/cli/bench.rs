@@ -59,13 +59,19 @@ pub struct BenchArgs {
     pub haptic: bool,
     /// Instead of the usual table: backward Euler at dt = 10 ms on these meshes
     /// (liver-like tissue, ν = 0.49) against the best explicit integrator at its stable
-    /// step on the same scene, at 1 and --threads threads.
-    #[arg(long, num_args = 1.., value_name = "MESH")]
-    pub implicit: Vec<PathBuf>,
-    /// Scale of the --implicit meshes to metres (default 1e-3: millimetre files, as
-    /// the generated organ meshes).
+    /// step on the same scene, at 1 and --threads threads. Without a mesh:
+    /// gen_kidney_20k, gen_kidney_100k (mm) and sofa_liver (coordinates taken as cm)
+    /// of the shared meshes ($HEML_MESHES, or ../shared/meshes).
+    #[arg(long, num_args = 0.., value_name = "MESH")]
+    pub implicit: Option<Vec<PathBuf>>,
+    /// Scale of the --implicit meshes given by path to metres (default 1e-3:
+    /// millimetre files, as the generated organ meshes).
     #[arg(long, default_value_t = 1e-3)]
     pub implicit_scale: f64,
+    /// CG preconditioner of the --implicit runs: parallel_gauss_seidel (default),
+    /// symmetric_gauss_seidel (sequential) or block_jacobi.
+    #[arg(long, default_value = "parallel_gauss_seidel", value_name = "NAME")]
+    pub preconditioner: String,
     /// Instead of the usual table: this energy declared at run time against the
     /// compiled --law, one thread, timed round-robin (same energy: same forces).
     #[arg(long, value_name = "TEXT")]
@@ -249,8 +255,10 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         let pinned = placement_for(threads, placement) == Placement::Pinned;
         return super::haptic::run(args.mesh.as_ref(), &pool(threads)?, threads, pinned);
     }
-    if !args.implicit.is_empty() {
-        return super::bench_implicit::run(&args.implicit, args.implicit_scale, threads, placement);
+    if let Some(meshes) = &args.implicit {
+        let meshes = super::bench_implicit::meshes(meshes, args.implicit_scale)?;
+        let preconditioner = super::bench_implicit::preconditioner(&args.preconditioner)?;
+        return super::bench_implicit::run(&meshes, preconditioner, threads, placement);
     }
     if let Some(energy) = &args.energy {
         return super::bench_energy::run(&args, energy, &pool(1)?);

@@ -1,18 +1,61 @@
-//! `heml bench --implicit MESH…`: backward Euler at dt = 10 ms against the best
+//! `heml bench --implicit [MESH…]`: backward Euler at dt = 10 ms against the best
 //! explicit integrator at its stable step on the same soft, nearly incompressible
 //! scene, per mesh and thread count, measured in one run.
 //!
 //! The scene is liver-like tissue (neo-Hookean, E = 3 kPa, ν = 0.49, ρ = 1000 kg/m³)
 //! under gravity with mass damping α = 15/s, the 10 % of the organ at smallest x
 //! clamped. Each implicit case starts from rest and takes [`IMPLICIT_STEPS`] steps
-//! (the sag's transient included); medians and ranges are over all of them.
+//! (the sag's transient included); medians and ranges are over all of them. Without
+//! a mesh, the shared collection's two generated kidneys (millimetres) and SOFA's
+//! liver (arbitrary units, taken as centimetres as the inversion validation case
+//! does: a 6.5 cm organ with slivers, so a tiny explicit stable step) are run.
 
 use crate::threads::{thread_pool, Placement};
 use heml::prelude::*;
-use heml::system::{ImplicitScheme, ImplicitSettings, ImplicitSolver, PhaseTimes, System};
+use heml::system::{CgPreconditioner, ImplicitScheme, ImplicitSettings, ImplicitSolver, PhaseTimes, System};
 use heml_validation::fixtures::renumbered_at_load;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The default meshes of the shared collection and their scales to metres.
+const DEFAULT_MESHES: [(&str, f64); 3] = [
+    ("gen_kidney_20k.msh", 1e-3),
+    ("gen_kidney_100k.msh", 1e-3),
+    ("sofa_liver.msh", 1e-2),
+];
+
+/// The meshes to run with their scales to metres: `paths` at `scale`, or without
+/// paths the default meshes of the shared collection ($HEML_MESHES, or
+/// ../shared/meshes), with a clear error when one is missing.
+pub fn meshes(paths: &[PathBuf], scale: f64) -> heml::Result<Vec<(PathBuf, f64)>> {
+    if !paths.is_empty() {
+        return Ok(paths.iter().map(|p| (p.clone(), scale)).collect());
+    }
+    let dir = std::env::var_os("HEML_MESHES").map_or_else(|| PathBuf::from("../shared/meshes"), PathBuf::from);
+    let list: Vec<(PathBuf, f64)> = DEFAULT_MESHES
+        .iter()
+        .map(|&(name, scale)| (dir.join("msh").join(name), scale))
+        .collect();
+    if let Some((missing, _)) = list.iter().find(|(p, _)| !p.is_file()) {
+        return Err(HemlError::Invalid(format!(
+            "heml bench --implicit: {} not found (set HEML_MESHES to the shared mesh folder, or give meshes)",
+            missing.display()
+        )));
+    }
+    Ok(list)
+}
+
+/// The preconditioner named `name` (snake case, as `CgPreconditioner` serialises).
+pub fn preconditioner(name: &str) -> heml::Result<CgPreconditioner> {
+    match name {
+        "parallel_gauss_seidel" => Ok(CgPreconditioner::ParallelGaussSeidel),
+        "symmetric_gauss_seidel" => Ok(CgPreconditioner::SymmetricGaussSeidel),
+        "block_jacobi" => Ok(CgPreconditioner::BlockJacobi),
+        _ => Err(HemlError::Invalid(format!(
+            "--preconditioner {name}: expected parallel_gauss_seidel, symmetric_gauss_seidel or block_jacobi"
+        ))),
+    }
+}
 
 /// Implicit step size.
 const DT: f64 = 0.01;
@@ -48,7 +91,7 @@ fn stats(v: &[f64]) -> (f64, f64, f64) {
     (med, s[0], s[n - 1])
 }
 
-/// Per-step wall times, CG iterations and phase times of `IMPLICIT_STEPS` steps from rest.
+/// Per-step wall times, CG iterations and phase times (with the CG residuals) of `IMPLICIT_STEPS` steps from rest.
 fn implicit_case(
     mesh: &TetMesh,
     settings: ImplicitSettings,
@@ -97,9 +140,14 @@ fn explicit_case(mesh: &TetMesh, pool: &rayon::ThreadPool) -> heml::Result<(Stri
     Ok(best.expect("two candidates"))
 }
 
-/// Runs the implicit benchmark on `meshes` (scaled by `scale` to metres) at 1 and
+/// Runs the implicit benchmark on `meshes` (each with its scale to metres) at 1 and
 /// `threads` threads.
-pub fn run(meshes: &[PathBuf], scale: f64, threads: usize, placement: Placement) -> heml::Result<()> {
+pub fn run(
+    meshes: &[(PathBuf, f64)],
+    preconditioner: CgPreconditioner,
+    threads: usize,
+    placement: Placement,
+) -> heml::Result<()> {
     let mut counts = vec![1];
     if threads != 1 {
         counts.push(threads);
@@ -109,25 +157,28 @@ pub fn run(meshes: &[PathBuf], scale: f64, threads: usize, placement: Placement)
          neo-Hookean E = 3 kPa, ν = 0.49, ρ = 1000, gravity, α = 15/s, 10 % clamped",
         DT * 1e3
     );
-    outln!("implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]); explicit: {EXPLICIT_STEPS} steps");
+    outln!(
+        "implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]), CG preconditioner {preconditioner:?}; \
+         explicit: {EXPLICIT_STEPS} steps"
+    );
     outln!();
     outln!(
-        "{:<22} {:>3} {:<11} {:>24} {:>11} {:>30} {:>9} {:>26} {:>8}",
+        "{:<30} {:>3} {:<11} {:>24} {:>22} {:>30} {:>9} {:>26} {:>8}",
         "mesh (tets)",
         "thr",
         "settings",
         "ms/step",
-        "CG it./step",
+        "CG it./step (residual)",
         "forces/tangent/assembly/CG ms",
         "sim s/s",
         "explicit: dt, ms/step, sim s/s",
         "ratio"
     );
-    for path in meshes {
+    for (path, scale) in meshes {
         // nodes renumbered along a Morton curve, as `heml run` loads meshes
-        let mesh = renumbered_at_load(&heml::io::read_mesh(path)?.0.scaled(scale)?)?;
+        let mesh = renumbered_at_load(&heml::io::read_mesh(path)?.0.scaled(*scale)?)?;
         let label = format!(
-            "{} ({})",
+            "{} ({}, ×{scale} m)",
             Path::new(path).file_stem().map_or("?".into(), |s| s.to_string_lossy()),
             mesh.n_tets()
         );
@@ -140,13 +191,18 @@ pub fn run(meshes: &[PathBuf], scale: f64, threads: usize, placement: Placement)
                 ("default", ImplicitSettings::default()),
                 ("interactive", ImplicitSettings::interactive()),
             ] {
+                let settings = ImplicitSettings {
+                    preconditioner,
+                    ..settings
+                };
                 let (times, cgs, phases) = implicit_case(&mesh, settings, &pool)?;
                 let (m, lo, hi) = stats(&times);
                 let (cg, cg_lo, cg_hi) = stats(&cgs);
-                let phase = |f: fn(&PhaseTimes) -> f64| 1e3 * stats(&phases.iter().map(f).collect::<Vec<_>>()).0;
+                let median = |f: fn(&PhaseTimes) -> f64| stats(&phases.iter().map(f).collect::<Vec<_>>()).0;
+                let phase = |f: fn(&PhaseTimes) -> f64| 1e3 * median(f);
                 let rate = DT / m;
                 outln!(
-                    "{:<22} {:>3} {:<11} {:>7.1} [{:>6.1}–{:>6.1}] {:>4} [{}–{}] {:>6.1}/{:>5.1}/{:>5.1}/{:>6.1} {:>9.3} {:>6}: {:.2e} s, {:.2} [{:.2}–{:.2}], {:.4} {:>7.1}×",
+                    "{:<30} {:>3} {:<11} {:>7.1} [{:>6.1}–{:>6.1}] {:>4} [{}–{}] ({:.0e}) {:>6.1}/{:>5.1}/{:>5.1}/{:>6.1} {:>9.3} {:>6}: {:.2e} s, {:.2} [{:.2}–{:.2}], {:.4} {:>7.1}×",
                     label,
                     n,
                     sname,
@@ -156,6 +212,7 @@ pub fn run(meshes: &[PathBuf], scale: f64, threads: usize, placement: Placement)
                     cg,
                     cg_lo,
                     cg_hi,
+                    median(|p| p.cg_residual),
                     phase(|p| p.forces),
                     phase(|p| p.tangent),
                     phase(|p| p.assembly),

@@ -1,5 +1,14 @@
 //! Preconditioned conjugate gradients, given the operator and preconditioner as
 //! products: the linear solver of the implicit integrators' Newton iterations.
+//!
+//! The dot products are fused into the passes that produce their operands (the
+//! operator product returns pᵀAp, the preconditioner rᵀz, the update of x and r
+//! returns rᵀr), so an iteration reads each vector about once less; the sums run
+//! over fixed chunks, in parallel, and add the chunks' partial sums in order: the
+//! same bits for any thread count.
+
+use rayon::prelude::*;
+use std::ops::Range;
 
 /// What a conjugate-gradient solve reached.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -15,9 +24,49 @@ pub struct CgReport {
     pub breakdown: bool,
 }
 
-/// The dot product of two vectors (sequential: the same bits for any thread count).
+/// Entries per chunk of the fused, parallel dot products and vector updates: fixed,
+/// so the partial sums (and their order) do not depend on the thread count.
+/// A multiple of 3, so that a chunk holds whole nodes.
+pub(super) const CHUNK: usize = 1536;
+const _: () = assert!(CHUNK.is_multiple_of(3));
+
+/// Σ_k `part(range_k)` over the fixed chunks of `0..n`, computed in parallel and
+/// added in chunk order: the same bits for any thread count.
+pub(super) fn chunked_sum(n: usize, part: impl Fn(Range<usize>) -> f64 + Sync) -> f64 {
+    let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|k| part(k * CHUNK..((k + 1) * CHUNK).min(n)))
+        .collect();
+    partial.iter().sum()
+}
+
+/// The dot product of two vectors (chunked: the same bits for any thread count).
 pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    chunked_sum(a.len(), |r| a[r.clone()].iter().zip(&b[r]).map(|(x, y)| x * y).sum())
+}
+
+/// The operator and preconditioner of a conjugate-gradient solve, each returning the
+/// dot product CG needs from its result, so that it is computed in the same pass.
+pub trait CgOperator {
+    /// out = A p; returns pᵀ out.
+    fn apply_dot(&mut self, p: &[f64], out: &mut [f64]) -> f64;
+    /// z = P⁻¹ r (P symmetric positive definite); returns rᵀ z.
+    fn precondition_dot(&mut self, r: &[f64], z: &mut [f64]) -> f64;
+}
+
+/// A [`CgOperator`] from two closures (`apply(p, out)`: out = A p, `precond(r, z)`:
+/// z = P⁻¹ r), the dot products taken in separate passes.
+struct Closures<A, P>(A, P);
+
+impl<A: FnMut(&[f64], &mut [f64]), P: Fn(&[f64], &mut [f64])> CgOperator for Closures<A, P> {
+    fn apply_dot(&mut self, p: &[f64], out: &mut [f64]) -> f64 {
+        (self.0)(p, out);
+        dot(p, out)
+    }
+    fn precondition_dot(&mut self, r: &[f64], z: &mut [f64]) -> f64 {
+        (self.1)(r, z);
+        dot(r, z)
+    }
 }
 
 /// Solves A x = b for symmetric positive definite A, given only the products
@@ -25,13 +74,20 @@ pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// (symmetric positive definite). `x` is the starting guess and holds the result.
 /// Stops when ‖b − A x‖ ≤ `tol`·‖b‖ or after `max_iterations` products.
 pub fn pcg(
-    mut apply: impl FnMut(&[f64], &mut [f64]),
+    apply: impl FnMut(&[f64], &mut [f64]),
     precond: impl Fn(&[f64], &mut [f64]),
     b: &[f64],
     x: &mut [f64],
     tol: f64,
     max_iterations: usize,
 ) -> CgReport {
+    pcg_fused(&mut Closures(apply, precond), b, x, tol, max_iterations)
+}
+
+/// [`pcg`] on a [`CgOperator`], whose products return the dot products CG needs:
+/// per iteration one operator product, one preconditioner application and two
+/// parallel vector passes (x, r and rᵀr; then p).
+pub fn pcg_fused(op: &mut impl CgOperator, b: &[f64], x: &mut [f64], tol: f64, max_iterations: usize) -> CgReport {
     let n = b.len();
     let bnorm = dot(b, b).sqrt();
     if bnorm == 0.0 {
@@ -43,46 +99,58 @@ pub fn pcg(
     }
     let mut r = vec![0.0; n];
     let mut ap = vec![0.0; n];
-    apply(x, &mut ap);
-    let mut products = 1;
-    for i in 0..n {
-        r[i] = b[i] - ap[i];
-    }
+    op.apply_dot(x, &mut ap);
+    r.par_iter_mut()
+        .zip(b.par_iter().zip(&ap))
+        .with_min_len(CHUNK)
+        .for_each(|(r, (b, ap))| *r = b - ap);
     let mut z = vec![0.0; n];
-    precond(&r, &mut z);
+    let mut rz = op.precondition_dot(&r, &mut z);
     let mut p = z.clone();
-    let mut rz = dot(&r, &z);
     let mut report = CgReport::default();
     let mut rnorm = dot(&r, &r).sqrt();
     let mut it = 0;
     while rnorm > tol * bnorm && it < max_iterations {
-        apply(&p, &mut ap);
-        products += 1;
-        let pap = dot(&p, &ap);
+        let pap = op.apply_dot(&p, &mut ap);
         // not `pap <= 0.0`: a NaN curvature is a breakdown too
         if pap.is_nan() || pap <= 0.0 {
             report.breakdown = true;
             break;
         }
         let alpha = rz / pap;
-        for i in 0..n {
-            x[i] += alpha * p[i];
-            r[i] -= alpha * ap[i];
-        }
+        rnorm = update_x_r(alpha, &p, &ap, x, &mut r).sqrt();
         it += 1;
-        rnorm = dot(&r, &r).sqrt();
-        precond(&r, &mut z);
-        let rz_new = dot(&r, &z);
+        let rz_new = op.precondition_dot(&r, &mut z);
         let beta = rz_new / rz;
         rz = rz_new;
-        for i in 0..n {
-            p[i] = z[i] + beta * p[i];
-        }
+        p.par_chunks_mut(CHUNK)
+            .zip(z.par_chunks(CHUNK))
+            .for_each(|(p, z)| p.iter_mut().zip(z).for_each(|(p, z)| *p = z + beta * *p));
     }
-    report.iterations = products - 1;
+    // a breakdown's product counts as used
+    report.iterations = it + usize::from(report.breakdown);
     report.relative_residual = rnorm / bnorm;
     report.converged = rnorm <= tol * bnorm;
     report
+}
+
+/// x += α p, r −= α A p in one parallel pass over fixed chunks; returns rᵀr.
+fn update_x_r(alpha: f64, p: &[f64], ap: &[f64], x: &mut [f64], r: &mut [f64]) -> f64 {
+    let partial: Vec<f64> = x
+        .par_chunks_mut(CHUNK)
+        .zip(r.par_chunks_mut(CHUNK))
+        .zip(p.par_chunks(CHUNK).zip(ap.par_chunks(CHUNK)))
+        .map(|((x, r), (p, ap))| {
+            let mut rr = 0.0;
+            for (((x, r), p), ap) in x.iter_mut().zip(r.iter_mut()).zip(p).zip(ap) {
+                *x += alpha * p;
+                *r -= alpha * ap;
+                rr += *r * *r;
+            }
+            rr
+        })
+        .collect();
+    partial.iter().sum()
 }
 
 #[cfg(test)]

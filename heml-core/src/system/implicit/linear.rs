@@ -4,8 +4,8 @@
 //! 3×3 blocks ([`BlockMatrix`]) from the generated per-tet tangents, K_g the diagonal
 //! of the grasp springs and dampers and K_contact the tool contacts' n nᵀ blocks.
 
-use super::cg::{dot, pcg, CgReport};
-use super::matrix::BlockMatrix;
+use super::cg::{dot, pcg_fused, CgOperator, CgReport};
+use super::matrix::{BlockMatrix, GsOrdering};
 use super::settings::CgPreconditioner;
 use super::timings::PhaseTimes;
 use crate::error::Result;
@@ -111,44 +111,73 @@ impl TangentSolve {
         };
         let b = to_nodal(rhs);
         let mut x = vec![0.0; 3 * n];
-        let apply = |p: &[f64], out: &mut [f64]| {
-            matrix.apply(p, out);
-            if let Some(d) = &nl_diag {
-                add_nonlocal(tangents, matrix, self.ck, d, p, out);
-            }
+        // the parallel sweeps' ordering: one pass over the pattern per solve
+        let ordering =
+            (self.preconditioner == CgPreconditioner::ParallelGaussSeidel).then(|| matrix.gauss_seidel_ordering(None));
+        let mut op = Assembled {
+            matrix,
+            nonlocal: nl_diag.as_deref().map(|d| (tangents, self.ck, d)),
+            preconditioner: self.preconditioner,
+            ordering: ordering.as_ref(),
         };
-
         if let Some(g) = guess {
             // the guess scaled to minimise the quadratic model ½xᵀAx − bᵀx along it:
             // the model then starts below its value at 0, so CG's result stays a
             // descent direction of the line-search merit, however few iterations
             let g = to_nodal(g);
             let mut ag = vec![0.0; 3 * n];
-            apply(&g, &mut ag);
-            let (bg, gag) = (dot(&b, &g), dot(&g, &ag));
+            let (bg, gag) = (dot(&b, &g), op.apply_dot(&g, &mut ag));
             if bg > 0.0 && gag > 0.0 && (bg / gag).is_finite() {
                 let alpha = bg / gag;
                 x.iter_mut().zip(&g).for_each(|(x, g)| *x = alpha * g);
             }
         }
-        let precond: fn(&BlockMatrix, &[f64], &mut [f64]) = match self.preconditioner {
-            CgPreconditioner::BlockJacobi => BlockMatrix::block_jacobi,
-            CgPreconditioner::SymmetricGaussSeidel => BlockMatrix::symmetric_gauss_seidel,
-        };
-        let report = pcg(
-            apply,
-            |r, out| precond(matrix, r, out),
-            &b,
-            &mut x,
-            self.tol,
-            self.max_iterations,
-        );
+        let report = pcg_fused(&mut op, &b, &mut x, self.tol, self.max_iterations);
         dofs.gather_flat(&x, rhs);
         let t3 = Instant::now();
         cache.times.tangent += (t1 - t0).as_secs_f64();
         cache.times.assembly += (t2 - t1).as_secs_f64();
         cache.times.cg += (t3 - t2).as_secs_f64();
+        cache.times.cg_residual = cache.times.cg_residual.max(report.relative_residual);
         Ok(report)
+    }
+}
+
+/// The nonlocal couplings: the tangents, c_k and the diagonal blocks the matrix holds.
+type Nonlocal<'a> = (&'a [Box<dyn TangentOperator>], f64, &'a [Matrix3<f64>]);
+
+/// The assembled system matrix as a CG operator: its product (plus the nonlocal
+/// couplings it does not hold: the tangents, c_k and the diagonal blocks already in
+/// the matrix) and the chosen preconditioner.
+struct Assembled<'a> {
+    matrix: &'a BlockMatrix,
+    nonlocal: Option<Nonlocal<'a>>,
+    preconditioner: CgPreconditioner,
+    /// The parallel Gauss–Seidel ordering (built when that preconditioner is used).
+    ordering: Option<&'a GsOrdering>,
+}
+
+impl CgOperator for Assembled<'_> {
+    fn apply_dot(&mut self, p: &[f64], out: &mut [f64]) -> f64 {
+        let pap = self.matrix.apply(p, out);
+        match self.nonlocal {
+            None => pap,
+            Some((tangents, ck, diag)) => {
+                add_nonlocal(tangents, self.matrix, ck, diag, p, out);
+                dot(p, out)
+            }
+        }
+    }
+
+    fn precondition_dot(&mut self, r: &[f64], z: &mut [f64]) -> f64 {
+        match self.preconditioner {
+            CgPreconditioner::BlockJacobi => self.matrix.block_jacobi(r, z),
+            CgPreconditioner::SymmetricGaussSeidel => self.matrix.symmetric_gauss_seidel(r, z),
+            CgPreconditioner::ParallelGaussSeidel => {
+                let ord = self.ordering.expect("built for this preconditioner");
+                self.matrix.parallel_gauss_seidel(ord, r, z)
+            }
+        }
     }
 }
 

@@ -12,6 +12,11 @@
 //! are masked: the products and preconditioners leave zeros on them, so CG runs on
 //! the free coordinates only.
 
+mod gauss_seidel;
+
+pub(in crate::system) use gauss_seidel::GsOrdering;
+
+use super::cg::CHUNK;
 use crate::force::TangentOperator;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -234,39 +239,59 @@ impl BlockMatrix {
     }
 
     /// out = A p on the free coordinates (zero on held ones), p by node (3 per node,
-    /// zero on held coordinates).
-    pub(in crate::system) fn apply(&self, p: &[f64], out: &mut [f64]) {
+    /// zero on held coordinates); returns pᵀ out, summed over fixed chunks of rows in
+    /// order (the same bits for any thread count).
+    pub(in crate::system) fn apply(&self, p: &[f64], out: &mut [f64]) -> f64 {
         let (start, col, val, mask) = (&self.start, &self.col, &self.val, &self.mask);
-        out.par_chunks_mut(3)
+        let partial: Vec<f64> = out
+            .par_chunks_mut(CHUNK)
             .enumerate()
-            .with_min_len(MIN_ROWS)
-            .for_each(|(i, o)| {
-                let mut acc = nalgebra::Vector3::zeros();
-                for b in start[i]..start[i + 1] {
-                    acc += val[b] * block_of(p, col[b] as usize);
+            .map(|(k, o)| {
+                let first = k * CHUNK / 3;
+                let mut pap = 0.0;
+                for (r, o) in o.chunks_exact_mut(3).enumerate() {
+                    let i = first + r;
+                    let mut acc = nalgebra::Vector3::zeros();
+                    for b in start[i]..start[i + 1] {
+                        acc += val[b] * block_of(p, col[b] as usize);
+                    }
+                    for a in 0..3 {
+                        o[a] = acc[a] * mask[3 * i + a];
+                        pap += o[a] * p[3 * i + a];
+                    }
                 }
-                for a in 0..3 {
-                    o[a] = acc[a] * mask[3 * i + a];
-                }
-            });
+                pap
+            })
+            .collect();
+        partial.iter().sum()
     }
 
-    /// out = D⁻¹ r: the 3×3 block-Jacobi preconditioner.
-    pub(in crate::system) fn block_jacobi(&self, r: &[f64], out: &mut [f64]) {
+    /// out = D⁻¹ r: the 3×3 block-Jacobi preconditioner; returns rᵀ out (chunked as
+    /// [`Self::apply`]).
+    pub(in crate::system) fn block_jacobi(&self, r: &[f64], out: &mut [f64]) -> f64 {
         let dinv = &self.dinv;
-        out.par_chunks_mut(3)
+        let partial: Vec<f64> = out
+            .par_chunks_mut(CHUNK)
             .enumerate()
-            .with_min_len(MIN_ROWS)
-            .for_each(|(i, o)| {
-                o.copy_from_slice((dinv[i] * block_of(r, i)).as_slice());
-            });
+            .map(|(k, o)| {
+                let first = k * CHUNK / 3;
+                let mut rz = 0.0;
+                for (i, o) in o.chunks_exact_mut(3).enumerate() {
+                    let (ri, zi) = (block_of(r, first + i), dinv[first + i] * block_of(r, first + i));
+                    o.copy_from_slice(zi.as_slice());
+                    rz += ri.dot(&zi);
+                }
+                rz
+            })
+            .collect();
+        partial.iter().sum()
     }
 
     /// out = M⁻¹ r with M = (D + L) D⁻¹ (D + U) the symmetric block Gauss–Seidel
     /// (SSOR, ω = 1) preconditioner: a forward and a backward sweep over the blocks.
     /// Symmetric positive definite whenever the diagonal blocks are; sequential (the
-    /// sweeps' order is the node order), hence deterministic.
-    pub(in crate::system) fn symmetric_gauss_seidel(&self, r: &[f64], out: &mut [f64]) {
+    /// sweeps' order is the node order), hence deterministic. Returns rᵀ out.
+    pub(in crate::system) fn symmetric_gauss_seidel(&self, r: &[f64], out: &mut [f64]) -> f64 {
         let n = self.n_nodes();
         let (start, col, val, dinv, diag) = (&self.start, &self.col, &self.val, &self.dinv, &self.diag);
         // (D + L) y = r
@@ -278,6 +303,7 @@ impl BlockMatrix {
             out[3 * i..3 * i + 3].copy_from_slice((dinv[i] * t).as_slice());
         }
         // (D + U) z = D y: z_i = y_i − D_i⁻¹ Σ_{j>i} A_ij z_j
+        let mut rz = 0.0;
         for i in (0..n).rev() {
             let mut t = nalgebra::Vector3::zeros();
             for b in diag[i] + 1..start[i + 1] {
@@ -285,7 +311,9 @@ impl BlockMatrix {
             }
             let z = block_of(out, i) - dinv[i] * t;
             out[3 * i..3 * i + 3].copy_from_slice(z.as_slice());
+            rz += z.dot(&block_of(r, i));
         }
+        rz
     }
 }
 
@@ -329,7 +357,7 @@ mod tests {
         }
     }
 
-    fn rnd(s: &mut u64) -> f64 {
+    pub(super) fn rnd(s: &mut u64) -> f64 {
         *s ^= *s << 13;
         *s ^= *s >> 7;
         *s ^= *s << 17;
@@ -339,7 +367,7 @@ mod tests {
     /// Two operators over halves of a 3×2×2 box (every tet once), the dense
     /// c_k K + c_m M they make, masked to the free coordinates (node 0 held, node 1
     /// held in y only), and the assembled matrix.
-    fn setup() -> (BlockMatrix, DMatrix<f64>, Vec<bool>) {
+    pub(super) fn setup() -> (BlockMatrix, DMatrix<f64>, Vec<bool>) {
         let mesh = box_mesh([3.0, 2.0, 2.0], [3, 2, 2], HexSplit::Six).unwrap();
         let (n, nt) = (mesh.n_nodes(), mesh.n_tets());
         let mut s = 0x9e37_79b9_7f4a_7c15u64;
@@ -407,17 +435,33 @@ mod tests {
     }
 
     /// Symmetric Gauss–Seidel applies the inverse of (D + L) D⁻¹ (D + U), built
-    /// densely from the free part of the matrix, and leaves held coordinates at 0.
-    /// Bound: the sweeps are backward stable on this well-conditioned (SPD, mass-
-    /// shifted) matrix, so the product reproduces r to ~1e-13; 1e-10 is ample.
+    /// densely from the free part of the matrix, and leaves held coordinates at 0;
+    /// it returns rᵀz. Bounds as in [`assert_inverts_splitting`].
     #[test]
     fn symmetric_gauss_seidel_inverts_its_splitting() {
         let (m, dense, mask) = setup();
-        let nd = mask.len();
         let mut s = 11u64;
         let r: Vec<f64> = mask.iter().map(|&f| if f { rnd(&mut s) } else { 0.0 }).collect();
-        let mut z = vec![0.0; nd];
-        m.symmetric_gauss_seidel(&r, &mut z);
+        let mut z = vec![0.0; mask.len()];
+        let rz = m.symmetric_gauss_seidel(&r, &mut z);
+        let order: Vec<usize> = (0..m.n_nodes()).collect();
+        assert_inverts_splitting(&dense, &mask, &order, &r, &z);
+        let want: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        assert!((rz - want).abs() <= 1e-12 * want.abs(), "{rz} vs {want}");
+    }
+
+    /// Asserts z = P⁻¹ r on the free coordinates and z = 0 on the held ones, with
+    /// P = (D + L) D⁻¹ (D + U) built densely from `dense` with the nodes in the
+    /// order `order` (L: the blocks (i, j) with j before i). Bound: the sweeps are
+    /// backward stable on this well-conditioned (SPD, mass-shifted) matrix, so P z
+    /// reproduces r (entries O(1)) to ~1e-13; 1e-10 is ample, and a wrong ordering
+    /// or dropped coupling gives O(0.1) differences.
+    pub(super) fn assert_inverts_splitting(dense: &DMatrix<f64>, mask: &[bool], order: &[usize], r: &[f64], z: &[f64]) {
+        let nd = mask.len();
+        let mut pos = vec![0; nd / 3];
+        for (k, &node) in order.iter().enumerate() {
+            pos[node] = k;
+        }
         // D: the 3×3 diagonal blocks (identity on held coordinates), L / U: the rest
         let mut d = DMatrix::zeros(nd, nd);
         let mut l = DMatrix::zeros(nd, nd);
@@ -429,14 +473,14 @@ mod tests {
                     } else {
                         f64::from(u8::from(i == j))
                     };
-                } else if j / 3 < i / 3 {
+                } else if pos[j / 3] < pos[i / 3] {
                     l[(i, j)] = dense[(i, j)];
                 }
             }
         }
         let u = l.transpose();
         let prec = (&d + &l) * d.clone().try_inverse().unwrap() * (&d + &u);
-        let back = prec * nalgebra::DVector::from_column_slice(&z);
+        let back = prec * nalgebra::DVector::from_column_slice(z);
         for i in 0..nd {
             if mask[i] {
                 assert!(

@@ -10,7 +10,9 @@
 //! system and excluded), is assembled in 3×3 blocks by node pairs (`matrix.rs`:
 //! pattern built once per mesh, values refilled in parallel, the same bits for any
 //! thread count) and solved by conjugate gradients with a symmetric block
-//! Gauss–Seidel or a 3×3 block-Jacobi preconditioner ([`CgPreconditioner`]),
+//! Gauss–Seidel preconditioner, by default swept in parallel in a separator
+//! ordering (`matrix/gauss_seidel.rs`; sequential or 3×3 block-Jacobi by
+//! [`CgPreconditioner`]), the dot products fused into the passes (`cg.rs`),
 //! warm-started from the previous step's correction. Each tet's stiffness is
 //! projected to positive semi-definite by default ([`ImplicitSettings::project_psd`]),
 //! so the system matrix is positive definite and CG cannot break down; unprojected,

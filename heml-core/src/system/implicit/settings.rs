@@ -39,11 +39,16 @@ pub enum CgPreconditioner {
     /// parallel, but the iteration count grows with the mesh resolution.
     BlockJacobi,
     /// Symmetric block Gauss–Seidel (SSOR with ω = 1) on the assembled matrix: a
-    /// forward and a backward sweep per iteration (sequential), several times fewer
-    /// iterations than block-Jacobi on soft, nearly incompressible tissue (the
-    /// default).
-    #[default]
+    /// forward and a backward sweep over all nodes per iteration (sequential), several
+    /// times fewer iterations than block-Jacobi on soft, nearly incompressible tissue.
     SymmetricGaussSeidel,
+    /// Symmetric block Gauss–Seidel inside each of a fixed number of contiguous node
+    /// ranges (up to 8, at least 512 nodes each; block-Jacobi between them), the
+    /// ranges swept in parallel: nearly the sequential sweep's iteration count at a
+    /// fraction of its time on several threads, the same bits for any thread count
+    /// (the default).
+    #[default]
+    ParallelGaussSeidel,
 }
 
 /// Settings of the implicit integrators (`backward_euler`, `newmark`).
@@ -69,7 +74,7 @@ pub struct ImplicitSettings {
     /// Project each tet's stiffness to positive semi-definite (default true), so that
     /// the system matrix K + c·M stays positive definite and CG cannot break down.
     pub project_psd: bool,
-    /// The CG preconditioner (default symmetric block Gauss–Seidel).
+    /// The CG preconditioner (default the parallel symmetric block Gauss–Seidel).
     pub preconditioner: CgPreconditioner,
     /// Start each step's first CG solve from the previous step's Newton correction
     /// (default true): in a smooth motion it is close to the new one, so fewer
@@ -86,7 +91,7 @@ impl Default for ImplicitSettings {
             cg_max_iterations: 1000,
             cg_failure: CgFailure::Warn,
             project_psd: true,
-            preconditioner: CgPreconditioner::SymmetricGaussSeidel,
+            preconditioner: CgPreconditioner::ParallelGaussSeidel,
             warm_start: true,
         }
     }
@@ -100,7 +105,10 @@ impl ImplicitSettings {
     /// bounded amount of work; the price is a small force imbalance per step, which
     /// the next steps keep correcting (the residual is always the exact one), so a
     /// steady state is still reached exactly — only the transient differs from the
-    /// accurate default's.
+    /// accurate default's. The cap usually binds before the tolerance: on a
+    /// 20k-tet kidney at ν = 0.49 and 10 ms the 30 iterations reach a relative
+    /// residual of ~1e-2 (6e-2 on 90k tets; [`super::PhaseTimes::cg_residual`] reports
+    /// it per step), 1e-3 on the 596-tet SOFA liver.
     ///
     /// ```
     /// use heml_core::system::{CgFailure, ImplicitSettings};

@@ -1,4 +1,5 @@
-//! Where the time of an implicit step goes, for benchmarks and tuning.
+//! Where the time of an implicit step goes, for benchmarks and tuning, and the
+//! accuracy its linear solves reached.
 
 /// Wall-clock seconds spent in the phases of the last implicit step
 /// ([`super::ImplicitSolver::last_phase_times`]); `total` is the whole step, the
@@ -15,4 +16,7 @@ pub struct PhaseTimes {
     pub cg: f64,
     /// The whole step.
     pub total: f64,
+    /// Not a time: the largest relative residual ‖b − A x‖/‖b‖ the step's CG solves
+    /// stopped at (the accuracy bought by the `cg` time; 0 without a solve).
+    pub cg_residual: f64,
 }
