@@ -68,9 +68,9 @@ pub struct BenchArgs {
     /// millimetre files, as the generated organ meshes).
     #[arg(long, default_value_t = 1e-3)]
     pub implicit_scale: f64,
-    /// CG preconditioner of the --implicit runs: parallel_gauss_seidel (default),
-    /// symmetric_gauss_seidel (sequential) or block_jacobi.
-    #[arg(long, default_value = "parallel_gauss_seidel", value_name = "NAME")]
+    /// CG preconditioner of the --implicit runs: symmetric_gauss_seidel (sequential,
+    /// the default), parallel_gauss_seidel or block_jacobi.
+    #[arg(long, default_value = "symmetric_gauss_seidel", value_name = "NAME")]
     pub preconditioner: String,
     /// Instead of the usual table: this energy declared at run time against the
     /// compiled --law, one thread, timed round-robin (same energy: same forces).
