@@ -1,5 +1,5 @@
 //! The live simulation of `heml view`: the scene's system and integrator stepped on
-//! their own thread (force assembly on a pinned pool), at real time when the machine
+//! a worker of their own pinned pool (the force assembly's), at real time when the machine
 //! is faster than that, else as fast as it can; frames (≤ [`FRAME_HZ`]) and status
 //! (≈ [`STATUS_HZ`]) handed to the server through the [`Hub`], never waiting for a
 //! page.
@@ -71,7 +71,6 @@ struct Live {
     /// The adaptive step of an explicit integrator (`None` for implicit ones, which
     /// take the scene's step).
     adapt: Option<AdaptiveStep>,
-    pool: rayon::ThreadPool,
     fields: SurfaceFields,
     adapter: Adapter,
     hub: Arc<Hub>,
@@ -99,6 +98,7 @@ pub fn spawn(
     commands: Receiver<Envelope>,
     controls: Box<dyn Controls>,
 ) -> heml::Result<std::thread::JoinHandle<()>> {
+    let scene = for_viewing(scene);
     let mut sim = build(&scene)?;
     let (pool, _) = thread_pool(threads, Placement::Pinned)?;
     let fields = SurfaceFields::new(&sim.system);
@@ -108,7 +108,6 @@ pub fn spawn(
         scene,
         sim,
         adapt,
-        pool,
         fields,
         adapter: Adapter::new(controls),
         hub,
@@ -128,8 +127,25 @@ pub fn spawn(
     live.publish_status();
     std::thread::Builder::new()
         .name("heml-view-sim".into())
-        .spawn(move || live.run(commands))
+        // the whole loop on a worker of the pool, not just each step: a step handed
+        // from an outside thread to the pool (`install`) costs two cross-thread
+        // wake-ups, tens of µs on a quiet machine and up to a scheduler slice on a
+        // busy one, against a 20k-tet step of ~0.3 ms
+        .spawn(move || pool.install(move || live.run(commands)))
         .map_err(|e| heml::HemlError::Invalid(format!("cannot start the simulation thread: {e}")))
+}
+
+/// `scene` as the viewer runs it: until the page's user closes it, writing no
+/// files. The run-length and output limits of `heml run` (`warn_steps`,
+/// `max_steps`, the output-size estimates of `[output]`) judge a run to its
+/// `duration`; a viewer has none, so they are lifted rather than warning that an
+/// hour of simulated time is millions of steps.
+pub fn for_viewing(mut scene: Scene) -> Scene {
+    scene.solver.warn_steps = Some(u64::MAX);
+    scene.solver.max_steps = Some(u64::MAX);
+    scene.output.vtu = false;
+    scene.output.csv = false;
+    scene
 }
 
 /// The adaptive step for `sim`'s explicit integrator, from the scene's step.
@@ -207,7 +223,7 @@ impl Live {
             Some(adapt) => adapt.next(system).0,
             None => *dt,
         };
-        let result = self.pool.install(|| integrator.step(system, dt));
+        let result = integrator.step(system, dt);
         self.step_ms.push(start.elapsed().as_secs_f64() * 1e3);
         if let Err(e) = result {
             log::error!("view: the simulation stopped: {e}");
@@ -428,7 +444,24 @@ impl Live {
 
 #[cfg(test)]
 mod tests {
-    use super::percentile;
+    use super::{for_viewing, percentile};
+    use crate::cli::demo::DEMO_SCENE;
+    use heml::scene::Scene;
+
+    #[test]
+    fn a_viewed_scene_has_no_run_length_or_output_limits() {
+        let mut scene = Scene::from_toml_str_named(DEMO_SCENE, ".", "demo.toml (embedded)").unwrap();
+        // a week of simulated time: far above max_steps at the demo's step
+        scene.solver.duration = 6.048e5;
+        let err = scene.build().unwrap_err().to_string();
+        assert!(err.contains("max_steps"), "{err}");
+        let sim = for_viewing(scene).build().unwrap();
+        // nothing to warn about (the plan's warnings are what `heml view` printed)
+        // and nothing to write
+        assert!(sim.plan.warnings.is_empty(), "{:?}", sim.plan.warnings);
+        assert!(sim.plan.steps > 1_000_000_000 && sim.plan.est_bytes == 0);
+        assert!(!sim.vtu && !sim.csv);
+    }
 
     #[test]
     fn percentiles_are_nearest_rank() {
