@@ -280,7 +280,7 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
 }
 
 /// The README's measurement (not a test: run it by hand, once):
-/// `HEML_VIEW_BENCH=scene.toml cargo test --release -p heml-cli --test view_browser -- --ignored --nocapture`.
+/// `HEML_VIEW_BENCH=/absolute/path/scene.toml cargo test --release -p heml-cli --test view_browser -- --ignored --nocapture`.
 /// Frames per second received by a headless page over 10 s, bytes per frame, and the
 /// real-time factor with the page open and after it closed.
 #[tokio::test(flavor = "current_thread")]
@@ -320,9 +320,11 @@ async fn measure_frames_per_second() {
     let closed_after = mean_rtf(&mut ws, 10).await;
     println!(
         "{}: {fps:.1} frames/s received, {bytes} bytes/frame, real-time factor {open:.3} with the page open, \
-         {closed_before:.3} / {closed_after:.3} closed (before / after), step p50 {} ms",
+         {closed_before:.3} / {closed_after:.3} closed (before / after), step p50 {} ms, dt {} s, min J {}",
         scene.to_string_lossy(),
-        ws.status["step_ms_p50"]
+        ws.status["step_ms_p50"],
+        ws.status["dt"],
+        ws.status["min_j"]
     );
 }
 
