@@ -165,9 +165,9 @@ mod tests {
     const I0: [f64; 3] = [3.0, 3.0, 1.0];
 
     fn case(s: &mut u64, n: usize) -> Case {
-        let amp = if n % 4 == 0 { 0.2 } else { 1.0 };
+        let amp = if n.is_multiple_of(4) { 0.2 } else { 1.0 };
         let mut f = Matrix3::from_fn(|_, _| rnd(s) * amp) + Matrix3::identity();
-        if n % 3 == 0 {
+        if n.is_multiple_of(3) {
             f.column_mut(0).neg_mut();
         }
         let dm = Matrix3::from_fn(|_, _| rnd(s) * 0.4) + Matrix3::identity();
