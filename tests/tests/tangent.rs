@@ -234,7 +234,7 @@ fn analytic_projection_matches_the_eigen_projection() {
                 );
                 if k.symmetric_eigenvalues().min() >= -1e-12 * kmax {
                     definite += 1;
-                    let d = (p - project_psd(k)).amax();
+                    let d = (p - project_psd(&k)).amax();
                     assert!(d <= 1e-10 * kmax, "{name}: semi-definite tet {t} changed by {d:e}");
                 } else {
                     indefinite += 1;

@@ -29,7 +29,7 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 pub(crate) type EdgeHessian = SMatrix<f64, 9, 9>;
 
 /// The pairs (i, j, k) of the twist and flip modes, k the third index.
-const PAIRS: [(usize, usize, usize); 3] = [(0, 1, 2), (1, 2, 0), (0, 2, 1)];
+pub(crate) const PAIRS: [(usize, usize, usize); 3] = [(0, 1, 2), (1, 2, 0), (0, 2, 1)];
 
 /// The closed-form part of the eigensystem of ∂²Ψ/∂F² at one F: the six twist and
 /// flip eigenpairs and the 3×3 scaling block ∂²Ψ/∂σ² on the modes U E_aa Vᵀ (its
@@ -44,19 +44,31 @@ pub(crate) struct Modes {
     pub diagonal: [Matrix3<f64>; 3],
 }
 
-/// The eigensystem of ∂²Ψ/∂F² at `f` (see the module doc), for the law derivatives
-/// `d` = (w₁, w₂, w_J) and `h` = ∂²w/∂(I1, I2, J)² (entries of unused invariants
-/// zero). `None` when the SVD does not converge.
-pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Option<Modes> {
-    let svd = f.svd(true, true);
-    let (mut u, vt) = (svd.u?, svd.v_t?);
-    let mut s = svd.singular_values;
-    if u.determinant() * vt.determinant() < 0.0 {
-        // signed SVD: det U·det V = 1, the smallest singular value carries det F's sign
-        let m = s.imin();
-        s[m] = -s[m];
-        u.column_mut(m).neg_mut();
+/// The eigenvalues of ∂²Ψ/∂F² at signed singular values `s` (see the module doc):
+/// they depend on σ only, so definiteness is decided without the singular vectors.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Spectrum {
+    /// λ of the twist and flip modes of the pairs of [`PAIRS`], twist first.
+    pub pairs: [f64; 6],
+    /// ∂²Ψ/∂σ², the block of the scaling modes.
+    pub scaling: Matrix3<f64>,
+}
+
+impl Spectrum {
+    /// Whether ∂²Ψ/∂F² is semi-definite up to round-off: every pair eigenvalue at
+    /// least −1e-12 × the largest |λ| and the scaling block, shifted by as much,
+    /// accepted by a Cholesky factorisation (the tolerance the stiffness-level test
+    /// of [`super::tangent`] uses).
+    pub fn is_semi_definite(&self) -> bool {
+        let scale = self.pairs.iter().fold(self.scaling.amax(), |m, l| m.max(l.abs()));
+        let tol = 1e-12 * scale;
+        self.pairs.iter().all(|&l| l >= -tol) && (self.scaling + Matrix3::identity() * tol).cholesky().is_some()
     }
+}
+
+/// The eigenvalues of ∂²Ψ/∂F² at the signed singular values `s`, for the law
+/// derivatives `d` and `h` of [`eigensystem`].
+pub(crate) fn spectrum(s: &Vector3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Spectrum {
     let [w1, w2, wj] = d;
     let sq = s.map(|x| x * x);
     // gradients of I1, I2, J with respect to σ
@@ -79,17 +91,86 @@ pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Op
             }
         }
     }
+    let pairs = PAIRS.map(|(i, j, k)| {
+        (
+            2.0 * w1 + 2.0 * w2 * (sq[k] + s[i] * s[j]) + wj * s[k],
+            2.0 * w1 + 2.0 * w2 * (sq[k] - s[i] * s[j]) - wj * s[k],
+        )
+    });
+    Spectrum {
+        pairs: std::array::from_fn(|m| if m % 2 == 0 { pairs[m / 2].0 } else { pairs[m / 2].1 }),
+        scaling,
+    }
+}
+
+/// The signed SVD F = U diag(σ) Vᵀ (det U = det V = 1, the σ of smallest magnitude
+/// carrying det F's sign, |σ| descending) from the eigen-decomposition `e`, `vecs`
+/// of C = FᵀF ([`super::spectral::sym_eigen`]): V from the two largest
+/// eigenvectors (the third their cross product), U from a Gram–Schmidt QR of F V,
+/// whose diagonal is σ. Several times cheaper than an iterative SVD. `None` when
+/// F V is not orthogonal to 1e-10 of ‖F‖ (F of rank below 2, or eigenvectors too
+/// inaccurate): the caller then falls back to [`eigensystem`].
+pub(crate) fn svd_from_eigen(
+    f: &Matrix3<f64>,
+    e: &[f64; 3],
+    vecs: &[Vector3<f64>; 3],
+) -> Option<(Matrix3<f64>, Vector3<f64>, Matrix3<f64>)> {
+    let mut o = [0, 1, 2];
+    o.sort_by(|&a, &b| e[b].total_cmp(&e[a]));
+    let (v0, v1) = (vecs[o[0]], vecs[o[1]]);
+    let v2 = v0.cross(&v1);
+    let (a0, a1, a2) = (f * v0, f * v1, f * v2);
+    let s0 = a0.norm();
+    if s0 <= 0.0 || !s0.is_finite() {
+        return None;
+    }
+    let u0 = a0 / s0;
+    let r01 = u0.dot(&a1);
+    let b1 = a1 - u0 * r01;
+    let s1 = b1.norm();
+    if s1 <= 0.0 || !s1.is_finite() {
+        return None;
+    }
+    let u1 = b1 / s1;
+    let u2 = u0.cross(&u1);
+    let (r02, r12) = (u0.dot(&a2), u1.dot(&a2));
+    if r01.abs().max(r02.abs()).max(r12.abs()) > 1e-10 * s0 {
+        return None;
+    }
+    let s2 = u2.dot(&a2);
+    Some((
+        Matrix3::from_columns(&[u0, u1, u2]),
+        Vector3::new(s0, s1, s2),
+        Matrix3::from_columns(&[v0, v1, v2]),
+    ))
+}
+
+/// The eigensystem of ∂²Ψ/∂F² at `f` (see the module doc), for the law derivatives
+/// `d` = (w₁, w₂, w_J) and `h` = ∂²w/∂(I1, I2, J)² (entries of unused invariants
+/// zero). `None` when the SVD does not converge.
+pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Option<Modes> {
+    let svd = f.svd(true, true);
+    let (mut u, vt) = (svd.u?, svd.v_t?);
+    let mut s = svd.singular_values;
+    if u.determinant() * vt.determinant() < 0.0 {
+        // signed SVD: det U·det V = 1, the smallest singular value carries det F's sign
+        let m = s.imin();
+        s[m] = -s[m];
+        u.column_mut(m).neg_mut();
+    }
+    let Spectrum {
+        pairs: lambdas,
+        scaling,
+    } = spectrum(&s, d, h);
     let v = vt.transpose();
     let r = std::f64::consts::FRAC_1_SQRT_2;
     let diagonal = std::array::from_fn(|a| u.column(a) * v.column(a).transpose());
     let mut pairs = [(0.0, Matrix3::zeros()); 6];
-    for (n, &(i, j, k)) in PAIRS.iter().enumerate() {
+    for (n, &(i, j, _)) in PAIRS.iter().enumerate() {
         let (ui, uj, vi, vj) = (u.column(i), u.column(j), v.column(i), v.column(j));
         let (uv, vu) = (ui * vj.transpose(), uj * vi.transpose());
-        let twist = 2.0 * w1 + 2.0 * w2 * (sq[k] + s[i] * s[j]) + wj * s[k];
-        let flip = 2.0 * w1 + 2.0 * w2 * (sq[k] - s[i] * s[j]) - wj * s[k];
-        pairs[2 * n] = (twist, (uv - vu) * r);
-        pairs[2 * n + 1] = (flip, (uv + vu) * r);
+        pairs[2 * n] = (lambdas[2 * n], (uv - vu) * r);
+        pairs[2 * n + 1] = (lambdas[2 * n + 1], (uv + vu) * r);
     }
     Some(Modes {
         pairs,
@@ -150,10 +231,10 @@ pub(crate) fn has_negative(modes: &Modes, rel: f64) -> bool {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn rnd(s: &mut u64) -> f64 {
+    pub(crate) fn rnd(s: &mut u64) -> f64 {
         *s ^= *s << 13;
         *s ^= *s >> 7;
         *s ^= *s << 17;
@@ -161,7 +242,7 @@ mod tests {
     }
 
     /// (I1, I2, J) of F.
-    fn invariants(f: &Matrix3<f64>) -> [f64; 3] {
+    pub(crate) fn invariants(f: &Matrix3<f64>) -> [f64; 3] {
         let c = f.transpose() * f;
         let i1 = c.trace();
         [i1, 0.5 * (i1 * i1 - (c * c).trace()), f.determinant()]
@@ -169,7 +250,7 @@ mod tests {
 
     /// ∂Ψ/∂F for w = Σ c_a I_a + ½ Σ h_ab (I_a − I⁰_a)(I_b − I⁰_b): w_a(F) times the
     /// invariants' gradients 2F, 2(I1 F − F C) and cof F.
-    fn gradient(f: &Matrix3<f64>, c: &[f64; 3], h: &[[f64; 3]; 3], i0: &[f64; 3]) -> Matrix3<f64> {
+    pub(crate) fn gradient(f: &Matrix3<f64>, c: &[f64; 3], h: &[[f64; 3]; 3], i0: &[f64; 3]) -> Matrix3<f64> {
         let inv = invariants(f);
         let w: [f64; 3] = std::array::from_fn(|a| c[a] + (0..3).map(|b| h[a][b] * (inv[b] - i0[b])).sum::<f64>());
         let cof = f.try_inverse().unwrap().transpose() * f.determinant();

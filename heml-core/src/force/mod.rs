@@ -13,6 +13,7 @@ mod fibre_tangent;
 mod fibre_tests;
 mod field;
 mod heml;
+mod invariant_blocks;
 pub(crate) mod kernel;
 pub(crate) mod lanes;
 mod link;

@@ -115,8 +115,11 @@ impl<M: InvariantLaw> TangentOperator for NodalVolumeTangent<M> {
     fn projects(&self) -> bool {
         self.project
     }
-    fn tet_stiffness(&self, k: usize) -> &TetStiffness {
+    fn tet_stiffness(&self, k: usize) -> TetStiffness {
         self.iso.tet_stiffness(k)
+    }
+    fn tet_row(&self, k: usize, a: usize) -> [Matrix3<f64>; 4] {
+        self.iso.tet_row(k, a)
     }
 
     fn update(&mut self, x: &[Vec3]) -> Result<()> {

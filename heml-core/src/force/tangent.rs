@@ -24,17 +24,20 @@
 //! 9×9 Hessian in the edge vectors from node 0, negative eigenvalues clamped to 0).
 //! The projected matrix keeps the translations as null modes (and the rotations at
 //! rest) and equals K wherever K is already semi-definite, e.g. near the rest state
-//! (detected by a Cholesky factorisation). Invariant laws are isotropic, so their
-//! indefinite tets are projected through the closed-form eigensystem of ∂²Ψ/∂F²
-//! (from the 3×3 SVD of F, `force/eigensystem.rs`: several times cheaper than the
-//! 9×9 eigen-decomposition); link laws, and a tet whose SVD fails, through the
-//! numerical eigen-decomposition of K₉ ([`project_psd`]). The implicit integrators
-//! project by default.
+//! (detected by a Cholesky factorisation). Invariant laws are isotropic: their
+//! stiffness is built in 3×3 node blocks straight from F and the law's second
+//! derivatives, definiteness is decided from the closed-form eigenvalues of ∂²Ψ/∂F²
+//! and an indefinite tet gets rank-one corrections along its negative modes
+//! (`force/invariant_blocks.rs`; the iterative SVD of `force/eigensystem.rs` only
+//! where the closed-form one is inaccurate); link laws, and a tet whose SVD fails,
+//! go through the numerical eigen-decomposition of K₉ ([`project_psd`]). The
+//! implicit integrators project by default.
 //!
 //! The per-tet matrices are computed once per [`TangentOperator::update`] (in
-//! parallel) and stored (144 numbers per tet); the product y += K·dx gathers, per
-//! node, the rows of its incident tets, in parallel over nodes: race-free and
-//! bit-for-bit deterministic for any thread count.
+//! parallel) and stored as their ten distinct 3×3 blocks ([`TetBlocks`], 90 numbers
+//! per tet); the product y += K·dx gathers, per node, the block rows of its incident
+//! tets, in parallel over nodes: race-free and bit-for-bit deterministic for any
+//! thread count.
 
 // The 12×12 assembly indexes node blocks and coordinates in lock-step; iterator
 // chains over several arrays would obscure the formulas.
@@ -43,17 +46,71 @@
 use super::eigensystem::{edge_hessian, eigensystem, EdgeHessian};
 use super::field::{check_sizes, selection};
 use super::heml::{invariant_terms, volume_terms};
+use super::invariant_blocks::{exact_blocks, project_blocks, TetState};
 use super::ForceOptions;
 use crate::error::{HemlError, Result};
 use crate::law::{InvariantLaw, LinkLaw};
 use crate::mesh::TetMesh;
-use crate::rest::{edge_vectors, mtr_index, rest_edge_matrix, RestTet, EDGES};
+use crate::rest::{edge_vectors, rest_edge_matrix, RestTet, EDGES};
 use crate::Vec3;
 use nalgebra::{Matrix3, SMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
 /// A 12×12 tet stiffness, rows and columns ordered (node 0 x, y, z, node 1 x, …).
 pub type TetStiffness = SMatrix<f64, 12, 12>;
+
+/// The ten distinct 3×3 node blocks (a, b), a ≤ b, of a symmetric tet stiffness, in
+/// the order of [`BLOCK_PAIRS`] (block (b, a) is the transpose of (a, b)): what a
+/// [`TangentField`] stores per tet, 720 bytes instead of the 1152 of a 12×12.
+pub type TetBlocks = [Matrix3<f64>; 10];
+
+/// The node pairs (a, b), a ≤ b, of the blocks of a [`TetBlocks`].
+pub const BLOCK_PAIRS: [(usize, usize); 10] = [
+    (0, 0),
+    (0, 1),
+    (0, 2),
+    (0, 3),
+    (1, 1),
+    (1, 2),
+    (1, 3),
+    (2, 2),
+    (2, 3),
+    (3, 3),
+];
+
+/// Index in [`BLOCK_PAIRS`] of the block (min(a, b), max(a, b)).
+const BLOCK_INDEX: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 4, 5, 6], [2, 5, 7, 8], [3, 6, 8, 9]];
+
+/// Block (a, b) of a symmetric tet stiffness held as [`TetBlocks`].
+#[inline(always)]
+pub fn tet_block(k: &TetBlocks, a: usize, b: usize) -> Matrix3<f64> {
+    let m = k[BLOCK_INDEX[a][b]];
+    if a <= b {
+        m
+    } else {
+        m.transpose()
+    }
+}
+
+/// The blocks of the symmetric part of a 12×12 tet stiffness.
+pub fn stiffness_to_blocks(k: &TetStiffness) -> TetBlocks {
+    BLOCK_PAIRS.map(|(a, b)| {
+        let m = k.fixed_view::<3, 3>(3 * a, 3 * b).into_owned();
+        (m + k.fixed_view::<3, 3>(3 * b, 3 * a).transpose()) * 0.5
+    })
+}
+
+/// The 12×12 stiffness of blocks `k`.
+pub fn blocks_to_stiffness(k: &TetBlocks) -> TetStiffness {
+    let mut out = TetStiffness::zeros();
+    for (m, &(a, b)) in BLOCK_PAIRS.iter().enumerate() {
+        out.fixed_view_mut::<3, 3>(3 * a, 3 * b).copy_from(&k[m]);
+        if a != b {
+            out.fixed_view_mut::<3, 3>(3 * b, 3 * a).copy_from(&k[m].transpose());
+        }
+    }
+    out
+}
 
 /// The tangent stiffness of a force field as a matrix-free operator.
 pub trait TangentOperator: Send + Sync {
@@ -70,7 +127,14 @@ pub trait TangentOperator: Send + Sync {
     /// preconditioner's input.
     fn add_diagonal_blocks(&self, d: &mut [Matrix3<f64>]) -> Result<()>;
     /// The stored (possibly projected) stiffness of the operator's `k`-th tet.
-    fn tet_stiffness(&self, k: usize) -> &TetStiffness;
+    fn tet_stiffness(&self, k: usize) -> TetStiffness;
+    /// The blocks (a, b), b = 0..4, of row `a` of the `k`-th tet's stiffness: what an
+    /// assembly by node rows reads. The default copies them out of
+    /// [`Self::tet_stiffness`]; operators that store blocks return them directly.
+    fn tet_row(&self, k: usize, a: usize) -> [Matrix3<f64>; 4] {
+        let m = self.tet_stiffness(k);
+        std::array::from_fn(|b| m.fixed_view::<3, 3>(3 * a, 3 * b).into_owned())
+    }
     /// Whether each tet's stiffness is projected to positive semi-definite.
     fn projects(&self) -> bool;
 
@@ -110,6 +174,17 @@ pub trait TetHessian: Send + Sync {
         } else {
             h
         }
+    }
+    /// The blocks of [`Self::projected`] (`project`) or [`Self::hessian`]: what a
+    /// [`TangentField`] stores. The default takes them from the 12×12 matrix; kernels
+    /// that build the blocks directly override it.
+    fn blocks(&self, k: usize, p: &[Vec3; 4], project: bool) -> TetBlocks {
+        let m = if project {
+            self.projected(k, p)
+        } else {
+            self.hessian(k, p)
+        };
+        stiffness_to_blocks(&m)
     }
 }
 
@@ -199,39 +274,48 @@ type LawDerivatives = ([f64; 3], [[f64; 3]; 3]);
 
 impl<M: InvariantLaw> TetHessian for InvariantHessian<M> {
     fn hessian(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
-        self.hessian_and_derivatives(k, p).0
+        blocks_to_stiffness(&self.blocks(k, p, false))
     }
 
-    /// Semi-definite tets (a Cholesky factorisation of K₉ + εI succeeds, as in
-    /// [`project_psd`]) are returned unchanged (symmetrised); the others through
-    /// the analytic eigensystem of ∂²Ψ/∂F² with its negative eigenvalues clamped.
     fn projected(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
-        let (h, (d, d2)) = self.hessian_and_derivatives(k, p);
-        if !h.iter().all(|c| c.is_finite()) {
-            return h;
+        blocks_to_stiffness(&self.blocks(k, p, true))
+    }
+
+    /// Tets whose analytic spectrum is semi-definite are returned unchanged, the
+    /// others with their negative modes clamped ([`project_blocks`]); a tet whose
+    /// closed-form SVD is not accurate enough goes through the iterative SVD's
+    /// eigensystem (or, failing that, the numerical projection).
+    fn blocks(&self, k: usize, p: &[Vec3; 4], project: bool) -> TetBlocks {
+        let (st, (d, h)) = self.state(k, p);
+        let mut blocks = exact_blocks(&st, d, h, Self::USED);
+        if !project || !blocks.iter().all(|b| b.iter().all(|c| c.is_finite())) || project_blocks(&mut blocks, &st, d, h)
+        {
+            return blocks;
         }
-        let sym = (h + h.transpose()) * 0.5;
-        if is_semi_definite(&sym) {
-            return sym;
+        let exact = blocks_to_stiffness(&blocks);
+        if is_semi_definite(&exact) {
+            return blocks;
         }
-        let v = edge_vectors(p);
-        let f = Matrix3::from_columns(&[v[0], v[1], v[2]]) * self.dm_inv_t[k].transpose();
-        match eigensystem(&f, d, d2) {
+        stiffness_to_blocks(&match eigensystem(&st.f, d, h) {
             Some(modes) => expand_translation_free(&edge_hessian(&modes, &self.dm_inv_t[k], self.rest[k].vol, true)),
-            None => project_psd(&h),
-        }
+            None => project_psd(&exact),
+        })
     }
 }
 
 impl<M: InvariantLaw> InvariantHessian<M> {
-    /// The exact stiffness of the `k`-th tet and the law's derivatives there.
-    fn hessian_and_derivatives(&self, k: usize, p: &[Vec3; 4]) -> (TetStiffness, LawDerivatives) {
+    /// Which of (I1, I2, J) the law uses.
+    const USED: [bool; 3] = [true, M::USES_I2, M::USES_J];
+
+    /// The `k`-th tet's state at positions `p` and the law's derivatives there (zero
+    /// for the invariants the law does not use), on the force kernel's branch: the
+    /// same I1, I2, J to the bit, the `*_ext` derivatives below J0.
+    fn state(&self, k: usize, p: &[Vec3; 4]) -> (TetState, LawDerivatives) {
         let r = &self.rest[k];
-        let (vtr, vol) = (r.vtr, r.vol);
+        let vol = r.vol;
         let v = edge_vectors(p);
         let l = v.map(|e| e.norm_squared());
-        // the force kernel's inputs: I2 = 0 for laws without I2, J = 1 without J
-        let (i1, i2, ml) = invariant_terms(&vtr, &l, M::USES_I2);
+        let (i1, i2, _) = invariant_terms(&r.vtr, &l, M::USES_I2);
         let (j, crosses) = if M::USES_J {
             volume_terms(&v, vol)
         } else {
@@ -243,46 +327,26 @@ impl<M: InvariantLaw> InvariantHessian<M> {
         } else {
             (self.law.dw(i1, i2, j), self.law.d2w(i1, i2, j))
         };
-        let [w1, w2, wj] = d.d;
-        // a_e = ∂I2/∂l_e
-        let a: [f64; 6] = std::array::from_fn(|e| i1 * vtr[e] - ml[e]);
-        // H = ∂²W/∂q², q = (l, J)
-        let mut hq = SMatrix::<f64, 7, 7>::zeros();
-        for e in 0..6 {
-            for f in 0..6 {
-                let mut s = h[0][0] * vtr[e] * vtr[f];
-                if M::USES_I2 {
-                    s += h[0][1] * (vtr[e] * a[f] + a[e] * vtr[f])
-                        + h[1][1] * a[e] * a[f]
-                        + w2 * (vtr[e] * vtr[f] - r.mtr[mtr_index(e, f)]);
-                }
-                hq[(e, f)] = vol * s;
-            }
-            if M::USES_J {
-                let mut s = h[0][2] * vtr[e];
-                if M::USES_I2 {
-                    s += h[1][2] * a[e];
-                }
-                hq[(e, 6)] = vol * s;
-                hq[(6, e)] = vol * s;
-            }
-        }
-        if M::USES_J {
-            hq[(6, 6)] = vol * h[2][2];
-        }
-        let ge: [f64; 6] = std::array::from_fn(|e| {
-            let mut s = w1 * vtr[e];
-            if M::USES_I2 {
-                s += w2 * a[e];
-            }
-            vol * s
-        });
-        let vol_terms = M::USES_J.then_some((crosses, wj));
-        let k = stiffness_from_q(&hq, &ge, &v, vol, vol_terms);
-        let used = [true, M::USES_I2, M::USES_J];
+        let dm = &self.dm_inv_t[k];
+        let f = Matrix3::from_columns(&[v[0], v[1], v[2]]) * dm.transpose();
+        let (n1, n2, n3) = (
+            dm.column(0).into_owned(),
+            dm.column(1).into_owned(),
+            dm.column(2).into_owned(),
+        );
+        let sc = 1.0 / (6.0 * vol);
+        let gj = [crosses[0] * sc, crosses[1] * sc, crosses[2] * sc];
+        let st = TetState {
+            f,
+            n: [-(n1 + n2 + n3), n1, n2, n3],
+            gj: [-(gj[0] + gj[1] + gj[2]), gj[0], gj[1], gj[2]],
+            i1,
+            vol,
+        };
+        let used = Self::USED;
         let d = std::array::from_fn(|a| if used[a] { d.d[a] } else { 0.0 });
         let h = std::array::from_fn(|a| std::array::from_fn(|b| if used[a] && used[b] { h[a][b] } else { 0.0 }));
-        (k, (d, h))
+        (st, (d, h))
     }
 }
 
@@ -382,7 +446,7 @@ pub fn project_psd(k: &TetStiffness) -> TetStiffness {
 /// Whether the symmetric tet stiffness `sym` is semi-definite: a Cholesky
 /// factorisation of its K₉ + εI succeeds (ε = 1e-12 × the largest diagonal entry,
 /// far above the round-off of the rotational zero eigenvalues at rest).
-fn is_semi_definite(sym: &TetStiffness) -> bool {
+pub(super) fn is_semi_definite(sym: &TetStiffness) -> bool {
     let k9: SMatrix<f64, 9, 9> = sym.fixed_view::<9, 9>(3, 3).into_owned();
     let shift = 1e-12 * k9.diagonal().amax();
     (k9 + SMatrix::<f64, 9, 9>::identity() * shift).cholesky().is_some()
@@ -390,7 +454,7 @@ fn is_semi_definite(sym: &TetStiffness) -> bool {
 
 /// K = Bᵀ P₉ B for a 9×9 Hessian P₉ in the edge vectors from node 0: the rows and
 /// columns of node 0 are minus the sums over nodes 1..3.
-fn expand_translation_free(p9: &EdgeHessian) -> TetStiffness {
+pub(super) fn expand_translation_free(p9: &EdgeHessian) -> TetStiffness {
     let mut out = TetStiffness::zeros();
     out.fixed_view_mut::<9, 9>(3, 3).copy_from(p9);
     for c in 3..12 {
@@ -418,7 +482,7 @@ pub struct TangentField<H: TetHessian> {
     tets: Vec<[u32; 4]>,
     n_nodes: usize,
     project: bool,
-    k: Vec<TetStiffness>,
+    k: Vec<TetBlocks>,
     /// Incidences of node i: `inc[start[i]..start[i + 1]]`, as (tet, local vertex).
     start: Vec<usize>,
     inc: Vec<(u32, u8)>,
@@ -457,7 +521,7 @@ impl<H: TetHessian> TangentField<H> {
         let (start, inc) = node_incidence(&tets, n);
         TangentField {
             kernel,
-            k: vec![TetStiffness::zeros(); tets.len()],
+            k: vec![[Matrix3::zeros(); 10]; tets.len()],
             tets,
             n_nodes: n,
             project,
@@ -523,8 +587,12 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
     fn projects(&self) -> bool {
         self.project
     }
-    fn tet_stiffness(&self, k: usize) -> &TetStiffness {
-        &self.k[k]
+    fn tet_stiffness(&self, k: usize) -> TetStiffness {
+        blocks_to_stiffness(&self.k[k])
+    }
+    fn tet_row(&self, k: usize, a: usize) -> [Matrix3<f64>; 4] {
+        let m = &self.k[k];
+        std::array::from_fn(|b| tet_block(m, a, b))
     }
 
     fn update(&mut self, x: &[Vec3]) -> Result<()> {
@@ -532,16 +600,20 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
         let (kernel, tets, project, weights) = (&self.kernel, &self.tets, self.project, &self.weights);
         self.k.par_iter_mut().enumerate().with_min_len(64).for_each(|(k, out)| {
             let p = tets[k].map(|i| x[i as usize]);
-            *out = if project {
-                kernel.projected(k, &p)
-            } else {
-                kernel.hessian(k, &p)
-            };
+            *out = kernel.blocks(k, &p, project);
+            // a weighted tet's stiffness is its weight times the unweighted one (the
+            // projection commutes with a positive factor)
             if let Some(w) = weights {
-                *out *= w[k];
+                for b in out.iter_mut() {
+                    *b *= w[k];
+                }
             }
         });
-        if let Some(k) = self.k.iter().position(|m| !m.iter().all(|c| c.is_finite())) {
+        if let Some(k) = self
+            .k
+            .iter()
+            .position(|m| !m.iter().all(|b| b.iter().all(|c| c.is_finite())))
+        {
             return Err(HemlError::Numerical(format!(
                 "non-finite tangent stiffness in tet {} (nodes {:?})",
                 self.ids[k], self.tets[k]
@@ -552,26 +624,15 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
 
     fn add_product(&self, dx: &[Vec3], y: &mut [Vec3]) -> Result<()> {
         check_sizes(self.n_nodes, dx, Some(y))?;
-        // K is symmetric, so row 3a + r of a tet's K is its column 3a + r: 12
-        // contiguous numbers in nalgebra's column-major storage (a dot product that
-        // vectorises, where the row would be strided)
         y.par_iter_mut().enumerate().with_min_len(256).for_each(|(i, yi)| {
-            let mut acc = [0.0; 3];
+            let mut acc = Vec3::zeros();
             for &(k, a) in &self.inc[self.start[i]..self.start[i + 1]] {
                 let (k, a) = (k as usize, a as usize);
-                let t = &self.tets[k];
-                let mut d = [0.0; 12];
-                for b in 0..4 {
-                    let v = dx[t[b] as usize];
-                    d[3 * b..3 * b + 3].copy_from_slice(v.as_slice());
-                }
-                let m = self.k[k].as_slice();
-                for (r, out) in acc.iter_mut().enumerate() {
-                    let col = &m[12 * (3 * a + r)..12 * (3 * a + r) + 12];
-                    *out += col.iter().zip(&d).map(|(p, q)| p * q).sum::<f64>();
+                for (b, &j) in self.tets[k].iter().enumerate() {
+                    acc += tet_block(&self.k[k], a, b) * dx[j as usize];
                 }
             }
-            *yi += Vec3::from(acc);
+            *yi += acc;
         });
         Ok(())
     }
@@ -586,7 +647,7 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
         }
         for (k, t) in self.tets.iter().enumerate() {
             for (a, &i) in t.iter().enumerate() {
-                d[i as usize] += self.k[k].fixed_view::<3, 3>(3 * a, 3 * a);
+                d[i as usize] += tet_block(&self.k[k], a, a);
             }
         }
         Ok(())

@@ -206,10 +206,9 @@ impl BlockMatrix {
                 row.fill(Matrix3::zeros());
                 let base = start[i];
                 for c in &inc[start_inc[i]..start_inc[i + 1]] {
-                    let k = ops[c.op as usize].tet_stiffness(c.tet as usize);
-                    let a = 3 * c.local as usize;
+                    let k = ops[c.op as usize].tet_row(c.tet as usize, c.local as usize);
                     for (b, &blk) in c.blocks.iter().enumerate() {
-                        row[blk as usize - base] += k.fixed_view::<3, 3>(a, 3 * b) * ck;
+                        row[blk as usize - base] += k[b] * ck;
                     }
                 }
                 row[diag[i] - base] += Matrix3::identity() * (cm * mass[i]);
@@ -349,8 +348,8 @@ mod tests {
         fn add_diagonal_blocks(&self, _: &mut [Matrix3<f64>]) -> Result<()> {
             unreachable!()
         }
-        fn tet_stiffness(&self, k: usize) -> &TetStiffness {
-            &self.k[k]
+        fn tet_stiffness(&self, k: usize) -> TetStiffness {
+            self.k[k]
         }
         fn projects(&self) -> bool {
             true
