@@ -93,13 +93,13 @@ impl Timing {
         Timing::new(2e-4, Priority::Normal, false),
         Timing::new(2e-4, Priority::Normal, true),
         Timing::new(2e-4, Priority::Slice, true),
-        Timing::new(5e-4, Priority::Slice, true),
+        Timing::new(0.0, Priority::Slice, true),
         Timing::new(0.0, Priority::Fifo, false),
         Timing::new(2e-4, Priority::Fifo, false),
         Timing::new(5e-4, Priority::Fifo, true),
         Timing {
             own_cpu: true,
-            ..Timing::new(2e-4, Priority::Slice, true)
+            ..Timing::new(0.0, Priority::Slice, true)
         },
         Timing {
             own_cpu: true,

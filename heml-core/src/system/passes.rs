@@ -104,6 +104,16 @@ pub(crate) fn drift_into(out: &mut [Vec3], x: &[Vec3], v: &[Vec3], h: f64) {
     }
 }
 
+/// What [`kick_drift_into`] sees of one node: its id, its new position and velocity
+/// (written), its position, velocity, force, inverse mass and constraint flag.
+type FusedNode<'a> = (
+    usize,
+    (
+        (&'a mut Vec3, &'a mut Vec3),
+        ((&'a Vec3, &'a Vec3), (&'a Vec3, (&'a f64, &'a bool))),
+    ),
+);
+
 /// The kick then the drift of a symplectic Euler step in one pass, into other
 /// buffers: `v_out` = v + h·f·(1/m), `x_out` = x + h·`v_out` per node, the same bits
 /// as [`kick_into`] then [`drift_into`] (each node reads and writes its own data
@@ -117,10 +127,7 @@ pub(crate) fn kick_drift_into(
     constrained: &[bool],
     h: f64,
 ) -> StateScan {
-    let op = |(i, ((xo, vo), ((x, v), (f, (im, c))))): (
-        usize,
-        ((&mut Vec3, &mut Vec3), ((&Vec3, &Vec3), (&Vec3, (&f64, &bool)))),
-    )| {
+    let op = |(i, ((xo, vo), ((x, v), (f, (im, c))))): FusedNode<'_>| {
         *vo = v + f * (h * im);
         *xo = x + *vo * h;
         if *c {
