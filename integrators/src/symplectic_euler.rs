@@ -20,8 +20,7 @@ impl Integrator for SymplecticEuler {
     fn step(&mut self, sys: &mut System, dt: f64) -> Result<StepStats> {
         sys.begin_step(dt)?;
         sys.compute_forces()?;
-        sys.kick(dt);
-        sys.drift(dt);
+        sys.kick_drift(dt); // v += dt f/m, then x += dt v, in one pass
         sys.finish_step()
     }
     fn name(&self) -> &'static str {

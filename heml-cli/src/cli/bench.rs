@@ -253,7 +253,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     };
     if args.haptic {
         let pinned = placement_for(threads, placement) == Placement::Pinned;
-        return super::haptic::run(args.mesh.as_ref(), &pool(threads)?, threads, pinned);
+        return super::haptic::run(args.mesh.as_ref(), &pool, threads, pinned);
     }
     if let Some(meshes) = &args.implicit {
         let meshes = super::bench_implicit::meshes(meshes, args.implicit_scale)?;

@@ -529,6 +529,7 @@ impl SystemBuilder {
                 step: 0,
                 in_step: None,
                 snapshot: Snapshot::default(),
+                free_scan: None,
             },
             eval: Evaluation {
                 force: vec![Vec3::zeros(); n],

@@ -9,7 +9,8 @@
 //! 2. [`System::compute_forces`] — total nodal forces at the current state (once per
 //!    new time also advances the Prony internal variables);
 //! 3. [`System::kick`]`(h)` (v += h·f/m on free nodes) and [`System::drift`]`(h)`
-//!    (x += h·v), in the order the scheme requires;
+//!    (x += h·v), in the order the scheme requires ([`System::kick_drift`]`(h)`:
+//!    both in one pass, for symplectic Euler);
 //! 4. [`System::advance_time`] — moves the clock to t + dt and imposes the constraints
 //!    (needed before a mid-step force evaluation);
 //! 5. [`System::finish_step`] — imposes the constraints at t + dt, counts the step,

@@ -311,17 +311,49 @@ impl System {
     /// by the next constraint application.
     pub fn positions_mut(&mut self) -> &mut [Vec3] {
         self.invalidate();
+        self.state.free_scan = None;
+        self.hold_positions();
         &mut self.state.x
     }
     /// Mutable velocities (e.g. an initial velocity field).
     pub fn velocities_mut(&mut self) -> &mut [Vec3] {
         self.invalidate();
+        self.state.free_scan = None;
+        self.hold_velocities();
         &mut self.state.v
     }
     /// Mutable positions and velocities together (for custom integrators).
     pub fn kinematics_mut(&mut self) -> (&mut [Vec3], &mut [Vec3]) {
         self.invalidate();
+        self.state.free_scan = None;
+        self.hold_kinematics();
         (&mut self.state.x, &mut self.state.v)
+    }
+
+    /// Inside a step, saves the positions of its start into the snapshot unless
+    /// they are saved already (see [`parts::Snapshot`]): every change of the
+    /// positions in a step comes after this or goes through the snapshot buffer.
+    fn hold_positions(&mut self) {
+        let s = &mut self.state.snapshot;
+        if self.state.in_step.is_some() && !s.x_held {
+            passes::copy(&mut s.x, &self.state.x);
+            s.x_held = true;
+        }
+    }
+
+    /// [`System::hold_positions`] for the velocities.
+    fn hold_velocities(&mut self) {
+        let s = &mut self.state.snapshot;
+        if self.state.in_step.is_some() && !s.v_held {
+            passes::copy(&mut s.v, &self.state.v);
+            s.v_held = true;
+        }
+    }
+
+    /// Saves positions and velocities (see [`System::hold_positions`]).
+    pub(crate) fn hold_kinematics(&mut self) {
+        self.hold_positions();
+        self.hold_velocities();
     }
 
     fn invalidate(&mut self) {
@@ -333,6 +365,7 @@ impl System {
     /// Imposes the constraints at time `t`: fixed nodes at rest with zero velocity,
     /// prescribed nodes at X + r(t)·u with velocity r'(t)·u.
     pub fn apply_constraints(&mut self, t: f64) {
+        self.hold_kinematics();
         if self
             .model
             .constraints
@@ -346,7 +379,8 @@ impl System {
 
     /// Starts a step of size `dt`: checks it (finite, > 0), applies the
     /// [`TimeStepPolicy`] against [`System::stable_dt`], and saves the state that a
-    /// failed step rolls back to.
+    /// failed step rolls back to (positions and velocities lazily, when the step
+    /// first changes them: a kick or a drift saves them at no cost).
     pub fn begin_step(&mut self, dt: f64) -> Result<()> {
         self.begin_step_with(dt, true)
     }
@@ -377,8 +411,9 @@ impl System {
             }
         }
         let s = &mut self.state.snapshot;
-        passes::copy(&mut s.x, &self.state.x);
-        passes::copy(&mut s.v, &self.state.v);
+        s.x_held = false;
+        s.v_held = false;
+        self.state.free_scan = None;
         s.t = self.state.t;
         s.step = self.state.step;
         s.prony.resize_with(self.model.regions.len(), || None);
@@ -398,9 +433,16 @@ impl System {
         if self.state.in_step.take().is_none() {
             return;
         }
+        self.state.free_scan = None;
+        let s = &mut self.state.snapshot;
+        // positions and velocities not held were never changed in the step
+        if std::mem::take(&mut s.x_held) {
+            std::mem::swap(&mut self.state.x, &mut s.x);
+        }
+        if std::mem::take(&mut s.v_held) {
+            std::mem::swap(&mut self.state.v, &mut s.v);
+        }
         let s = &self.state.snapshot;
-        self.state.x.clone_from(&s.x);
-        self.state.v.clone_from(&s.v);
         self.state.t = s.t;
         self.state.step = s.step;
         for (r, saved) in self.model.regions.iter_mut().zip(&s.prony) {
@@ -557,14 +599,67 @@ impl System {
     /// mass). Uses the forces of the last [`System::compute_forces`].
     pub fn kick(&mut self, h: f64) {
         self.eval.accepted_forces = false;
-        passes::kick(&mut self.state.v, &self.eval.force, &self.model.inv_mass, h);
+        self.state.free_scan = None;
+        let s = &mut self.state.snapshot;
+        if self.state.in_step.is_some() && !s.v_held {
+            // the new velocities into the snapshot's buffer, swapped in: the old
+            // ones stay there, saved for a rollback without a copy
+            s.v.resize(self.state.v.len(), Vec3::zeros());
+            passes::kick_into(&mut s.v, &self.state.v, &self.eval.force, &self.model.inv_mass, h);
+            std::mem::swap(&mut s.v, &mut self.state.v);
+            s.v_held = true;
+        } else {
+            passes::kick(&mut self.state.v, &self.eval.force, &self.model.inv_mass, h);
+        }
     }
 
     /// x += h·v on every node (constrained nodes are reset by the next constraint
     /// application).
     pub fn drift(&mut self, h: f64) {
-        passes::drift(&mut self.state.x, &self.state.v, h);
+        self.state.free_scan = None;
+        let s = &mut self.state.snapshot;
+        if self.state.in_step.is_some() && !s.x_held {
+            // as in `kick`: the old positions stay in the snapshot
+            s.x.resize(self.state.x.len(), Vec3::zeros());
+            passes::drift_into(&mut s.x, &self.state.x, &self.state.v, h);
+            std::mem::swap(&mut s.x, &mut self.state.x);
+            s.x_held = true;
+        } else {
+            passes::drift(&mut self.state.x, &self.state.v, h);
+        }
         self.invalidate();
+    }
+
+    /// [`System::kick`]`(h)` then [`System::drift`]`(h)` — v += h·f/m, then
+    /// x += h·v with the new v: the update of a symplectic Euler step — in one pass
+    /// over the nodes, with the same bits as the two calls. Inside a step the same
+    /// pass saves the old state for a rollback (by writing the new one into the
+    /// snapshot's buffers and swapping them in) and makes [`System::finish_step`]'s
+    /// checks of the free nodes, so that a step reads and writes each node's
+    /// position and velocity once.
+    pub fn kick_drift(&mut self, h: f64) {
+        let s = &mut self.state.snapshot;
+        if self.state.in_step.is_none() || s.x_held || s.v_held {
+            self.kick(h);
+            self.drift(h);
+            return;
+        }
+        self.eval.accepted_forces = false;
+        let n = self.state.x.len();
+        s.x.resize(n, Vec3::zeros());
+        s.v.resize(n, Vec3::zeros());
+        let free = passes::kick_drift_into(
+            (&mut s.x, &mut s.v),
+            (&self.state.x, &self.state.v),
+            (&self.eval.force, &self.model.inv_mass),
+            &self.model.constraints.mask,
+            h,
+        );
+        std::mem::swap(&mut s.x, &mut self.state.x);
+        std::mem::swap(&mut s.v, &mut self.state.v);
+        (s.x_held, s.v_held) = (true, true);
+        self.invalidate();
+        self.state.free_scan = Some(free);
     }
 
     /// Moves the clock to the end of the current step and imposes the constraints
@@ -599,7 +694,16 @@ impl System {
         // step that moves a node by more than the body's size is a blow-up in
         // progress even while every number is still finite (a physical run would
         // need speeds of ~1000 m/s at the usual steps)
-        let scan = passes::scan_state(&self.state.x, &self.state.v);
+        let scan = match self.state.free_scan.take() {
+            // the free nodes were scanned by the fused update: the constrained ones,
+            // just set by the constraints, are left
+            Some(free) => passes::StateScan::merge(
+                free,
+                passes::scan_nodes(&self.model.constrained_ids, &self.state.x, &self.state.v),
+            )
+            .done(),
+            None => passes::scan_state(&self.state.x, &self.state.v),
+        };
         let bad = scan
             .bad_x
             .map(|i| ("position", i, self.state.x[i]))

@@ -68,14 +68,29 @@ pub(crate) struct State {
     /// `finish_step`.
     pub(crate) in_step: Option<(f64, f64)>,
     pub(crate) snapshot: Snapshot,
+    /// The end-of-step scan of the free nodes' new positions and velocities, made
+    /// by the step's fused [`kick_drift`](super::System::kick_drift) (the
+    /// constraints change only the other nodes); `None` after any other change.
+    pub(crate) free_scan: Option<super::passes::StateScan>,
 }
 
 /// The state saved by [`System::begin_step`](super::System::begin_step) and restored
 /// on failure.
+///
+/// Positions and velocities are saved lazily: `begin_step` only clears `x_held` and
+/// `v_held`, and the first change of `x` (or `v`) in the step saves them — for free
+/// when it is a kick or a drift, which write the new values into this buffer and
+/// swap it with the state's (the old values stay here), by a copy otherwise. A step
+/// thus never copies the state it is about to overwrite.
 #[derive(Debug, Default)]
 pub(crate) struct Snapshot {
     pub(crate) x: Vec<Vec3>,
     pub(crate) v: Vec<Vec3>,
+    /// `x` holds the positions of the start of the step in progress (else the
+    /// state's positions have not changed since it began).
+    pub(crate) x_held: bool,
+    /// The same for `v`.
+    pub(crate) v_held: bool,
     pub(crate) t: f64,
     pub(crate) step: u64,
     pub(crate) prony: Vec<Option<PronyState>>,

@@ -2,6 +2,11 @@
 //! the snapshot a step rolls back to, the end-of-step checks — on rayon for large
 //! systems.
 //!
+//! A symplectic Euler step makes one such pass ([`kick_drift_into`]): it reads
+//! x, v, f and 1/m and writes the new x and v into the snapshot's buffers (the old
+//! ones stay there for a rollback, no copy), checking the free nodes on the way;
+//! the end-of-step checks then read only the constrained nodes.
+//!
 //! Each pass computes every node from that node's data alone (no sums across nodes),
 //! and the reductions (the first bad node, the fastest node) break ties by the lowest
 //! node id, so the result is the same, bit for bit, at any thread count and chunking.
@@ -72,6 +77,90 @@ pub(crate) fn drift(x: &mut [Vec3], v: &[Vec3], h: f64) {
     }
 }
 
+/// `out` = v + h·f·(1/m) per node: [`kick`] into another buffer (`out.len()` is
+/// `v.len()`), the same bits.
+pub(crate) fn kick_into(out: &mut [Vec3], v: &[Vec3], f: &[Vec3], inv_mass: &[f64], h: f64) {
+    let op = |(o, (v, (f, im))): (&mut Vec3, (&Vec3, (&Vec3, &f64)))| *o = v + f * (h * im);
+    if v.len() >= parallel_pass_threshold() {
+        out.par_iter_mut()
+            .zip(v.par_iter().zip(f.par_iter().zip(inv_mass)))
+            .with_min_len(CHUNK)
+            .for_each(op);
+    } else {
+        out.iter_mut().zip(v.iter().zip(f.iter().zip(inv_mass))).for_each(op);
+    }
+}
+
+/// `out` = x + h·v per node: [`drift`] into another buffer, the same bits.
+pub(crate) fn drift_into(out: &mut [Vec3], x: &[Vec3], v: &[Vec3], h: f64) {
+    let op = |(o, (x, v)): (&mut Vec3, (&Vec3, &Vec3))| *o = x + v * h;
+    if x.len() >= parallel_pass_threshold() {
+        out.par_iter_mut()
+            .zip(x.par_iter().zip(v))
+            .with_min_len(CHUNK)
+            .for_each(op);
+    } else {
+        out.iter_mut().zip(x.iter().zip(v)).for_each(op);
+    }
+}
+
+/// What [`kick_drift_into`] sees of one node: its id, its new position and velocity
+/// (written), its position, velocity, force, inverse mass and constraint flag.
+type FusedNode<'a> = (
+    usize,
+    (
+        (&'a mut Vec3, &'a mut Vec3),
+        ((&'a Vec3, &'a Vec3), (&'a Vec3, (&'a f64, &'a bool))),
+    ),
+);
+
+/// The kick then the drift of a symplectic Euler step in one pass, into other
+/// buffers: `v_out` = v + h·f·(1/m), `x_out` = x + h·`v_out` per node, the same bits
+/// as [`kick_into`] then [`drift_into`] (each node reads and writes its own data
+/// once instead of twice). Returns the [`scan_state`] of the new state over the
+/// nodes not `constrained` (the end-of-step checks then read only the constrained
+/// nodes again, once the constraints have set them).
+pub(crate) fn kick_drift_into(
+    (x_out, v_out): (&mut [Vec3], &mut [Vec3]),
+    (x, v): (&[Vec3], &[Vec3]),
+    (f, inv_mass): (&[Vec3], &[f64]),
+    constrained: &[bool],
+    h: f64,
+) -> StateScan {
+    let op = |(i, ((xo, vo), ((x, v), (f, (im, c))))): FusedNode<'_>| {
+        *vo = v + f * (h * im);
+        *xo = x + *vo * h;
+        if *c {
+            StateScan::NONE
+        } else {
+            StateScan::of(i, xo, vo)
+        }
+    };
+    debug_assert!(x_out.len() == x.len() && v_out.len() == x.len() && constrained.len() == x.len());
+    if x.len() >= parallel_pass_threshold() {
+        x_out
+            .par_iter_mut()
+            .zip(v_out.par_iter_mut())
+            .zip(
+                x.par_iter()
+                    .zip(v)
+                    .zip(f.par_iter().zip(inv_mass.par_iter().zip(constrained))),
+            )
+            .enumerate()
+            .with_min_len(CHUNK)
+            .map(op)
+            .reduce(|| StateScan::NONE, StateScan::merge)
+    } else {
+        x_out
+            .iter_mut()
+            .zip(v_out.iter_mut())
+            .zip(x.iter().zip(v).zip(f.iter().zip(inv_mass.iter().zip(constrained))))
+            .enumerate()
+            .map(op)
+            .fold(StateScan::NONE, StateScan::merge)
+    }
+}
+
 /// `dst` becomes a copy of `src`.
 pub(crate) fn copy(dst: &mut Vec<Vec3>, src: &[Vec3]) {
     if src.len() >= parallel_pass_threshold() && dst.len() == src.len() {
@@ -103,51 +192,82 @@ pub(crate) struct StateScan {
     pub fastest: (usize, f64),
 }
 
+impl StateScan {
+    /// The scan of no node (its fastest node is `usize::MAX` until [`Self::done`]).
+    pub(crate) const NONE: StateScan = StateScan {
+        bad_x: None,
+        bad_v: None,
+        fastest: (usize::MAX, 0.0),
+    };
+
+    /// The scan of node `i` alone.
+    pub(crate) fn of(i: usize, x: &Vec3, v: &Vec3) -> StateScan {
+        let finite = |p: &Vec3| p.iter().all(|c| c.is_finite());
+        StateScan {
+            bad_x: (!finite(x)).then_some(i),
+            bad_v: (!finite(v)).then_some(i),
+            fastest: (i, v.norm()),
+        }
+    }
+
+    /// The scan of the nodes of `a` and of `b`: each field reduces with a total
+    /// order broken by the lowest id, so merging in any grouping and order gives
+    /// the same bits.
+    pub(crate) fn merge(a: StateScan, b: StateScan) -> StateScan {
+        let first = |a: Option<usize>, b: Option<usize>| match (a, b) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        let pick = |a: (usize, f64), b: (usize, f64)| match b.1.total_cmp(&a.1) {
+            Ordering::Greater => b,
+            Ordering::Equal if b.0 < a.0 => b,
+            _ => a,
+        };
+        StateScan {
+            bad_x: first(a.bad_x, b.bad_x),
+            bad_v: first(a.bad_v, b.bad_v),
+            fastest: pick(a.fastest, b.fastest),
+        }
+    }
+
+    /// The final scan: fastest node 0 (speed 0) when no node was scanned.
+    pub(crate) fn done(mut self) -> StateScan {
+        if self.fastest.0 == usize::MAX {
+            self.fastest.0 = 0;
+        }
+        self
+    }
+}
+
 /// [`first_non_finite`] of `x` and of `v` and the fastest node of `v` (the lowest
 /// id among equal speeds; (0, 0) when empty) in one pass over
 /// the two arrays (the end-of-step checks read each array once instead of x once
 /// and v twice). Same results, bit for bit, as the three separate passes, at any
 /// thread count: each field reduces with a total order broken by the lowest id.
 pub(crate) fn scan_state(x: &[Vec3], v: &[Vec3]) -> StateScan {
-    let finite = |p: &Vec3| p.iter().all(|c| c.is_finite());
-    let first = |a: Option<usize>, b: Option<usize>| match (a, b) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    };
-    let pick = |a: (usize, f64), b: (usize, f64)| match b.1.total_cmp(&a.1) {
-        Ordering::Greater => b,
-        Ordering::Equal if b.0 < a.0 => b,
-        _ => a,
-    };
-    let none = StateScan {
-        bad_x: None,
-        bad_v: None,
-        fastest: (usize::MAX, 0.0),
-    };
-    let merge = |a: StateScan, b: StateScan| StateScan {
-        bad_x: first(a.bad_x, b.bad_x),
-        bad_v: first(a.bad_v, b.bad_v),
-        fastest: pick(a.fastest, b.fastest),
-    };
-    let one = |(i, (x, v)): (usize, (&Vec3, &Vec3))| StateScan {
-        bad_x: (!finite(x)).then_some(i),
-        bad_v: (!finite(v)).then_some(i),
-        fastest: (i, v.norm()),
-    };
-    let mut s = if x.len() >= parallel_pass_threshold() {
+    let one = |(i, (x, v)): (usize, (&Vec3, &Vec3))| StateScan::of(i, x, v);
+    let s = if x.len() >= parallel_pass_threshold() {
         x.par_iter()
             .zip(v)
             .enumerate()
             .with_min_len(CHUNK)
             .map(one)
-            .reduce(|| none, merge)
+            .reduce(|| StateScan::NONE, StateScan::merge)
     } else {
-        x.iter().zip(v).enumerate().map(one).fold(none, merge)
+        x.iter()
+            .zip(v)
+            .enumerate()
+            .map(one)
+            .fold(StateScan::NONE, StateScan::merge)
     };
-    if s.fastest.0 == usize::MAX {
-        s.fastest.0 = 0;
-    }
-    s
+    s.done()
+}
+
+/// The [`scan_state`] of the nodes `ids` alone (not [`StateScan::done`]).
+pub(crate) fn scan_nodes(ids: &[usize], x: &[Vec3], v: &[Vec3]) -> StateScan {
+    ids.iter()
+        .map(|&i| StateScan::of(i, &x[i], &v[i]))
+        .fold(StateScan::NONE, StateScan::merge)
 }
 
 #[cfg(test)]
@@ -187,6 +307,39 @@ mod tests {
         let s = run(&x, &v, 0);
         assert_eq!((s.bad_v, s.fastest), (None, (6, 6.0)));
         assert_eq!(s, run(&x, &v, usize::MAX));
+        // the fused update's scan of the free nodes, merged with the constrained
+        // nodes' scan, is the scan of the whole new state, serial and parallel
+        let f: Vec<Vec3> = (0..n).map(|i| Vec3::new(1.0, -(i as f64), 0.5)).collect();
+        let inv_mass: Vec<f64> = (0..n)
+            .map(|i| if i % 5 == 0 { 0.0 } else { 1.0 / (1 + i % 3) as f64 })
+            .collect();
+        let constrained: Vec<bool> = inv_mass.iter().map(|&m| m == 0.0).collect();
+        let ids: Vec<usize> = (0..n).filter(|&i| constrained[i]).collect();
+        for threshold in [0, usize::MAX] {
+            let (mut xo, mut vo) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
+            let old = parallel_pass_threshold();
+            set_parallel_pass_threshold(threshold);
+            let free = rayon::ThreadPoolBuilder::new()
+                .num_threads(3)
+                .build()
+                .unwrap()
+                .install(|| kick_drift_into((&mut xo, &mut vo), (&x, &v), (&f, &inv_mass), &constrained, 0.1));
+            set_parallel_pass_threshold(old);
+            let (mut xk, mut vk) = (x.clone(), v.clone());
+            kick(&mut vk, &f, &inv_mass, 0.1);
+            drift(&mut xk, &vk, 0.1);
+            // bit for bit (x holds a NaN and an ∞, which == would not match)
+            let bits = |a: &[Vec3]| a.iter().map(|p| p.map(f64::to_bits)).collect::<Vec<_>>();
+            assert_eq!((bits(&xo), bits(&vo)), (bits(&xk), bits(&vk)));
+            // constrained nodes set elsewhere (a fast one among them), as the constraints do
+            for &i in &ids {
+                vo[i] = Vec3::new(0.0, 0.0, 1e3 + i as f64);
+            }
+            let merged = StateScan::merge(free, scan_nodes(&ids, &xo, &vo)).done();
+            assert_eq!(merged, scan_state(&xo, &vo));
+            assert_eq!(merged.fastest.0, *ids.last().unwrap());
+            assert_eq!(merged.bad_x, Some(3 * CHUNK + 5));
+        }
         let empty = scan_state(&[], &[]);
         assert_eq!((empty.bad_x, empty.bad_v, empty.fastest), (None, None, (0, 0.0)));
     }

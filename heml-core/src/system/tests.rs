@@ -9,6 +9,7 @@ use crate::mesh::generate::{box_mesh, HexSplit};
 use crate::params::Params;
 use crate::registry::MaterialEntry;
 
+mod lazy_snapshot;
 mod logging;
 
 /// Mass–spring: w = k/2 (√l − √L)².

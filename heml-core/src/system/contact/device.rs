@@ -26,6 +26,16 @@ fn wait_until(deadline: Instant, spin: Duration) {
     }
 }
 
+/// An empty vector with room for `n` values whose memory has been written once:
+/// the first write to a fresh page faults into the kernel, which a tick should not
+/// wait for (a fault may queue behind the simulation's own allocations).
+fn touched<T: Default + Clone>(n: usize) -> Vec<T> {
+    let mut v = Vec::with_capacity(n);
+    v.resize(n, T::default());
+    v.clear();
+    v
+}
+
 /// What a device thread ([`run_device`]) recorded, one entry per tick.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct DeviceLog {
@@ -66,11 +76,11 @@ pub fn run_device(
 ) -> DeviceLog {
     let n = ticks as usize;
     let mut log = DeviceLog {
-        gaps: Vec::with_capacity(n),
-        work: Vec::with_capacity(n),
-        late: Vec::with_capacity(n),
-        ages: Vec::with_capacity(n),
-        forces: Vec::with_capacity(n),
+        gaps: touched(n),
+        work: touched(n),
+        late: touched(n),
+        ages: touched(n),
+        forces: touched(n),
         fresh: 0,
     };
     let period = 1.0 / rate;

@@ -149,6 +149,8 @@ impl ImplicitSolver {
     pub fn step(&mut self, sys: &mut System, dt: f64) -> Result<StepStats> {
         self.settings.validate()?;
         sys.begin_step_with(dt, false)?;
+        // the solver writes the state directly: save it now (begin_step saves lazily)
+        sys.hold_kinematics();
         match self.step_inner(sys, dt) {
             Ok(stats) => Ok(stats),
             Err(e) => {
