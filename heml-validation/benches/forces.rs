@@ -55,7 +55,7 @@ fn forces(c: &mut Criterion) {
     for entry in heml::materials_list() {
         let Some(params) = params_of(entry) else { continue };
         // a fibre law is bound to one mesh's fibres: one instance per mesh
-        let law = |mesh: &TetMesh| {
+        let law_on = |mesh: &TetMesh| {
             let law = entry.instantiate(&params).expect("law with soft-tissue parameters");
             with_bench_fibres(law, mesh).expect("the benchmarks' fibres")
         };
@@ -66,7 +66,7 @@ fn forces(c: &mut Criterion) {
         for (mesh, label) in &meshes {
             let x = deformed(mesh);
             group.throughput(Throughput::Elements(mesh.n_tets() as u64));
-            let law = law(mesh);
+            let law = law_on(mesh);
             let heml = law.force_field(mesh, None, &opts).expect("HEML field");
             bench_field(&mut group, BenchmarkId::new("heml", label), heml.as_ref(), &x);
             if *label == P1_SIZE.1 {
@@ -82,7 +82,7 @@ fn forces(c: &mut Criterion) {
                 .sample_size(10)
                 .warm_up_time(Duration::from_millis(500))
                 .measurement_time(Duration::from_secs(2));
-            let heml = law(&large).force_field(&large, None, &opts).expect("HEML field");
+            let heml = law_on(&large).force_field(&large, None, &opts).expect("HEML field");
             bench_field(&mut group, BenchmarkId::new("heml", LARGE.1), heml.as_ref(), &x);
         }
         group.finish();

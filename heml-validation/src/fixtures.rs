@@ -101,7 +101,7 @@ pub fn fibre_tissue_params(law: &str, e: f64, nu: f64) -> Option<Params> {
 ///
 /// ```
 /// let mesh = heml::mesh::generate::box_of_about(200)?;
-/// let params = heml_validation::fixtures::soft_tissue_params("holzapfel_gasser_ogden", 3e3, 0.45).unwrap();
+/// let params = heml_validation::fixtures::fibre_tissue_params("holzapfel_gasser_ogden", 3e3, 0.45).unwrap();
 /// let law = heml::material("holzapfel_gasser_ogden", &params)?;
 /// let law = heml_validation::fixtures::with_bench_fibres(law, &mesh)?;
 /// assert!(law.force_field(&mesh, None, &Default::default()).is_ok());
