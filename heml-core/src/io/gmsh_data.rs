@@ -107,8 +107,8 @@ impl ElementData {
                     let mut v = [0.0; 3];
                     for k in 0..components {
                         let x = b.float(c, &what)?;
-                        if k < 3 {
-                            v[k] = x;
+                        if let Some(slot) = v.get_mut(k) {
+                            *slot = x;
                         }
                     }
                     if keep {
@@ -125,8 +125,8 @@ impl ElementData {
                     let mut v = [0.0; 3];
                     for i in 0..components {
                         let x: f64 = c.parse(&what)?;
-                        if i < 3 {
-                            v[i] = x;
+                        if let Some(slot) = v.get_mut(i) {
+                            *slot = x;
                         }
                     }
                     if keep {
