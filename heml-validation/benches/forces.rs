@@ -1,6 +1,7 @@
 //! Criterion benches of force evaluation (issue 5): every built-in law on generated
 //! boxes of ~10k, ~100k and ~1M tets, and the standard P1 FEM path next to HEML for
-//! every invariant law at ~100k tets.
+//! every invariant law at ~100k tets. Fibre laws get the fibres of `heml bench`
+//! ([`heml_validation::fixtures::with_bench_fibres`]).
 //!
 //! Run with `cargo bench --bench forces` (add `-- --quick`, or a filter such as
 //! `-- neo_hookean`). Throughput is reported in tets/s. Fields run in their default
@@ -11,7 +12,7 @@ use heml::force::ElasticForces;
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;
 use heml::registry::MaterialEntry;
-use heml_validation::fixtures::{smooth_deformation as deformed, tissue_params};
+use heml_validation::fixtures::{smooth_deformation as deformed, tissue_params, with_bench_fibres};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -53,7 +54,11 @@ fn forces(c: &mut Criterion) {
 
     for entry in heml::materials_list() {
         let Some(params) = params_of(entry) else { continue };
-        let law = entry.instantiate(&params).expect("law with soft-tissue parameters");
+        // a fibre law is bound to one mesh's fibres: one instance per mesh
+        let law_on = |mesh: &TetMesh| {
+            let law = entry.instantiate(&params).expect("law with soft-tissue parameters");
+            with_bench_fibres(law, mesh).expect("the benchmarks' fibres")
+        };
         let mut group = c.benchmark_group(entry.name);
         group
             .warm_up_time(Duration::from_secs(1))
@@ -61,6 +66,7 @@ fn forces(c: &mut Criterion) {
         for (mesh, label) in &meshes {
             let x = deformed(mesh);
             group.throughput(Throughput::Elements(mesh.n_tets() as u64));
+            let law = law_on(mesh);
             let heml = law.force_field(mesh, None, &opts).expect("HEML field");
             bench_field(&mut group, BenchmarkId::new("heml", label), heml.as_ref(), &x);
             if *label == P1_SIZE.1 {
@@ -76,7 +82,7 @@ fn forces(c: &mut Criterion) {
                 .sample_size(10)
                 .warm_up_time(Duration::from_millis(500))
                 .measurement_time(Duration::from_secs(2));
-            let heml = law.force_field(&large, None, &opts).expect("HEML field");
+            let heml = law_on(&large).force_field(&large, None, &opts).expect("HEML field");
             bench_field(&mut group, BenchmarkId::new("heml", LARGE.1), heml.as_ref(), &x);
         }
         group.finish();

@@ -93,6 +93,33 @@ pub fn fibre_tissue_params(law: &str, e: f64, nu: f64) -> Option<Params> {
     Some(set.iter().fold(Params::new(), |p, (n, v)| p.with(n, *v)))
 }
 
+/// `law` with the benchmarks' fibres when it has fibre families (unchanged when
+/// not): two families in the x–y plane at ±30° from x, the same in every tet
+/// (x is stretched by [`smooth_deformation`], so the fibres work in tension,
+/// exponential included). A fibre law has no force field without its directions:
+/// `heml bench` and the criterion benches call this before building fields.
+///
+/// ```
+/// let mesh = heml::mesh::generate::box_of_about(200)?;
+/// let params = heml_validation::fixtures::fibre_tissue_params("holzapfel_gasser_ogden", 3e3, 0.45).unwrap();
+/// let law = heml::material("holzapfel_gasser_ogden", &params)?;
+/// let law = heml_validation::fixtures::with_bench_fibres(law, &mesh)?;
+/// assert!(law.force_field(&mesh, None, &Default::default()).is_ok());
+/// # Ok::<(), heml::HemlError>(())
+/// ```
+pub fn with_bench_fibres(
+    law: Box<dyn heml::heml_core::Material>,
+    mesh: &TetMesh,
+) -> Result<Box<dyn heml::heml_core::Material>> {
+    if law.fibre_families() == 0 {
+        return Ok(law);
+    }
+    let (s, c) = 30f64.to_radians().sin_cos();
+    let dirs = [Vec3::new(c, s, 0.0), Vec3::new(c, -s, 0.0)];
+    let fibres = heml::heml_core::fibres::Fibres::uniform(mesh.n_tets(), &dirs)?;
+    law.with_fibres(std::sync::Arc::new(fibres))
+}
+
 /// A smooth deformation of `mesh` that inverts no element: 10 % stretch along x, a
 /// 0.2 rad twist over the length, 2 % shear, scaled to the mesh's bounding box.
 ///

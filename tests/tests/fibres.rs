@@ -164,6 +164,49 @@ fn scene_fibre_sources_agree_and_the_switch_shows() {
         .collect();
     let e_file = sim.system.regions()[0].field().energy(&xs).unwrap();
     assert!((e_file - along).abs() <= 1e-12 * along, "{e_file} vs {along}");
+
+    // the same field in a legacy VTK file (CELL_DATA VECTORS) and a Gmsh 4.1 file
+    // ($ElementData; element k + 1 is tet k): the same energy
+    let with_field = |name: &str, zero_at: Option<usize>| {
+        let path = dir.join(name);
+        heml::io::write_mesh(&path, &mesh).unwrap();
+        let v = |k: usize| if Some(k) == zero_at { "0 0 0" } else { "0 0 3" };
+        let extra = if name.ends_with(".vtk") {
+            format!(
+                "VECTORS fiber double\n{}\n",
+                (0..t).map(v).collect::<Vec<_>>().join("\n")
+            )
+        } else {
+            let recs: String = (0..t).map(|k| format!("{} {}\n", k + 1, v(k))).collect();
+            format!("$ElementData\n1\n\"fiber\"\n1\n0.0\n3\n0\n3\n{t}\n{recs}$EndElementData\n")
+        };
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        text += &extra;
+        std::fs::write(&path, text).unwrap();
+        Scene::from_toml_str(&from_file.replace("box.vtu", name), &dir).and_then(|s| s.build())
+    };
+    for name in ["box.vtk", "box.msh"] {
+        let sim = with_field(name, None).unwrap();
+        let xs: Vec<Vec3> = sim
+            .system
+            .positions()
+            .iter()
+            .map(|p| Vec3::new(p.x, p.y, 1.2 * p.z))
+            .collect();
+        let e = sim.system.regions()[0].field().energy(&xs).unwrap();
+        assert!((e - along).abs() <= 1e-12 * along, "{name}: {e} vs {along}");
+    }
+    // a zero vector is an error naming the file, the field and the element
+    let e = with_field("zero.msh", Some(4)).unwrap_err().to_string();
+    assert!(
+        e.contains("zero.msh") && e.contains("'fiber'") && e.contains("element 5: the vector is zero"),
+        "{e}"
+    );
+    let e = with_field("zero.vtk", Some(4)).unwrap_err().to_string();
+    assert!(
+        e.contains("zero.vtk") && e.contains("cell 4: the vector is zero"),
+        "{e}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -8,7 +8,9 @@ use heml::force::{Assembly, ElasticForces, SimdLevel};
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;
 use heml::registry::MaterialEntry;
-use heml_validation::fixtures::{self, renumbered_at_load, shuffled, smooth_deformation as deformed};
+use heml_validation::fixtures::{
+    self, renumbered_at_load, shuffled, smooth_deformation as deformed, with_bench_fibres,
+};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -79,6 +81,10 @@ pub struct BenchArgs {
     /// Parameter NAME=VALUE of --energy (repeatable); default: --law's values.
     #[arg(long = "param", value_name = "NAME=VALUE")]
     pub params: Vec<String>,
+    /// Also time this law's HEML field on one thread, in the same round-robin, and
+    /// print --law's cost relative to it (e.g. a fibre law against neo_hookean).
+    #[arg(long, value_name = "LAW")]
+    pub against: Option<String>,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -165,24 +171,6 @@ pub(super) fn median_ratio(a: &[f64], b: &[f64]) -> f64 {
     median(&mut r)
 }
 
-/// `law` with the benchmark's fibres when it has fibre families: two families in the
-/// x–y plane at ±30° from x (x is stretched by the benchmark's deformation, so the
-/// fibres work in tension, exponential included).
-fn with_fibres(
-    law: Box<dyn heml::heml_core::Material>,
-    mesh: &heml::TetMesh,
-) -> heml::Result<Box<dyn heml::heml_core::Material>> {
-    if law.fibre_families() == 0 {
-        return Ok(law);
-    }
-    let (s, c) = 30f64.to_radians().sin_cos();
-    let dirs = [heml::Vec3::new(c, s, 0.0), heml::Vec3::new(c, -s, 0.0)];
-    law.with_fibres(std::sync::Arc::new(heml::heml_core::fibres::Fibres::uniform(
-        mesh.n_tets(),
-        &dirs,
-    )?))
-}
-
 /// `heml bench --scaling`: the cost per tet as the mesh grows, and on a shuffled
 /// mesh, all fields timed round-robin in one run so that machine noise hits them
 /// alike.
@@ -202,7 +190,7 @@ fn scaling(
     cases.push(("same, shuffled, order kept".into(), big));
     let fields: Vec<Box<dyn ElasticForces>> = cases
         .iter()
-        .map(|(_, m)| with_fibres(law()?, m)?.force_field(m, None, &opts))
+        .map(|(_, m)| with_bench_fibres(law()?, m)?.force_field(m, None, &opts))
         .collect::<heml::Result<_>>()?;
     let xs: Vec<Vec<Vec3>> = cases.iter().map(|(_, m)| deformed(m)).collect();
     let timed: Vec<Case> = fields
@@ -310,7 +298,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         inner
     );
 
-    let law = with_fibres(law, &mesh)?;
+    let law = with_bench_fibres(law, &mesh)?;
     let heml_field = law.force_field(&mesh, None, &opts)?;
     let fem_field = law.fem_field(&mesh, None, &opts)?;
     let mut counts = vec![1];
@@ -347,8 +335,25 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             });
         }
     }
-    let samples = time_round_robin(&cases, repeats)?;
+    // --against: the other law's HEML field on one thread, last in the round-robin
+    let against = match &args.against {
+        Some(name) => {
+            let entry = heml::find_material(name)?;
+            let law = with_bench_fibres(entry.instantiate(&tissue_params(entry)?)?, &mesh)?;
+            Some((entry.name, law.force_field(&mesh, None, &opts)?))
+        }
+        None => None,
+    };
     let per_count = cases.len() / counts.len();
+    if let Some((_, field)) = &against {
+        cases.push(Case {
+            pool: &pools[0],
+            field: field.as_ref(),
+            x: &x,
+            inner,
+        });
+    }
+    let samples = time_round_robin(&cases, repeats)?;
     let per = |s: f64| s / n_tets as f64;
     for (k, &n) in counts.iter().enumerate() {
         let heml_s = &samples[k * per_count];
@@ -381,6 +386,18 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         outln!(
             "speed-up {threads} threads vs 1: {:.2}×",
             median_ratio(&samples[0], &samples[per_count])
+        );
+    }
+    if let (Some((name, _)), Some(other)) = (&against, samples.get(per_count * counts.len())) {
+        let mut r: Vec<f64> = samples[0].iter().zip(other).map(|(a, b)| a / b).collect();
+        r.sort_by(f64::total_cmp);
+        outln!(
+            "{} vs {name} (HEML, 1 thread): {:.2}× (per-round ratios {:.2}–{:.2}); {name} {:.2} ns/tet",
+            entry.name,
+            median(&mut r.clone()),
+            r[0],
+            r[r.len() - 1],
+            per(median(&mut other.clone())) * 1e9
         );
     }
     outln!("(ratios: medians of the per-round ratios; all cases timed round-robin)");
@@ -431,7 +448,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     let clamp = lo.x + 1e-9 * (hi - lo).norm();
     let size = hi - lo;
     let mut sys = heml::system(mesh.clone())
-        .material_law(with_fibres(entry.instantiate(&params)?, &mesh)?)
+        .material_law(with_bench_fibres(entry.instantiate(&params)?, &mesh)?)
         .density(1000.0)
         .initial_velocity(move |p| Vec3::new(0.0, 0.0, 1e-3 * ((p.x - lo.x) / size.x).powi(2)))
         .fix_where(|p| p.x <= clamp)

@@ -63,7 +63,8 @@ pub fn ln(x: f64) -> f64 {
     }
 }
 
-/// Exponential (Cody–Waite reduction, degree-13 polynomial, branch-free).
+/// Exponential (Cody–Waite reduction, degree-13 polynomial by Estrin's scheme,
+/// branch-free).
 #[inline(always)]
 pub fn exp(x: f64) -> f64 {
     let xc = x.clamp(-746.0, 710.0);
@@ -89,10 +90,16 @@ pub fn exp(x: f64) -> f64 {
         1.0 / 479001600.0,
         1.0 / 6227020800.0,
     ];
-    let mut p = C[13];
-    for c in C[..13].iter().rev() {
-        p = p * r + c;
-    }
+    // p = 1 + (r + r²·q(r)), q = Σ C[i+2]·r^i evaluated by Estrin's scheme: depth
+    // 4 multiply-adds instead of Horner's 13. The polynomial is the longest
+    // dependency chain of an exponential law's kernel (a 4-lane batch of HGO waits
+    // on it), and the leading 1 + r stays outside, so the result keeps Horner's
+    // accuracy (tested below: ≤ 2 ulp).
+    let (r2, pair) = (r * r, |i: usize| C[i] + C[i + 1] * r);
+    let (r4, a0, a1, a2, a3, a4, a5) = (r2 * r2, pair(2), pair(4), pair(6), pair(8), pair(10), pair(12));
+    let (b0, b1, b2) = (a0 + a1 * r2, a2 + a3 * r2, a4 + a5 * r2);
+    let q = (b0 + b1 * r4) + b2 * (r4 * r4);
+    let p = C[0] + (r + r2 * q);
     // 2^n as two factors so that n down to -1075 and up to 1024 stays representable
     let n1 = ni >> 1;
     let n2 = ni - n1;

@@ -18,6 +18,8 @@
 //! * Binary records are checked against the bytes left in the file before they
 //!   are reserved or read (a header announcing 10¹⁸ nodes is an error, not an
 //!   allocation); errors in binary data name the line and the byte offset.
+//! * `$ElementData` blocks of 3 components (fibre directions) become cell vector
+//!   fields by their name (the first string tag), see `gmsh_data`.
 //! * Unknown sections (`$PhysicalNames`, `$NodeData`, …) are skipped.
 
 use std::collections::{BTreeMap, HashMap};
@@ -28,6 +30,7 @@ use std::path::Path;
 use super::atomic::write_atomic;
 use super::cursor::{capacity, finite_point, parse_at, shorten, Cursor};
 use super::gmsh_binary::Binary;
+use super::gmsh_data::{ElementData, ElementIds};
 use super::{no_tets_message, read_bytes, MeshData, MeshFormat};
 use crate::error::{HemlError, Result};
 use crate::mesh::TetMesh;
@@ -137,6 +140,9 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
     let mut have_elements = false;
     // v4.1: volume entity tag → first physical tag (if any), and tets' entity tags.
     let mut volume_physical: Option<HashMap<i32, Option<i32>>> = None;
+    // element numbers of the tets and hexes, and the `$ElementData` blocks
+    let mut ids = ElementIds::default();
+    let mut element_data: Vec<ElementData> = Vec::new();
 
     while let Some((line, ln)) = c.next_line()? {
         let name = line.split_ascii_whitespace().next().unwrap_or("");
@@ -172,7 +178,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                     if have_elements {
                         return Err(c.err_at(ln, "second $ELM section (only one is supported)"));
                     }
-                    read_element_lines(&mut c, &mut data, &node_index, true)?;
+                    read_element_lines(&mut c, &mut data, &mut ids, &node_index, true)?;
                     expect_end(&mut c, "$ENDELM")?;
                     have_elements = true;
                 }
@@ -225,13 +231,17 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                     return Err(c.err_at(ln, "second $Elements section (only one is supported)"));
                 }
                 match (d, bin) {
-                    (Dialect::V41, Some(b)) => read_elements_v41_bin(&mut c, b, &mut data, &node_index)?,
-                    (Dialect::V41, None) => read_elements_v41(&mut c, &mut data, &node_index)?,
-                    (_, Some(b)) => read_elements_v2_bin(&mut c, b, &mut data, &node_index)?,
-                    (_, None) => read_element_lines(&mut c, &mut data, &node_index, false)?,
+                    (Dialect::V41, Some(b)) => read_elements_v41_bin(&mut c, b, &mut data, &mut ids, &node_index)?,
+                    (Dialect::V41, None) => read_elements_v41(&mut c, &mut data, &mut ids, &node_index)?,
+                    (_, Some(b)) => read_elements_v2_bin(&mut c, b, &mut data, &mut ids, &node_index)?,
+                    (_, None) => read_element_lines(&mut c, &mut data, &mut ids, &node_index, false)?,
                 }
                 expect_end(&mut c, "$EndElements")?;
                 have_elements = true;
+            }
+            ("$ElementData", Some(Dialect::V2 | Dialect::V41)) => {
+                element_data.push(ElementData::read(&mut c, bin, ln)?);
+                expect_end(&mut c, "$EndElementData")?;
             }
             (_, Some(_)) if bin.is_some() => skip_binary_section(&mut c, name, ln)?,
             _ => skip_section(&mut c, name, ln)?,
@@ -261,6 +271,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
             }
         }
     }
+    super::gmsh_data::attach(&mut data, &ids, element_data);
     let format = match (header.dialect, header.binary.is_some()) {
         (Dialect::V1, _) => MeshFormat::Gmsh1,
         (Dialect::V2, false) => MeshFormat::Gmsh22,
@@ -454,16 +465,19 @@ fn element_nodes<'t>(
     toks.iter().map(|tok| node_of(c, ln, tok, map)).collect()
 }
 
-/// Stores a tet or hex (`nodes` of the right length, checked by the caller) with its tag.
-fn store(data: &mut MeshData, k: Kind, nodes: &[usize], tag: i32) {
+/// Stores a tet or hex (`nodes` of the right length, checked by the caller) with its
+/// region tag and its element number.
+fn store(data: &mut MeshData, ids: &mut ElementIds, k: Kind, nodes: &[usize], tag: i32, number: u64) {
     match k {
         Kind::Hex => {
             data.hexes.push(std::array::from_fn(|i| nodes[i]));
             data.hex_tags.push(tag);
+            ids.hexes.push(number);
         }
         _ => {
             data.tets.push(std::array::from_fn(|i| nodes[i]));
             data.tags.push(tag);
+            ids.tets.push(number);
         }
     }
 }
@@ -482,7 +496,13 @@ fn volume_error(c: &Cursor<'_>, ln: usize, ty: i64, name: &str) -> HemlError {
 /// ASCII element lines, one per element: v2 `number type tag-count tags… nodes…`
 /// (the region tag is the first tag), v1 `number type physical-region
 /// elementary-region node-count nodes…` (the region tag is the physical region).
-fn read_element_lines(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>, v1: bool) -> Result<()> {
+fn read_element_lines(
+    c: &mut Cursor<'_>,
+    data: &mut MeshData,
+    ids: &mut ElementIds,
+    map: &HashMap<u64, usize>,
+    v1: bool,
+) -> Result<()> {
     let n = count(c, "the number of elements")?;
     for _ in 0..n {
         let (line, ln) = c.expect_line("an element line")?;
@@ -518,7 +538,7 @@ fn read_element_lines(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64
             }
         }
         match kind(ty) {
-            k @ (Kind::Tet | Kind::Hex) => store(data, k, &element_nodes(c, ln, f, map, k)?, tag),
+            k @ (Kind::Tet | Kind::Hex) => store(data, ids, k, &element_nodes(c, ln, f, map, k)?, tag, number),
             Kind::Skip(name) => data.skip(name),
             Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
         }
@@ -526,7 +546,12 @@ fn read_element_lines(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64
     Ok(())
 }
 
-fn read_elements_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
+fn read_elements_v41(
+    c: &mut Cursor<'_>,
+    data: &mut MeshData,
+    ids: &mut ElementIds,
+    map: &HashMap<u64, usize>,
+) -> Result<()> {
     let header_line = c.line_of_next_token();
     let blocks = count(c, "the number of element entity blocks")?;
     let total = count(c, "the number of elements")?;
@@ -547,9 +572,9 @@ fn read_elements_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &HashMap<u64,
             let (line, ln) = c.expect_line("an element line")?;
             let mut f = line.split_ascii_whitespace();
             let id = f.next().unwrap_or("");
-            parse_at::<u64>(c.file(), ln, id, "an element tag")?;
+            let number = parse_at::<u64>(c.file(), ln, id, "an element tag")?;
             match k {
-                Kind::Tet | Kind::Hex => store(data, k, &element_nodes(c, ln, f, map, k)?, entity),
+                Kind::Tet | Kind::Hex => store(data, ids, k, &element_nodes(c, ln, f, map, k)?, entity, number),
                 Kind::Skip(name) => data.skip(name),
                 Kind::Volume(_) => {}
             }
@@ -598,6 +623,7 @@ fn store_binary_element(
     ty: i64,
     r: &Record,
     data: &mut MeshData,
+    ids: &mut ElementIds,
     map: &HashMap<u64, usize>,
 ) -> Result<()> {
     match kind(ty) {
@@ -607,7 +633,7 @@ fn store_binary_element(
                 .iter()
                 .map(|&(tag, off)| node_of_tag(c, off, tag, r.number, map))
                 .collect::<Result<Vec<usize>>>()?;
-            store(data, k, &nodes, r.tag);
+            store(data, ids, k, &nodes, r.tag, r.number);
         }
         Kind::Skip(name) => data.skip(name),
         Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
@@ -641,7 +667,13 @@ fn read_nodes_v2_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &m
 
 /// Binary 2.2 `$Elements`: an ASCII count line, then blocks `int type, int count,
 /// int tag-count` followed by `count` records `int number, tags, nodes`.
-fn read_elements_v2_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
+fn read_elements_v2_bin(
+    c: &mut Cursor<'_>,
+    b: Binary,
+    data: &mut MeshData,
+    ids: &mut ElementIds,
+    map: &HashMap<u64, usize>,
+) -> Result<()> {
     let n = count(c, "the number of elements")?;
     c.skip_rest_of_line();
     let mut read = 0usize;
@@ -679,7 +711,7 @@ fn read_elements_v2_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map:
                 let off = c.offset();
                 nodes.push((b.uint(c, "a node number of an element")?, off));
             }
-            store_binary_element(c, ln, ty, &Record { number, tag, nodes }, data, map)?;
+            store_binary_element(c, ln, ty, &Record { number, tag, nodes }, data, ids, map)?;
         }
         read += follow;
     }
@@ -723,7 +755,13 @@ fn read_nodes_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &
 /// Binary 4.1 `$Elements`: `size_t blocks, total, min, max`, then per block `int
 /// dim, int entity, int type, size_t count` and `count` records of `size_t` tag
 /// and node tags.
-fn read_elements_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &HashMap<u64, usize>) -> Result<()> {
+fn read_elements_v41_bin(
+    c: &mut Cursor<'_>,
+    b: Binary,
+    data: &mut MeshData,
+    ids: &mut ElementIds,
+    map: &HashMap<u64, usize>,
+) -> Result<()> {
     let header_line = c.line();
     let blocks = b.count(c, "the number of element entity blocks")?;
     let total = b.count(c, "the number of elements")?;
@@ -752,7 +790,7 @@ fn read_elements_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map
                 tag: entity,
                 nodes,
             };
-            store_binary_element(c, ln, ty, &r, data, map)?;
+            store_binary_element(c, ln, ty, &r, data, ids, map)?;
         }
         seen = seen.saturating_add(n);
     }

@@ -38,6 +38,7 @@ pub mod atomic;
 mod cursor;
 pub mod gmsh;
 mod gmsh_binary;
+mod gmsh_data;
 pub mod medit;
 pub mod pvd;
 pub mod tetgen;
@@ -82,6 +83,12 @@ pub struct MeshData {
     pub cell_vectors: BTreeMap<String, Vec<Vec3>>,
     /// The same fields per hexahedron, copied to its tets when it is split.
     pub hex_vectors: BTreeMap<String, Vec<Vec3>>,
+    /// Why a cell field of the file cannot give a direction per cell, by name: its
+    /// first zero or non-finite vector, a tet or hexahedron without a value, or a
+    /// component count other than 3 (such a field is not in `cell_vectors`). Named
+    /// element ids are the file's. Not an error by itself (a file may carry other
+    /// data): a scene that names the field in `fibre_fields` reports it.
+    pub vector_defects: BTreeMap<String, String>,
     /// Per-tet weights and covers when tets overlap (hexahedra split
     /// [`HexSplit::Ten`]); `None`: every tet weight 1, cover 0.
     pub overlap: Option<crate::mesh::overlap::Overlap>,
@@ -413,6 +420,23 @@ pub(crate) fn no_tets_message(data: &MeshData) -> String {
         ));
     }
     msg
+}
+
+/// Why the vector `v` of element `element` (its id as the file names it, e.g.
+/// "cell 12" or "element 7") cannot be a direction: not finite or zero.
+pub(crate) fn direction_defect(element: &str, v: Vec3) -> Option<String> {
+    if !v.iter().all(|c| c.is_finite()) {
+        Some(format!("{element}: ({}, {}, {}) is not finite", v.x, v.y, v.z))
+    } else if v.norm() <= 1e-300 {
+        Some(format!("{element}: the vector is zero"))
+    } else {
+        None
+    }
+}
+
+/// The defect of a cell field with `n` components ([`MeshData::vector_defects`]).
+pub(crate) fn wrong_components(n: usize) -> String {
+    format!("it has {n} component(s) per cell; a direction needs 3")
 }
 
 /// Converts a region attribute read as a float (TetGen, VTK float arrays) into a

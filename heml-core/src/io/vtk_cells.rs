@@ -1,7 +1,7 @@
 //! What VTK legacy and VTK XML files share: cell type codes, the choice of the cell
 //! array that holds region tags, and the assembly of tets from a cell list.
 
-use super::{float_to_tag, MeshData, TAG_ARRAY_NAMES};
+use super::{direction_defect, float_to_tag, MeshData, TAG_ARRAY_NAMES};
 use crate::error::{HemlError, Result};
 use crate::Vec3;
 
@@ -75,8 +75,9 @@ pub(crate) fn choose_tags(arrays: &[CellArray], n_cells: usize) -> Option<&CellA
 /// Cells given as `offsets` (n_cells + 1 entries starting at 0) into
 /// `connectivity`, with `types`; the tets are kept, lower-dimensional cells
 /// counted, linear hexahedra and voxels kept for the split at load
-/// ([`MeshData::split_hexes`]), other volume cells rejected. `err` builds an error
-/// at the place named by [`At`].
+/// ([`MeshData::split_hexes`]), other volume cells rejected; `vectors` are
+/// 3-component cell arrays (3 × n_cells values each) copied to the tets and hexes.
+/// `err` builds an error at the place named by [`At`].
 pub(crate) fn assemble(
     nodes: Vec<Vec3>,
     offsets: &[usize],
@@ -87,6 +88,15 @@ pub(crate) fn assemble(
     err: &dyn Fn(At, String) -> HemlError,
 ) -> Result<MeshData> {
     let n_cells = offsets.len().saturating_sub(1);
+    if let Some((name, a)) = vectors.iter().find(|(_, a)| a.len() != n_cells.saturating_mul(3)) {
+        return Err(err(
+            At::Arrays,
+            format!(
+                "cell array '{name}' holds {} values for {n_cells} cells of 3 components",
+                a.len()
+            ),
+        ));
+    }
     if types.len() != n_cells {
         return Err(err(
             At::Arrays,
@@ -149,7 +159,7 @@ pub(crate) fn assemble(
                     data.tets.push([v[0], v[1], v[2], v[3]]);
                     data.tags.push(tag);
                     for (name, a) in vectors {
-                        let value = Vec3::new(a[3 * c], a[3 * c + 1], a[3 * c + 2]);
+                        let value = vector_of(&mut data, name, a, c);
                         data.cell_vectors.entry(name.clone()).or_default().push(value);
                     }
                 }
@@ -163,7 +173,7 @@ pub(crate) fn assemble(
                     data.hexes.push(hex);
                     data.hex_tags.push(tag);
                     for (name, a) in vectors {
-                        let value = Vec3::new(a[3 * c], a[3 * c + 1], a[3 * c + 2]);
+                        let value = vector_of(&mut data, name, a, c);
                         data.hex_vectors.entry(name.clone()).or_default().push(value);
                     }
                 }
@@ -185,6 +195,18 @@ pub(crate) fn assemble(
         }
     }
     Ok(data)
+}
+
+/// Cell `c`'s vector of the 3-component array `a` (named `name`), its first defect
+/// as a direction noted in `data` ([`MeshData::vector_defects`]).
+fn vector_of(data: &mut MeshData, name: &str, a: &[f64], c: usize) -> Vec3 {
+    let value = Vec3::new(a[3 * c], a[3 * c + 1], a[3 * c + 2]);
+    if !data.vector_defects.contains_key(name) {
+        if let Some(why) = direction_defect(&format!("cell {c}"), value) {
+            data.vector_defects.insert(name.to_string(), why);
+        }
+    }
+    value
 }
 
 fn node_index(v: f64, n: usize) -> Option<usize> {

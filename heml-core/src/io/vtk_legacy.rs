@@ -4,16 +4,19 @@
 //! `count i0 i1 …` records and the VTK ≥ 5.1 `OFFSETS`/`CONNECTIVITY` pair. Region
 //! tags come from a `CELL_DATA` array (`SCALARS` or `FIELD`): one named like a tag
 //! (`tag`, `gmsh:physical`, `CellEntityIds`, `MaterialIds`, …), else the first
-//! integer array; all other attribute data is parsed and ignored. Binary files
-//! are big-endian, as the format prescribes.
+//! integer array. 3-component cell arrays (`VECTORS`, `NORMALS`, `SCALARS name
+//! type 3`, `FIELD` arrays of 3 components) are kept by name as cell vector
+//! fields ([`MeshData::cell_vectors`]: fibre directions); all other attribute data
+//! is parsed and ignored. Binary files are big-endian, as the format prescribes.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use super::atomic::write_atomic;
 use super::cursor::{capacity, shorten, Cursor};
 use super::read_bytes;
 use super::vtk_cells::{assemble, choose_tags, At, CellArray, VTK_TETRA};
-use super::{no_tets_message, MeshData};
+use super::{no_tets_message, wrong_components, MeshData};
 use crate::error::Result;
 use crate::mesh::TetMesh;
 use crate::Vec3;
@@ -54,6 +57,9 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let mut cells: Option<Cells> = None;
     let mut types: Option<(Vec<f64>, ValueLines, usize)> = None; // values, their lines, header line
     let mut cell_arrays: Vec<CellArray> = Vec::new();
+    // 3-component cell arrays (fibre directions), n_cells × 3 values each
+    let mut vectors: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut defects: BTreeMap<String, String> = BTreeMap::new();
     let mut section = Section::None;
     let mut section_len = 0usize;
     // every CELL_DATA / POINT_DATA header: its section, count and line
@@ -201,13 +207,19 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                     .checked_mul(ncomp)
                     .ok_or_else(|| r.c.err_at(ln, "array size overflows"))?;
                 let (values, _) = r.values(n, &args[1], ln, "scalar values")?;
-                if section == Section::Cell && ncomp == 1 {
-                    cell_arrays.push(CellArray {
-                        name: args[0].clone(),
-                        values,
-                        integer: is_integer(&args[1]),
-                        line: ln,
-                    });
+                if section == Section::Cell {
+                    match ncomp {
+                        1 => cell_arrays.push(CellArray {
+                            name: args[0].clone(),
+                            values,
+                            integer: is_integer(&args[1]),
+                            line: ln,
+                        }),
+                        3 => vectors.push((args[0].clone(), values)),
+                        n => {
+                            defects.insert(args[0].clone(), wrong_components(n));
+                        }
+                    }
                 }
             }
             "FIELD" => {
@@ -224,13 +236,26 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                         .ok_or_else(|| r.c.err_at(aln, "array size overflows"))?;
                     let (values, _) = r.values(n, &a[2], aln, "field values")?;
                     r.skip_metadata()?;
-                    if section == Section::Cell && ncomp == 1 {
-                        cell_arrays.push(CellArray {
-                            name,
-                            values,
-                            integer: is_integer(&a[2]),
-                            line: aln,
-                        });
+                    if section == Section::Cell {
+                        match ncomp {
+                            1 => cell_arrays.push(CellArray {
+                                name,
+                                values,
+                                integer: is_integer(&a[2]),
+                                line: aln,
+                            }),
+                            3 if ntup == section_len => vectors.push((name, values)),
+                            3 => {
+                                let why = format!(
+                                    "FIELD array (line {aln}) holds {ntup} tuples for the {section_len} cells of \
+                                     CELL_DATA: cells without a value"
+                                );
+                                defects.insert(name, why);
+                            }
+                            n => {
+                                defects.insert(name, wrong_components(n));
+                            }
+                        }
                     }
                 }
             }
@@ -244,10 +269,18 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 if section == Section::None {
                     return Err(r.c.err_at(ln, format!("{kw} outside CELL_DATA/POINT_DATA")));
                 }
+                let mut name = String::new();
                 let (per, ty) = match kw_upper.as_str() {
-                    "VECTORS" | "NORMALS" => (3, r.args(2, "name type")?[1].clone()),
-                    "TENSORS" => (9, r.args(2, "name type")?[1].clone()),
-                    "TENSORS6" => (6, r.args(2, "name type")?[1].clone()),
+                    "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" => {
+                        let a = r.args(2, "name type")?;
+                        name.clone_from(&a[0]);
+                        let per = match kw_upper.as_str() {
+                            "TENSORS" => 9,
+                            "TENSORS6" => 6,
+                            _ => 3,
+                        };
+                        (per, a[1].clone())
+                    }
                     "TEXTURE_COORDINATES" => {
                         let a = r.args(3, "name dim type")?;
                         (r.count(&a[1], ln)?, a[2].clone())
@@ -276,7 +309,14 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 let n = section_len
                     .checked_mul(per)
                     .ok_or_else(|| r.c.err_at(ln, "array size overflows"))?;
-                r.values(n, &ty, ln, "attribute values")?;
+                let (values, _) = r.values(n, &ty, ln, "attribute values")?;
+                if section == Section::Cell && !name.is_empty() {
+                    if per == 3 {
+                        vectors.push((name, values));
+                    } else {
+                        defects.insert(name, wrong_components(per));
+                    }
+                }
             }
             "METADATA" => r.skip_metadata_body()?,
             _ => {
@@ -341,9 +381,19 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
         Arrays => cells.line,
         Line(l) => l,
     };
-    let data = assemble(points, &cells.offsets, &cells.conn, &types, tags, &[], &|at, msg| {
-        c.err_at(line_of(at), msg)
-    })?;
+    // (an array sized for another cell count was refused with its CELL_DATA header above)
+    let mut data = assemble(
+        points,
+        &cells.offsets,
+        &cells.conn,
+        &types,
+        tags,
+        &vectors,
+        &|at, msg| c.err_at(line_of(at), msg),
+    )?;
+    for (name, why) in defects {
+        data.vector_defects.entry(name).or_insert(why);
+    }
     if data.tets.is_empty() && data.hexes.is_empty() {
         return Err(c.err_at(cells.line, no_tets_message(&data)));
     }

@@ -18,7 +18,7 @@ use super::cursor::{line_of, shorten, LineCounter};
 use super::read_bytes;
 use super::vtk_binary::{Compressor, HeaderType, Layout};
 use super::vtk_cells::{assemble, choose_tags, At, CellArray};
-use super::{no_tets_message, MeshData};
+use super::{no_tets_message, wrong_components, MeshData};
 use crate::error::{HemlError, Result};
 use crate::Vec3;
 
@@ -435,14 +435,19 @@ fn read_piece(ctx: &Ctx<'_>, p: &Piece) -> Result<MeshData> {
             .ok_or_else(|| ctx.err(s.line, "NumberOfCells × 3 overflows"))?;
         vectors.push((s.name.clone(), values(ctx, s, n, "3 × NumberOfCells")?));
     }
-    assemble(nodes, &offsets, &conn, &types, tags, &vectors, &|at, msg| {
+    let mut data = assemble(nodes, &offsets, &conn, &types, tags, &vectors, &|at, msg| {
         let line = match at {
             At::Type(_) => types_spec.line,
             At::Line(l) => l,
             At::Cell(_) | At::Arrays => conn_spec.line,
         };
         ctx.err(line, msg)
-    })
+    })?;
+    for s in p.cell_arrays.iter().filter(|s| s.components != 3) {
+        data.vector_defects
+            .insert(s.name.clone(), wrong_components(s.components));
+    }
+    Ok(data)
 }
 
 /// Decodes one DataArray to exactly `expected` f64 values (`why` names the count

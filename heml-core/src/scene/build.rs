@@ -119,6 +119,7 @@ impl Scene {
             (Some(file), None) => {
                 let path = self.base_dir.join(file);
                 let mut data = read_mesh_data(&path)?.0;
+                super::fibres::check_fibre_fields(&self.materials, &data, &path)?;
                 data.split_hexes(m.hex_split.unwrap_or_default())
                     .map_err(|e| HemlError::Invalid(format!("{what}: {}: {e}", path.display())))?;
                 data

@@ -7,8 +7,28 @@ use super::fibre_expr::DirectionExpr;
 use super::schema::MaterialSpec;
 use crate::error::{HemlError, Result};
 use crate::fibres::Fibres;
+use crate::io::MeshData;
 use crate::mesh::TetMesh;
 use crate::Vec3;
+use std::path::Path;
+
+/// Fails when a material's `fibre_fields` names a cell field of the mesh file
+/// `path` that cannot give a direction per cell ([`MeshData::vector_defects`]: a
+/// zero or non-finite vector, a cell without a value, not 3 components), naming
+/// the file, the field and the element as the file numbers it.
+pub(super) fn check_fibre_fields(materials: &[MaterialSpec], data: &MeshData, path: &Path) -> Result<()> {
+    for m in materials {
+        for name in m.fibre_fields.iter().flatten() {
+            if let Some(why) = data.vector_defects.get(name) {
+                return Err(HemlError::Invalid(format!(
+                    "`fibre_fields`: {}: cell field '{name}' cannot give fibre directions: {why}",
+                    path.display()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
 
 /// The fibres of material `m` on `mesh`, checked against the law's `families`
 /// (0: not a fibre law, which may not have fibre keys).
