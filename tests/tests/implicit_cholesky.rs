@@ -85,7 +85,10 @@ fn assert_matches_cg(build: &dyn Fn() -> System, what: &str) {
         solver.factorizations(),
         solver.factor_nonzeros()
     );
-    assert!(err < 1e-6, "{what}: cholesky vs cg relative displacement difference {err:e}");
+    assert!(
+        err < 1e-6,
+        "{what}: cholesky vs cg relative displacement difference {err:e}"
+    );
     assert!(
         (1..steps).contains(&solver.factorizations()),
         "{what}: the factor should be reused: {} factorisations in {steps} steps",
@@ -148,16 +151,18 @@ fn cholesky_factor_is_reused_and_refactored_after_fix_nodes_and_cut() {
     let first: Vec<usize> = (0..5).map(|_| step(&mut sys)).collect();
     assert!(first[0] >= 1, "the first step factors: {first:?}");
     assert!(first[1..].contains(&0), "later steps reuse the factor: {first:?}");
-    // hold the free corner at x = 8 cm, y = z = 0 too
+    // hold a node next to the clamp too (at x = 1 cm: it has barely moved, so
+    // holding it at its rest position disturbs the sag little)
     let corner = sys
         .mesh()
         .nodes()
         .iter()
-        .position(|p| (p - Vec3::new(0.08, 0.0, 0.0)).norm() < 1e-9)
+        .position(|p| (p - Vec3::new(0.01, 0.0, 0.0)).norm() < 1e-9)
         .unwrap();
     sys.fix_nodes(&[corner]).unwrap();
     assert!(step(&mut sys) >= 1, "fix_nodes must refactor");
     let after: Vec<usize> = (0..4).map(|_| step(&mut sys)).collect();
+    eprintln!("factorisations per step: {first:?}, after fix_nodes {after:?}");
     assert!(after.contains(&0), "reused after the refactorisation: {after:?}");
     let n_tets = sys.mesh().n_tets();
     sys.remove_tets(&[n_tets - 1]).unwrap();
@@ -218,7 +223,10 @@ fn cholesky_fill_above_the_cap_is_an_error() {
     };
     let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, settings);
     let e = solver.step(&mut sys, 0.01).unwrap_err().to_string();
-    assert!(e.contains("max_factor_nonzeros = 1000") && e.contains("nonzeros"), "{e}");
+    assert!(
+        e.contains("max_factor_nonzeros = 1000") && e.contains("nonzeros"),
+        "{e}"
+    );
     assert_eq!(sys.positions(), &before[..]);
     assert_eq!((sys.step_count(), sys.time()), (0, 0.0));
 }
@@ -249,15 +257,16 @@ dt = 0.01
 "#
         )
     };
-    let mut sim = heml::scene::Scene::from_toml_str(
-        &scene("linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345"),
-        ".",
-    )
-    .unwrap()
-    .build()
-    .unwrap();
+    let mut sim =
+        heml::scene::Scene::from_toml_str(&scene("linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345"), ".")
+            .unwrap()
+            .build()
+            .unwrap();
     let s = *sim.integrator.implicit_settings_mut().unwrap();
-    assert_eq!((s.linear_solver, s.max_factor_nonzeros), (LinearSolver::Cholesky, 12345));
+    assert_eq!(
+        (s.linear_solver, s.max_factor_nonzeros),
+        (LinearSolver::Cholesky, 12345)
+    );
     sim.run(|_| {}).unwrap();
     let sim = heml::scene::Scene::from_toml_str(&scene(""), ".").unwrap().build();
     let mut sim = sim.unwrap();

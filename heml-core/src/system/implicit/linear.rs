@@ -203,7 +203,12 @@ impl TangentSolve {
         dofs: &DofMap,
         rhs: &mut [f64],
     ) -> Result<CgReport> {
-        let key = (self.ck.to_bits(), self.cm.to_bits(), self.cv.to_bits(), sys.model.revision);
+        let key = (
+            self.ck.to_bits(),
+            self.cm.to_bits(),
+            self.cv.to_bits(),
+            sys.model.revision,
+        );
         let fresh = cache
             .direct
             .as_ref()

@@ -2,7 +2,8 @@
 //! (elastic + gravity + loads, constraints and sliders imposed), the tangent the
 //! elastic stiffness, the merit the total potential. The tangent system is solved by
 //! the banded LDLᵀ when the band fits in memory, else by the implicit integrators'
-//! conjugate gradients on the generated (projected) tangent.
+//! conjugate gradients on the generated (projected) tangent, or as
+//! [`StaticOptions::linear_solver`] chooses (CG or a sparse Cholesky factor).
 
 use super::banded::BandLdl;
 use super::dofs::DofMap;
