@@ -6,7 +6,7 @@ use serde::Deserialize;
 use crate::error::{HemlError, Result};
 use crate::mesh::generate::HexSplit;
 use crate::params::Params;
-use crate::system::{CgFailure, Integrator, PronyTerm, Ramp, TimeStepPolicy};
+use crate::system::{CgFailure, Integrator, LinearSolver, PronyTerm, Ramp, TimeStepPolicy};
 
 /// Where the body comes from and how its coordinates map to metres.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -324,6 +324,13 @@ pub struct SolverSpec {
     /// Implicit integrators: project each tet's stiffness to positive semi-definite
     /// (default true).
     pub project_psd: Option<bool>,
+    /// Implicit integrators: the linear solver of the Newton steps, `"cg"` (default:
+    /// preconditioned conjugate gradients) or `"cholesky"` (a sparse Cholesky factor
+    /// reused across Newton iterations and steps while it keeps converging).
+    pub linear_solver: Option<LinearSolver>,
+    /// Implicit integrators with `linear_solver = "cholesky"`: the most nonzeros the
+    /// factor may hold (default 5e7, 400 MB); a larger factor is refused.
+    pub max_factor_nonzeros: Option<usize>,
     /// Volumetric formulation of every material that does not set its own:
     /// `"element"` (default) or `"nodal"` (anti-locking).
     pub volumetric: Option<String>,
@@ -343,6 +350,8 @@ impl SolverSpec {
             ("newton_iterations", self.newton_iterations.is_some()),
             ("newton_tolerance", self.newton_tolerance.is_some()),
             ("project_psd", self.project_psd.is_some()),
+            ("linear_solver", self.linear_solver.is_some()),
+            ("max_factor_nonzeros", self.max_factor_nonzeros.is_some()),
         ];
         let name = integrator.name();
         let Some(settings) = integrator.implicit_settings_mut() else {
@@ -360,6 +369,8 @@ impl SolverSpec {
         s.newton_iterations = self.newton_iterations.unwrap_or(s.newton_iterations);
         s.newton_tolerance = self.newton_tolerance.unwrap_or(s.newton_tolerance);
         s.project_psd = self.project_psd.unwrap_or(s.project_psd);
+        s.linear_solver = self.linear_solver.unwrap_or(s.linear_solver);
+        s.max_factor_nonzeros = self.max_factor_nonzeros.unwrap_or(s.max_factor_nonzeros);
         s.validate().map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         *settings = s;
         Ok(true)

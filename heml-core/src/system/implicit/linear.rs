@@ -1,12 +1,14 @@
-//! The tangent linear solve both Newton problems share when no direct factorisation
-//! is used: (c_k K + c_m M + K_g + K_contact) dx = rhs over the free coordinates of a
-//! [`DofMap`], by preconditioned conjugate gradients on the system matrix assembled in
-//! 3×3 blocks ([`BlockMatrix`]) from the generated per-tet tangents, K_g the diagonal
-//! of the grasp springs and dampers and K_contact the tool contacts' n nᵀ blocks.
+//! The tangent linear solve both Newton problems share when the banded LDLᵀ is not
+//! used: (c_k K + c_m M + K_g + K_contact) dx = rhs over the free coordinates of a
+//! [`DofMap`], on the system matrix assembled in 3×3 blocks ([`BlockMatrix`]) from
+//! the generated per-tet tangents, K_g the diagonal of the grasp springs and dampers
+//! and K_contact the tool contacts' n nᵀ blocks; solved by preconditioned conjugate
+//! gradients or by a sparse Cholesky factor ([`Cholesky`]) that may be reused.
 
 use super::cg::{dot, pcg_fused, CgOperator, CgReport};
+use super::cholesky::Cholesky;
 use super::matrix::{BlockMatrix, GsOrdering};
-use super::settings::CgPreconditioner;
+use super::settings::{CgPreconditioner, LinearSolver};
 use super::timings::PhaseTimes;
 use crate::error::Result;
 use crate::force::TangentOperator;
@@ -31,21 +33,46 @@ pub(in crate::system) struct TangentSolve {
     pub max_iterations: usize,
     /// CG preconditioner.
     pub preconditioner: CgPreconditioner,
+    /// Conjugate gradients or a sparse Cholesky factor.
+    pub linear_solver: LinearSolver,
+    /// Cholesky: solve with the held factor, without updating the tangents or
+    /// assembling, when it was made with the same coefficients at the same model
+    /// revision (chord Newton); otherwise (or when false) refactor first.
+    pub reuse_factor: bool,
+    /// Cholesky: the most nonzeros the factor may hold.
+    pub max_factor_nonzeros: usize,
 }
+
+/// What a held factor was made for: c_k, c_m, c_v (bits) and the model revision.
+type FactorKey = (u64, u64, u64, u64);
 
 /// What a tangent solve keeps between calls: the assembled matrix (its pattern is
 /// built once per set of operators) and the wall-clock time of its phases.
 #[derive(Debug, Default)]
 pub(in crate::system) struct SolveCache {
     matrix: Option<BlockMatrix>,
+    /// The sparse Cholesky analysis and factor (for the matrix's pattern) and what
+    /// the factor was made for.
+    direct: Option<(Cholesky, Option<FactorKey>)>,
+    /// Numeric Cholesky factorisations since the cache was made.
+    pub factorizations: usize,
+    /// Cholesky: the next solve must refactor (set by the chord-Newton rules of the
+    /// implicit step, cleared by the solve).
+    pub refactor: bool,
     /// Phase times accumulated since the owner last reset them.
     pub times: PhaseTimes,
 }
 
 impl SolveCache {
-    /// Forgets the assembled matrix (e.g. after the mesh lost tets).
+    /// Forgets the assembled matrix and any factor (e.g. after the mesh lost tets).
     pub(in crate::system) fn invalidate(&mut self) {
         self.matrix = None;
+        self.direct = None;
+    }
+
+    /// Nonzeros of the Cholesky factor held (0 without one).
+    pub(in crate::system) fn factor_nonzeros(&self) -> usize {
+        self.direct.as_ref().map_or(0, |(c, _)| c.factor_nonzeros())
     }
 }
 
@@ -62,46 +89,13 @@ impl TangentSolve {
         rhs: &mut [f64],
         guess: Option<&[f64]>,
     ) -> Result<CgReport> {
+        if self.linear_solver == LinearSolver::Cholesky {
+            return self.solve_direct(sys, tangents, cache, dofs, rhs);
+        }
         let n = sys.state.x.len();
-        let t0 = Instant::now();
-        for t in tangents.iter_mut() {
-            t.update(&sys.state.x)?;
-        }
-        let t1 = Instant::now();
+        let nl_diag = self.assemble(sys, tangents, cache, dofs)?;
         let tangents = &*tangents;
-        if !cache.matrix.as_ref().is_some_and(|m| m.fits(n, tangents)) {
-            cache.matrix = Some(BlockMatrix::new(n, sys.model.mesh.tets(), tangents));
-        }
-        let matrix = cache.matrix.as_mut().expect("assembled");
-        // grasp springs and dampers ((k + c c_v) I) and tool contacts ((k + c c_v) n nᵀ)
-        // sit on the diagonal blocks of their nodes
-        let grasps = sys.model.grasps.diagonal(n, self.cv);
-        let nonlocal = tangents.iter().any(|t| t.has_nonlocal());
-        // couplings beyond a tet (nodal volumes): their diagonal blocks go into the
-        // matrix (so the preconditioners see them), the rest is added to its product
-        // below (K_nl − D_nl)
-        let nl_diag = nonlocal.then(|| {
-            let mut nl = vec![Matrix3::zeros(); n];
-            for t in tangents.iter().filter(|t| t.has_nonlocal()) {
-                t.add_nonlocal_diagonal(&mut nl).expect("sizes match the system");
-            }
-            nl.iter_mut().for_each(|d| *d *= self.ck);
-            nl
-        });
-        let extra = (grasps.is_some() || !sys.model.tools.contacts().is_empty() || nonlocal).then(|| {
-            let mut blocks = nl_diag.clone().unwrap_or_else(|| vec![Matrix3::zeros(); n]);
-            if let Some(g) = &grasps {
-                for (b, d) in blocks.iter_mut().zip(g) {
-                    *b += Matrix3::identity() * *d;
-                }
-            }
-            sys.model.tools.add_diagonal_blocks(self.cv, &mut blocks);
-            blocks
-        });
-        matrix.fill(tangents, self.ck, self.cm, &sys.model.mass, extra.as_deref(), |i, a| {
-            dofs.get(i, a).is_some()
-        });
-        let matrix = &*matrix;
+        let matrix = cache.matrix.as_ref().expect("assembled");
         let t2 = Instant::now();
         // CG on nodal vectors (3 per node, zero on held coordinates)
         let to_nodal = |v: &[f64]| {
@@ -135,11 +129,115 @@ impl TangentSolve {
         let report = pcg_fused(&mut op, &b, &mut x, self.tol, self.max_iterations);
         dofs.gather_flat(&x, rhs);
         let t3 = Instant::now();
-        cache.times.tangent += (t1 - t0).as_secs_f64();
-        cache.times.assembly += (t2 - t1).as_secs_f64();
         cache.times.cg += (t3 - t2).as_secs_f64();
         cache.times.cg_residual = cache.times.cg_residual.max(report.relative_residual);
         Ok(report)
+    }
+
+    /// Updates `tangents` at the system's positions and fills the cached system
+    /// matrix (building its pattern when the operators changed); returns the diagonal
+    /// blocks of the nonlocal couplings the matrix holds (c_k-scaled), if any.
+    fn assemble(
+        &self,
+        sys: &System,
+        tangents: &mut [Box<dyn TangentOperator>],
+        cache: &mut SolveCache,
+        dofs: &DofMap,
+    ) -> Result<Option<Vec<Matrix3<f64>>>> {
+        let n = sys.state.x.len();
+        let t0 = Instant::now();
+        for t in tangents.iter_mut() {
+            t.update(&sys.state.x)?;
+        }
+        let t1 = Instant::now();
+        let tangents = &*tangents;
+        if !cache.matrix.as_ref().is_some_and(|m| m.fits(n, tangents)) {
+            cache.matrix = Some(BlockMatrix::new(n, sys.model.mesh.tets(), tangents));
+            cache.direct = None;
+        }
+        let matrix = cache.matrix.as_mut().expect("assembled");
+        // grasp springs and dampers ((k + c c_v) I) and tool contacts ((k + c c_v) n nᵀ)
+        // sit on the diagonal blocks of their nodes
+        let grasps = sys.model.grasps.diagonal(n, self.cv);
+        let nonlocal = tangents.iter().any(|t| t.has_nonlocal());
+        // couplings beyond a tet (nodal volumes): their diagonal blocks go into the
+        // matrix (so the preconditioners see them), the rest is added to its product
+        // below (K_nl − D_nl)
+        let nl_diag = nonlocal.then(|| {
+            let mut nl = vec![Matrix3::zeros(); n];
+            for t in tangents.iter().filter(|t| t.has_nonlocal()) {
+                t.add_nonlocal_diagonal(&mut nl).expect("sizes match the system");
+            }
+            nl.iter_mut().for_each(|d| *d *= self.ck);
+            nl
+        });
+        let extra = (grasps.is_some() || !sys.model.tools.contacts().is_empty() || nonlocal).then(|| {
+            let mut blocks = nl_diag.clone().unwrap_or_else(|| vec![Matrix3::zeros(); n]);
+            if let Some(g) = &grasps {
+                for (b, d) in blocks.iter_mut().zip(g) {
+                    *b += Matrix3::identity() * *d;
+                }
+            }
+            sys.model.tools.add_diagonal_blocks(self.cv, &mut blocks);
+            blocks
+        });
+        matrix.fill(tangents, self.ck, self.cm, &sys.model.mass, extra.as_deref(), |i, a| {
+            dofs.get(i, a).is_some()
+        });
+        cache.times.tangent += (t1 - t0).as_secs_f64();
+        cache.times.assembly += t1.elapsed().as_secs_f64();
+        Ok(nl_diag)
+    }
+
+    /// The Cholesky path of [`Self::solve`]: reuses the held factor when allowed and
+    /// made for the same coefficients and model revision, else updates the tangents,
+    /// assembles, (analyses the pattern once and) factors; then two triangular
+    /// solves. Couplings beyond a tet (nodal volumes) enter the factor through their
+    /// diagonal blocks only, so with them the factor is an approximation (positive
+    /// definite) and the Newton iteration converges as a chord iteration.
+    fn solve_direct(
+        &self,
+        sys: &System,
+        tangents: &mut [Box<dyn TangentOperator>],
+        cache: &mut SolveCache,
+        dofs: &DofMap,
+        rhs: &mut [f64],
+    ) -> Result<CgReport> {
+        let key = (
+            self.ck.to_bits(),
+            self.cm.to_bits(),
+            self.cv.to_bits(),
+            sys.model.revision,
+        );
+        let fresh = cache
+            .direct
+            .as_ref()
+            .is_some_and(|(c, k)| c.is_factored() && *k == Some(key));
+        if !(self.reuse_factor && fresh) {
+            self.assemble(sys, tangents, cache, dofs)?;
+            let t0 = Instant::now();
+            let matrix = cache.matrix.as_ref().expect("assembled");
+            let (direct, made_for) = match cache.direct.take() {
+                Some(d) => d,
+                None => (Cholesky::new(matrix, dofs, self.max_factor_nonzeros)?, None),
+            };
+            let (direct, made_for) = cache.direct.insert((direct, made_for));
+            *made_for = None;
+            direct.factor(matrix)?;
+            *made_for = Some(key);
+            cache.factorizations += 1;
+            cache.times.factor += t0.elapsed().as_secs_f64();
+        }
+        let t0 = Instant::now();
+        let (direct, _) = cache.direct.as_mut().expect("factored");
+        direct.solve(rhs);
+        cache.times.cg += t0.elapsed().as_secs_f64();
+        Ok(CgReport {
+            iterations: 0,
+            relative_residual: 0.0,
+            converged: true,
+            breakdown: false,
+        })
     }
 }
 

@@ -232,6 +232,17 @@ impl BlockMatrix {
             });
     }
 
+    /// The stored blocks of row `i` as (column node, block index into
+    /// [`Self::blocks`]), columns ascending: the direct solver's pattern.
+    pub(in crate::system) fn row_blocks(&self, i: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        (self.start[i]..self.start[i + 1]).map(|b| (self.col[b] as usize, b))
+    }
+
+    /// The values of the stored blocks (unmasked), by block index.
+    pub(in crate::system) fn blocks(&self) -> &[Matrix3<f64>] {
+        &self.val
+    }
+
     /// 1 on a free coordinate (flat index, 3 per node), 0 on a held one.
     pub(in crate::system) fn mask(&self, i: usize) -> f64 {
         self.mask[i]

@@ -20,8 +20,17 @@
 //! damped Newton line search on the incremental potential keeps large steps robust.
 //! Non-finite states roll back exactly as for the explicit integrators.
 //! [`ImplicitSettings::interactive`] caps the work per step for real-time use.
+//!
+//! [`LinearSolver::Cholesky`] replaces CG by a sparse Cholesky factor of the same
+//! matrix (`cholesky.rs`, faer; symbolic analysis once per pattern, fill capped by
+//! [`ImplicitSettings::max_factor_nonzeros`]) that the same Newton loop reuses across
+//! iterations and steps (chord Newton): an iteration on a reused factor skips the
+//! tangent update and the assembly; the factor is refreshed when an iteration
+//! contracts the residual by less than [`ImplicitSettings::refactor_contraction`],
+//! when a step runs out of iterations on it, and after a model change.
 
 pub mod cg;
+mod cholesky;
 pub(super) mod linear;
 mod matrix;
 mod problem;
@@ -29,6 +38,6 @@ mod settings;
 mod solver;
 mod timings;
 
-pub use settings::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings};
+pub use settings::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings, LinearSolver};
 pub use solver::ImplicitSolver;
 pub use timings::PhaseTimes;

@@ -16,7 +16,7 @@
 //! mass damping (with stiffness damping, a decreasing residual norm is accepted too).
 
 use super::linear::{SolveCache, TangentSolve};
-use super::settings::{CgFailure, ImplicitSettings};
+use super::settings::{CgFailure, ImplicitSettings, LinearSolver};
 use crate::error::{HemlError, Result};
 use crate::force::TangentOperator;
 use crate::system::statics::dofs::DofMap;
@@ -61,6 +61,11 @@ pub(super) struct ImplicitStep<'a> {
     pub cg_iterations: usize,
     /// Messages of linear solves that missed their tolerance.
     pub warnings: Vec<String>,
+    /// Cholesky: the residual norm before the last linear solve and whether that
+    /// solve reused a factor (a chord iteration), to measure its contraction.
+    pub last_solve: Option<(f64, bool)>,
+    /// Cholesky: whether a solve of this step reused a factor.
+    pub reused: bool,
 }
 
 impl ImplicitStep<'_> {
@@ -91,6 +96,17 @@ impl ImplicitStep<'_> {
                 }
             })
             .collect()
+    }
+
+    /// Cholesky: after an iteration on a reused factor, a residual that shrank by
+    /// less than [`ImplicitSettings::refactor_contraction`] makes the next solve
+    /// refactor (the factor is too stale to converge fast).
+    pub fn check_contraction(&mut self) {
+        if let Some((before, true)) = self.last_solve {
+            if norm(&self.r) > self.settings.refactor_contraction * before {
+                self.cache.refactor = true;
+            }
+        }
     }
 
     /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.
@@ -137,6 +153,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         if first {
             self.r0 = Some(norm(&self.r));
         }
+        self.check_contraction();
         let (cm, ck) = self.coefficients(sys);
         let s = self.settings;
         let solve = TangentSolve {
@@ -146,9 +163,17 @@ impl NewtonProblem for ImplicitStep<'_> {
             tol: s.cg_tolerance,
             max_iterations: s.cg_max_iterations,
             preconditioner: s.preconditioner,
+            linear_solver: s.linear_solver,
+            reuse_factor: !self.cache.refactor,
+            max_factor_nonzeros: s.max_factor_nonzeros,
         };
         let guess = self.guess.take().filter(|g| first && g.len() == rhs.len());
+        let factorizations = self.cache.factorizations;
         let report = solve.solve(sys, self.tangents, self.cache, dofs, rhs, guess.as_deref())?;
+        let reused = s.linear_solver == LinearSolver::Cholesky && self.cache.factorizations == factorizations;
+        self.cache.refactor = false;
+        self.reused |= reused;
+        self.last_solve = Some((norm(&self.r), reused));
         if first {
             self.first_dx = Some(rhs.to_vec());
         }

@@ -80,6 +80,19 @@ impl ImplicitSolver {
         self.times
     }
 
+    /// Numeric Cholesky factorisations since the solver was made
+    /// ([`super::LinearSolver::Cholesky`]; 0 with conjugate gradients): fewer than
+    /// the steps when the factor is reused.
+    pub fn factorizations(&self) -> usize {
+        self.cache.factorizations
+    }
+
+    /// Nonzeros of the Cholesky factor currently held (0 without one): its memory
+    /// is 8 bytes each.
+    pub fn factor_nonzeros(&self) -> usize {
+        self.cache.factor_nonzeros()
+    }
+
     /// The scheme.
     pub fn scheme(&self) -> ImplicitScheme {
         self.scheme
@@ -157,6 +170,7 @@ impl ImplicitSolver {
                 sys.rollback();
                 self.accel_at = None;
                 self.last_dx = None;
+                self.cache.refactor = true;
                 Err(e)
             }
         }
@@ -165,6 +179,7 @@ impl ImplicitSolver {
     fn step_inner(&mut self, sys: &mut System, h: f64) -> Result<StepStats> {
         let start = std::time::Instant::now();
         self.cache.times = PhaseTimes::default();
+        let factorizations = self.cache.factorizations;
         self.prepare(sys)?;
         let n = sys.state.x.len();
         let (ca, cv) = match self.scheme {
@@ -228,8 +243,16 @@ impl ImplicitSolver {
             r0: None,
             cg_iterations: 0,
             warnings: Vec::new(),
+            last_solve: None,
+            reused: false,
         };
         let outcome = newton(sys, dofs, &mut problem)?;
+        // chord Newton: the last iteration's contraction, and a step that ran out of
+        // iterations on a reused factor (more than one allowed), refactor next time
+        problem.check_contraction();
+        if outcome.is_none() && problem.reused && settings.newton_iterations > 1 {
+            problem.cache.refactor = true;
+        }
         problem.set_velocities(sys);
         let mut warnings = std::mem::take(&mut problem.warnings);
         if outcome.is_none() {
@@ -256,6 +279,7 @@ impl ImplicitSolver {
         self.times = PhaseTimes {
             forces: self.cache.times.forces + merit_time,
             total: start.elapsed().as_secs_f64(),
+            factorizations: self.cache.factorizations - factorizations,
             ..self.cache.times
         };
         Ok(stats)

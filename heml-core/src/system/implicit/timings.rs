@@ -12,11 +12,17 @@ pub struct PhaseTimes {
     pub tangent: f64,
     /// Filling the assembled system matrix and its preconditioner.
     pub assembly: f64,
-    /// The conjugate-gradient iterations.
+    /// The linear solves: conjugate-gradient iterations, or the triangular solves of
+    /// a Cholesky factor.
     pub cg: f64,
+    /// Sparse Cholesky factorisations (symbolic analysis included the first time).
+    pub factor: f64,
     /// The whole step.
     pub total: f64,
     /// Not a time: the largest relative residual ‖b − A x‖/‖b‖ the step's CG solves
     /// stopped at (the accuracy bought by the `cg` time; 0 without a solve).
     pub cg_residual: f64,
+    /// Not a time: the numeric Cholesky factorisations of the step (0 with CG; fewer
+    /// than the Newton iterations when the factor is reused).
+    pub factorizations: usize,
 }

@@ -2,7 +2,8 @@
 //! (elastic + gravity + loads, constraints and sliders imposed), the tangent the
 //! elastic stiffness, the merit the total potential. The tangent system is solved by
 //! the banded LDLᵀ when the band fits in memory, else by the implicit integrators'
-//! conjugate gradients on the generated (projected) tangent.
+//! conjugate gradients on the generated (projected) tangent, or as
+//! [`StaticOptions::linear_solver`] chooses (CG or a sparse Cholesky factor).
 
 use super::banded::BandLdl;
 use super::dofs::DofMap;
@@ -12,7 +13,7 @@ use super::tangent::Stiffness;
 use crate::error::Result;
 use crate::force::TangentOperator;
 use crate::system::implicit::linear::{SolveCache, TangentSolve};
-use crate::system::implicit::CgPreconditioner;
+use crate::system::implicit::{CgPreconditioner, ImplicitSettings, LinearSolver};
 use crate::system::System;
 use crate::Vec3;
 
@@ -20,9 +21,9 @@ use crate::Vec3;
 enum Linear {
     /// Banded LDLᵀ of the assembled stiffness (fits in memory).
     Banded(Stiffness),
-    /// Preconditioned conjugate gradients on the assembled generated tangent
-    /// (projected to positive semi-definite per tet).
-    Cg(Vec<Box<dyn TangentOperator>>, Box<SolveCache>),
+    /// Preconditioned conjugate gradients, or a sparse Cholesky factorisation, of
+    /// the assembled generated tangent (projected to positive semi-definite per tet).
+    Cg(Vec<Box<dyn TangentOperator>>, Box<SolveCache>, LinearSolver),
 }
 
 /// CG relative tolerance of the static Newton steps: an inexact Newton step whose
@@ -86,7 +87,7 @@ impl NewtonProblem for Equilibrium<'_> {
                 k.solve(rhs);
                 Ok(true)
             }
-            Linear::Cg(tangents, cache) => {
+            Linear::Cg(tangents, cache, linear_solver) => {
                 let solve = TangentSolve {
                     ck: 1.0,
                     cm: 0.0,
@@ -94,6 +95,9 @@ impl NewtonProblem for Equilibrium<'_> {
                     tol: CG_TOL,
                     max_iterations: CG_MAX_ITERATIONS,
                     preconditioner: CgPreconditioner::SymmetricGaussSeidel,
+                    linear_solver: *linear_solver,
+                    reuse_factor: false,
+                    max_factor_nonzeros: ImplicitSettings::default().max_factor_nonzeros,
                 };
                 let report = solve.solve(sys, tangents, cache, dofs, rhs, None)?;
                 if self.opts.progress_every > 0 {
@@ -103,7 +107,8 @@ impl NewtonProblem for Equilibrium<'_> {
                         report.relative_residual
                     );
                 }
-                Ok(report.iterations > 0 && !rhs.iter().all(|v| *v == 0.0))
+                // a direct solve reports no iterations, but converged
+                Ok((report.iterations > 0 || report.converged) && !rhs.iter().all(|v| *v == 0.0))
             }
         }
     }
@@ -158,7 +163,8 @@ impl System {
             // the banded stiffness is per element: a nodal volumetric term (which
             // couples beyond a tet) goes through CG on its own tangent
             stiffness
-                if BandLdl::fits(dofs.len(), dofs.band())
+                if opts.linear_solver.is_none()
+                    && BandLdl::fits(dofs.len(), dofs.band())
                     && self
                         .model
                         .regions
@@ -180,7 +186,7 @@ impl System {
                         None => return Ok(None),
                     }
                 }
-                Linear::Cg(tangents, Box::default())
+                Linear::Cg(tangents, Box::default(), opts.linear_solver.unwrap_or_default())
             }
         };
         self.state.v.fill(Vec3::zeros());

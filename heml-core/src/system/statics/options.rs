@@ -1,6 +1,7 @@
 //! The public settings and outcome of a quasi-static solve, and the single-coordinate
 //! supports it accepts.
 
+use crate::system::LinearSolver;
 #[cfg(doc)]
 use crate::system::System;
 
@@ -33,6 +34,13 @@ pub struct StaticOptions {
     /// this many iterations (0: silent, default). Every Newton iteration is logged
     /// when this is non-zero, since there are few of them.
     pub progress_every: usize,
+    /// The linear solver of the Newton iterations: `None` (default) the banded LDLᵀ
+    /// when its band fits in memory and every law's volume term is per element, else
+    /// conjugate gradients on the generated (projected) tangent; `Some` forces
+    /// conjugate gradients or a sparse Cholesky factorisation (refactored at every
+    /// Newton iteration; its fill is capped at the implicit integrators' default
+    /// [`crate::system::ImplicitSettings::max_factor_nonzeros`]) on that tangent.
+    pub linear_solver: Option<LinearSolver>,
 }
 
 impl Default for StaticOptions {
@@ -42,6 +50,7 @@ impl Default for StaticOptions {
             abs_tol: 0.0,
             max_iterations: 500_000,
             progress_every: 0,
+            linear_solver: None,
         }
     }
 }

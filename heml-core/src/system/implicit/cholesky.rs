@@ -1,0 +1,180 @@
+//! The direct linear solver of [`super::LinearSolver::Cholesky`]: a sparse LLᵀ
+//! factorisation (faer, approximate-minimum-degree fill-reducing ordering) of the
+//! assembled system matrix restricted to the free coordinates of a [`DofMap`].
+//!
+//! The scalar lower-triangular pattern and, per entry, where its value sits in the
+//! 3×3 blocks of the [`BlockMatrix`] are built once per block pattern and numbering
+//! of the unknowns, together with the symbolic analysis (ordering, elimination tree,
+//! supernodes). The fill it predicts is checked against a cap before the factor is
+//! allocated, so that a mesh too large for a direct solve fails with a clear error
+//! instead of exhausting memory. Each numeric factorisation then reuses the pattern,
+//! the analysis and the buffers.
+
+use super::matrix::BlockMatrix;
+use crate::error::{HemlError, Result};
+use crate::system::statics::dofs::DofMap;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+
+/// A sparse Cholesky factorisation of the system matrix over the free coordinates,
+/// its symbolic analysis kept for refactorisations with new values.
+pub(in crate::system) struct Cholesky {
+    /// Lower triangle by columns (free-coordinate numbers of the [`DofMap`]).
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Per entry: 9 × block index + 3 × row + column within the block.
+    src: Vec<usize>,
+    /// The entries' values at the last factorisation.
+    values: Vec<f64>,
+    symbolic: SymbolicCholesky<usize>,
+    /// The factor's values (empty until the first factorisation).
+    factor: Vec<f64>,
+    /// Scratch of the numeric factorisation and of the solves.
+    stack: MemBuffer,
+}
+
+impl std::fmt::Debug for Cholesky {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Cholesky")
+            .field("unknowns", &(self.col_ptr.len() - 1))
+            .field("matrix_nonzeros", &self.row_idx.len())
+            .field("factor_nonzeros", &self.symbolic.len_val())
+            .finish_non_exhaustive()
+    }
+}
+
+/// The parallelism of faer's kernels: the calling rayon pool's threads.
+fn par() -> Par {
+    match rayon::current_num_threads() {
+        0 | 1 => Par::Seq,
+        n => Par::rayon(n),
+    }
+}
+
+impl Cholesky {
+    /// The pattern of `matrix` over the free coordinates of `dofs` and its symbolic
+    /// analysis; an error when the factor would hold more than `max_nonzeros` values.
+    pub(in crate::system) fn new(matrix: &BlockMatrix, dofs: &DofMap, max_nonzeros: usize) -> Result<Self> {
+        let n = dofs.len();
+        // (column, row, source) of the lower triangle
+        let mut entries: Vec<(usize, usize, usize)> = Vec::new();
+        for i in 0..matrix.n_nodes() {
+            for (j, b) in matrix.row_blocks(i) {
+                for r in 0..3 {
+                    let Some(row) = dofs.get(i, r) else { continue };
+                    for c in 0..3 {
+                        match dofs.get(j, c) {
+                            Some(col) if row >= col => entries.push((col, row, 9 * b + 3 * r + c)),
+                            _ => {}
+                        }
+                    }
+                }
+            }
+        }
+        entries.sort_unstable();
+        let mut col_ptr = vec![0usize; n + 1];
+        for &(c, _, _) in &entries {
+            col_ptr[c + 1] += 1;
+        }
+        for c in 0..n {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        let row_idx: Vec<usize> = entries.iter().map(|e| e.1).collect();
+        let src: Vec<usize> = entries.iter().map(|e| e.2).collect();
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, Default::default(), Default::default())
+            .map_err(|e| HemlError::Numerical(format!("sparse Cholesky: symbolic analysis failed: {e:?}")))?;
+        let fill = symbolic.len_val();
+        if fill > max_nonzeros {
+            return Err(HemlError::Invalid(format!(
+                "sparse Cholesky: the factor of this system ({n} unknowns, {} matrix nonzeros in the lower \
+                 triangle) would hold {fill} nonzeros ({} MB), above the limit max_factor_nonzeros = \
+                 {max_nonzeros}; raise the limit or use linear_solver = \"cg\"",
+                row_idx.len(),
+                fill * 8 / 1_000_000
+            )));
+        }
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(par(), Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, par()),
+        ]);
+        let stack = MemBuffer::try_new(req).map_err(|_| {
+            HemlError::Invalid(format!(
+                "sparse Cholesky: cannot allocate the {} MB of scratch of a system with {n} unknowns",
+                req.size_bytes() / 1_000_000
+            ))
+        })?;
+        Ok(Cholesky {
+            values: vec![0.0; row_idx.len()],
+            col_ptr,
+            row_idx,
+            src,
+            symbolic,
+            factor: Vec::new(),
+            stack,
+        })
+    }
+
+    /// Nonzeros of the factor (its storage, by the symbolic analysis).
+    pub(in crate::system) fn factor_nonzeros(&self) -> usize {
+        self.symbolic.len_val()
+    }
+
+    /// Factors the current values of `matrix` (the pattern the analysis was built
+    /// for). An error when the matrix is not numerically positive definite (an
+    /// unprojected, indefinite tangent) or holds a non-finite value; the previous
+    /// factor is then gone.
+    pub(in crate::system) fn factor(&mut self, matrix: &BlockMatrix) -> Result<()> {
+        let blocks = matrix.blocks();
+        for (v, &s) in self.values.iter_mut().zip(&self.src) {
+            *v = blocks[s / 9][(s % 9 / 3, s % 3)];
+        }
+        self.factor.clear();
+        self.factor.resize(self.symbolic.len_val(), 0.0);
+        let n = self.col_ptr.len() - 1;
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(pattern, &self.values);
+        let out = self.symbolic.factorize_numeric_llt(
+            &mut self.factor,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            par(),
+            MemStack::new(&mut self.stack),
+            Default::default(),
+        );
+        match out {
+            Ok(_) => Ok(()),
+            Err(e) => {
+                self.factor.clear();
+                let LltError::NonPositivePivot { index } = e;
+                Err(HemlError::Numerical(format!(
+                    "sparse Cholesky: the system matrix ({n} unknowns) is not positive definite (pivot {index} \
+                     of the reordered matrix; an unprojected tangent or a non-finite value: set \
+                     project_psd = true, or use linear_solver = \"cg\")"
+                )))
+            }
+        }
+    }
+
+    /// Whether a factor is held.
+    pub(in crate::system) fn is_factored(&self) -> bool {
+        !self.factor.is_empty()
+    }
+
+    /// Solves A x = `rhs` in place with the held factor (`rhs` by free coordinate).
+    pub(in crate::system) fn solve(&mut self, rhs: &mut [f64]) {
+        assert!(self.is_factored(), "solve before a factorisation");
+        let n = self.col_ptr.len() - 1;
+        let llt = LltRef::new(&self.symbolic, &self.factor);
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            par(),
+            MemStack::new(&mut self.stack),
+        );
+    }
+}
