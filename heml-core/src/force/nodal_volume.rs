@@ -33,12 +33,13 @@
 //! element volume change costs energy. s = 0 is the plain nodal-J tet.
 //!
 //! # Evaluation
-//! Three passes, each deterministic (the same bits for any number of threads):
-//! the lumped volumes v_a (the block driver of [`super::assembly`], with a kernel
-//! that scatters vol_t/4 to the corners), the nodal pressures (parallel over nodes,
-//! the energy summed in fixed chunks), and the forces −p̄_t ∇vol_t (the block driver
-//! again). The isochoric part runs on the formulation's own field
-//! (HEML link kernels, or P1 for the oracle) with the law [`super::Isochoric`].
+//! Two passes of the block driver of [`super::assembly`] and one over nodes, each
+//! deterministic (the same bits for any number of threads): the lumped volumes v_a
+//! (a kernel that scatters vol_t/4 to the corners), the nodal pressures (parallel
+//! over nodes, the energy summed in fixed chunks), then the element part and the
+//! pressure forces −p̄_t ∇vol_t together in one pass (one gather and scatter). The
+//! isochoric part runs on the formulation's own field (HEML link kernels, or P1 for
+//! the oracle) with the law [`super::Isochoric`].
 
 // The lanes are indexed in lock-step on purpose (it is what vectorises).
 #![allow(clippy::needless_range_loop)]
@@ -46,7 +47,7 @@
 use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
 use super::field::{check_sizes, selection};
 use super::volumetric::Dilation;
-use super::{Assembly, ElasticForces, ForceOptions};
+use super::{Assembly, ElasticForces, ForceOptions, Formulation, TetField};
 use crate::error::{HemlError, Result};
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
@@ -338,17 +339,17 @@ pub(crate) fn volume_gradient(p: &[Vec3; 4]) -> [Vec3; 4] {
 /// The anti-locking field of an invariant law: its isochoric part (plus β of the
 /// element volumetric energy) on an element field, and the nodal volumetric term
 /// (see the module doc). Built by [`crate::material::Volumetric::Nodal`] materials.
-pub struct NodalVolumeField<M> {
-    iso: Box<dyn ElasticForces>,
+pub struct NodalVolumeField<M, K: Formulation> {
+    iso: TetField<K>,
     nodal: NodalVolume<M>,
     assembly: Assembly,
 }
 
-impl<M: InvariantLaw> NodalVolumeField<M> {
+impl<M: InvariantLaw, K: Formulation> NodalVolumeField<M, K> {
     /// The field of element part `iso` (a field of [`super::Isochoric`]`<M>` over the
-    /// same tets) and nodal term `nodal`.
-    pub fn new(iso: Box<dyn ElasticForces>, nodal: NodalVolume<M>) -> Result<Self> {
-        if iso.n_tets() != nodal.layout.n_live() || iso.n_nodes() != nodal.rest.len() {
+    /// same tets, in the same order) and nodal term `nodal`.
+    pub fn new(iso: TetField<K>, nodal: NodalVolume<M>) -> Result<Self> {
+        if iso.layout_ids() != nodal.layout.ids.as_slice() || iso.n_nodes() != nodal.rest.len() {
             return Err(HemlError::Invalid(
                 "nodal volume term and element field cover different tets".into(),
             ));
@@ -366,7 +367,7 @@ impl<M: InvariantLaw> NodalVolumeField<M> {
     }
 }
 
-impl<M: InvariantLaw> ElasticForces for NodalVolumeField<M> {
+impl<M: InvariantLaw, K: Formulation> ElasticForces for NodalVolumeField<M, K> {
     fn n_nodes(&self) -> usize {
         self.iso.n_nodes()
     }
@@ -381,9 +382,16 @@ impl<M: InvariantLaw> ElasticForces for NodalVolumeField<M> {
         let e = self.iso.energy(x)?;
         Ok(e + self.nodal.pressures(x, self.assembly == Assembly::Parallel).0)
     }
+    /// The lumped volumes and nodal pressures first, then the element part and the
+    /// pressure forces −p̄_t ∇vol_t in one pass of the block driver.
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        let e = self.iso.add_forces(x, f)?;
-        Ok(e + self.nodal.add_forces(x, f, self.assembly == Assembly::Parallel)?)
+        check_sizes(self.n_nodes(), x, Some(f))?;
+        let (e, p) = self.nodal.pressures(x, self.assembly == Assembly::Parallel);
+        let k = PressureKernel {
+            tets: &self.nodal.tets,
+            p: &p,
+        };
+        Ok(e + self.iso.add_forces_with(&k, x, f)?)
     }
     /// J and the law's own energy density w = w_iso + U(J_t) of each tet (the element
     /// view; the nodal term redistributes the volumetric part among nodes).
@@ -395,11 +403,11 @@ impl<M: InvariantLaw> ElasticForces for NodalVolumeField<M> {
         Ok(s)
     }
     fn set_assembly(&mut self, assembly: Assembly) {
-        self.iso.set_assembly(assembly);
+        ElasticForces::set_assembly(&mut self.iso, assembly);
         self.assembly = assembly;
     }
     fn bytes_per_tet(&self) -> Option<f64> {
-        Some(self.iso.bytes_per_tet()? + self.nodal.bytes_per_tet())
+        Some(ElasticForces::bytes_per_tet(&self.iso)? + self.nodal.bytes_per_tet())
     }
     fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
         // the nodal term first: it refuses unknown ids before anything is removed
