@@ -46,6 +46,7 @@
 
 use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
 use super::field::{check_sizes, selection};
+use super::lanes::lane_crosses;
 use super::volumetric::Dilation;
 use super::{Assembly, ElasticForces, ForceOptions, Formulation, TetField};
 use crate::error::{HemlError, Result};
@@ -100,37 +101,6 @@ struct VolumeKernel;
 struct PressureKernel<'a> {
     tets: &'a [[u32; 4]],
     p: &'a [f64],
-}
-
-/// Cross products v2×v3, v3×v1, v1×v2 of the lanes (v_a = p_a − p_0) and the
-/// determinants v1·(v2×v3).
-#[inline(always)]
-fn lane_crosses(p: &LanePoints) -> ([[[f64; LANES]; 3]; 3], [f64; LANES]) {
-    let mut cr = [[[0.0; LANES]; 3]; 3];
-    for (a, (s, t)) in [(2, 3), (3, 1), (1, 2)].into_iter().enumerate() {
-        for l in 0..LANES {
-            let (ux, uy, uz) = (
-                p[s][0][l] - p[0][0][l],
-                p[s][1][l] - p[0][1][l],
-                p[s][2][l] - p[0][2][l],
-            );
-            let (wx, wy, wz) = (
-                p[t][0][l] - p[0][0][l],
-                p[t][1][l] - p[0][1][l],
-                p[t][2][l] - p[0][2][l],
-            );
-            cr[a][0][l] = uy * wz - uz * wy;
-            cr[a][1][l] = uz * wx - ux * wz;
-            cr[a][2][l] = ux * wy - uy * wx;
-        }
-    }
-    let mut det = [0.0; LANES];
-    for l in 0..LANES {
-        det[l] = (p[1][0][l] - p[0][0][l]) * cr[0][0][l]
-            + (p[1][1][l] - p[0][1][l]) * cr[0][1][l]
-            + (p[1][2][l] - p[0][2][l]) * cr[0][2][l];
-    }
-    (cr, det)
 }
 
 impl BatchKernel for VolumeKernel {
