@@ -74,13 +74,7 @@ impl NewtonProblem for Equilibrium<'_> {
             Linear::Banded(stiffness) => {
                 let mut k = BandLdl::new(dofs.len(), dofs.band());
                 stiffness.add_to(sys, dofs, &mut k);
-                add_grasp_stiffness(sys, dofs, &mut k);
-                add_contact_stiffness(sys, dofs, &mut k);
-                if !k.factor() {
-                    return Ok(false);
-                }
-                k.solve(rhs);
-                Ok(true)
+                Ok(solve_banded(sys, dofs, k, rhs))
             }
             Linear::BandedTangent(tangents) => {
                 for t in tangents.iter_mut() {
@@ -88,13 +82,7 @@ impl NewtonProblem for Equilibrium<'_> {
                 }
                 let mut k = BandLdl::new(dofs.len(), dofs.ring_band(sys.model.mesh.tets()));
                 add_operators(tangents, sys, dofs, &mut k);
-                add_grasp_stiffness(sys, dofs, &mut k);
-                add_contact_stiffness(sys, dofs, &mut k);
-                if !k.factor() {
-                    return Ok(false);
-                }
-                k.solve(rhs);
-                Ok(true)
+                Ok(solve_banded(sys, dofs, k, rhs))
             }
             Linear::Cg(tangents, cache) => {
                 let solve = TangentSolve {
@@ -122,6 +110,18 @@ impl NewtonProblem for Equilibrium<'_> {
         let e = sys.energies()?;
         Ok(e.elastic + e.gravity + e.loads + sys.model.tools.energy())
     }
+}
+
+/// Adds the grasps' and contacts' stiffness to the banded tissue stiffness `k`, then
+/// factors it and solves in place; false when `k` is not positive definite.
+fn solve_banded(sys: &System, dofs: &DofMap, mut k: BandLdl, rhs: &mut [f64]) -> bool {
+    add_grasp_stiffness(sys, dofs, &mut k);
+    add_contact_stiffness(sys, dofs, &mut k);
+    if !k.factor() {
+        return false;
+    }
+    k.solve(rhs);
+    true
 }
 
 /// Adds the grasp springs' stiffness (diagonal) on the free coordinates.
