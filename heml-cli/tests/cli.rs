@@ -109,6 +109,49 @@ fn bench_prints_a_complete_side_by_side_table() {
     assert!(out.contains("memory: HEML") && out.contains("full step"), "{out}");
 }
 
+/// `heml bench --nodal` on a small box: a row per thread count with the element and
+/// nodal cost per tet, each median inside its own range and the ratio positive; a
+/// link law (no volumetric part) is refused with an error naming the law.
+#[test]
+fn bench_nodal_reports_both_formulations_and_refuses_link_laws() {
+    let (ok, out, err) = heml(&["bench", "--nodal", "--tets", "3000", "--repeats", "3", "--threads", "2"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("element (standard) vs nodal (anti-locking"), "{out}");
+    for threads in ["1", "2"] {
+        let nums: Vec<f64> = out
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(threads))
+            .unwrap_or_else(|| panic!("no row for {threads} threads:\n{out}"))
+            .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .filter(|v| !v.is_empty())
+            .skip(1)
+            .map(|v| v.parse().unwrap())
+            .collect();
+        // element, nodal and ratio, each as median [min–max]
+        assert_eq!(nums.len(), 9, "{out}");
+        for m in nums.chunks(3) {
+            assert!(
+                m[1] > 0.0 && m[1] <= m[0] && m[0] <= m[2],
+                "median outside its range: {m:?}\n{out}"
+            );
+        }
+    }
+    let (ok, _, err) = heml(&[
+        "bench",
+        "--nodal",
+        "--law",
+        "mass_spring",
+        "--tets",
+        "3000",
+        "--repeats",
+        "1",
+    ]);
+    assert!(
+        !ok && err.contains("mass_spring") && err.contains("volumetric"),
+        "{err}"
+    );
+}
+
 /// A reader that stops early (`heml bench | head -1`) must end the command quietly:
 /// no panic, success, nothing on standard error.
 #[test]

@@ -8,8 +8,8 @@ use crate::force::nodal_volume::{element_fraction, DEFAULT_STABILIZATION};
 use crate::force::p1::energy_and_piola;
 use crate::force::{
     energy_and_piola_stretch, fibre_energy_and_piola, Dilation, ElasticForces, FibreField, FibreP1Field, ForceOptions,
-    HemlField, Isochoric, LinkField, NodalVolume, NodalVolumeField, NodalVolumeTangent, P1Field, StretchHemlField,
-    StretchP1Field, TangentField, TangentOperator,
+    Formulation, HemlField, Isochoric, LinkField, NodalVolume, NodalVolumeField, NodalVolumeTangent, P1Field,
+    StretchHemlField, StretchP1Field, TangentField, TangentOperator, TetField,
 };
 use crate::law::{FibreLaw, InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo, StretchLaw};
 use crate::mesh::TetMesh;
@@ -392,12 +392,12 @@ impl<M: InvariantLaw> NodalInvariant<M> {
         1.0 - self.c
     }
 
-    fn nodal(
+    fn nodal<K: Formulation + 'static>(
         &self,
         mesh: &TetMesh,
         tets: Option<&[usize]>,
         opts: &ForceOptions,
-        iso: Box<dyn ElasticForces>,
+        iso: TetField<K>,
     ) -> Result<Box<dyn ElasticForces>> {
         let nodal = NodalVolume::new(self.law, self.c, mesh, tets, *opts)?;
         Ok(Box::new(NodalVolumeField::new(iso, nodal)?))
@@ -430,7 +430,7 @@ impl<M: InvariantLaw> Material for NodalInvariant<M> {
         opts: &ForceOptions,
     ) -> Result<Box<dyn ElasticForces>> {
         let iso = HemlField::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
-        self.nodal(mesh, tets, opts, Box::new(iso))
+        self.nodal(mesh, tets, opts, iso)
     }
     /// The same split on the standard P1 element (the oracle of the HEML path).
     fn fem_field(
@@ -440,7 +440,7 @@ impl<M: InvariantLaw> Material for NodalInvariant<M> {
         opts: &ForceOptions,
     ) -> Result<Option<Box<dyn ElasticForces>>> {
         let iso = P1Field::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
-        Ok(Some(self.nodal(mesh, tets, opts, Box::new(iso))?))
+        Ok(Some(self.nodal(mesh, tets, opts, iso)?))
     }
     /// The continuum law's stress (the nodal formulation is a discretisation of it).
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {

@@ -271,59 +271,101 @@ fn cantilever_does_not_lock_with_the_nodal_term() {
     }
 }
 
+/// The nu sweep of the README on the 1 920- and the issue's 15 360-tet six-tet beams
+/// (printed; `HEML_S` = comma-separated stabilisation factors, default the default).
 #[test]
-#[ignore = "minutes: CG at nu = 0.499 on 15 360 tets"]
-fn cantilever_fine_mesh_nodal_at_0499() {
-    for nu in [0.0, 0.499] {
-        let t = std::time::Instant::now();
-        let (r, rep) = tip_ratio(six_tet_beam(80).unwrap(), Bar::BEAM, nu, Volumetric::nodal()).unwrap();
-        eprintln!(
-            "cells 80 nu {nu}: {r:.4} ({} it, {:.1}s)",
-            rep.iterations,
-            t.elapsed().as_secs_f64()
-        );
+#[ignore = "a minute: the README's nu sweep on 15 360 tets"]
+fn cantilever_nu_sweep_both_meshes() {
+    let ss: Vec<f64> = std::env::var("HEML_S")
+        .map(|v| v.split(',').map(|s| s.parse().unwrap()).collect())
+        .unwrap_or_else(|_| vec![heml::force::nodal_volume::DEFAULT_STABILIZATION]);
+    for cells in [40, 80] {
+        for &s in &ss {
+            let mut base = 0.0;
+            for nu in [0.0, 0.3, 0.45, 0.49, 0.499] {
+                let t = std::time::Instant::now();
+                let (r, rep) = tip_ratio(
+                    six_tet_beam(cells).unwrap(),
+                    Bar::BEAM,
+                    nu,
+                    Volumetric::Nodal { stabilization: s },
+                )
+                .unwrap();
+                if nu == 0.0 {
+                    base = r;
+                }
+                eprintln!(
+                    "cells {cells} s {s} nu {nu}: {r:.4} ({:.3} of nu = 0; {} it, {:.1}s)",
+                    r / base,
+                    rep.iterations,
+                    t.elapsed().as_secs_f64()
+                );
+            }
+        }
     }
 }
 
-/// Cost of a force evaluation with the nodal term relative to the element one
-/// (printed, not asserted: the README's benchmark; interleaved runs, minimum of
-/// each, which is robust to the load of a shared machine).
+/// Cost of a force evaluation with the nodal term relative to the element one, on
+/// 1 and 2 threads in one run (printed, not asserted: the README's benchmark;
+/// evaluations interleaved so that both see the same machine load; median and range
+/// of 40 each).
 #[test]
 #[ignore = "timing, for the README"]
 fn nodal_cost_ratio() {
     let mesh = heml::mesh::generate::box_of_about(100_000).unwrap();
     let x = heml_validation::fixtures::smooth_deformation(&mesh);
-    for name in ["neo_hookean", "mooney_rivlin"] {
-        let entry = heml::registry::find_material(name).unwrap();
-        let law = entry
-            .instantiate(&heml_validation::fixtures::tissue_params(entry, 3e3, 0.49).unwrap())
-            .unwrap();
-        let fields: Vec<_> = [Volumetric::Element, Volumetric::nodal()]
-            .iter()
-            .map(|v| {
-                law.with_volumetric(*v)
-                    .unwrap()
-                    .force_field(&mesh, None, &ForceOptions::default())
-                    .unwrap()
-            })
-            .collect();
-        let mut best = [f64::INFINITY; 2];
-        let mut f = vec![Vec3::zeros(); x.len()];
-        for _ in 0..40 {
-            for (k, field) in fields.iter().enumerate() {
-                f.fill(Vec3::zeros());
-                let t = std::time::Instant::now();
-                field.add_forces(&x, &mut f).unwrap();
-                best[k] = best[k].min(t.elapsed().as_secs_f64());
+    let stats = |t: &mut Vec<f64>| {
+        t.sort_by(f64::total_cmp);
+        (t[t.len() / 2], t[0], t[t.len() - 1])
+    };
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            for name in ["neo_hookean", "mooney_rivlin"] {
+                let entry = heml::registry::find_material(name).unwrap();
+                let law = entry
+                    .instantiate(&heml_validation::fixtures::tissue_params(entry, 3e3, 0.49).unwrap())
+                    .unwrap();
+                let fields: Vec<_> = [Volumetric::Element, Volumetric::nodal()]
+                    .iter()
+                    .map(|v| {
+                        law.with_volumetric(*v)
+                            .unwrap()
+                            .force_field(&mesh, None, &ForceOptions::default())
+                            .unwrap()
+                    })
+                    .collect();
+                let mut times = [Vec::new(), Vec::new()];
+                let mut ratios = Vec::new();
+                let mut f = vec![Vec3::zeros(); x.len()];
+                for _ in 0..40 {
+                    let mut pair = [0.0; 2];
+                    for (k, field) in fields.iter().enumerate() {
+                        f.fill(Vec3::zeros());
+                        let t = std::time::Instant::now();
+                        field.add_forces(&x, &mut f).unwrap();
+                        pair[k] = t.elapsed().as_secs_f64();
+                        times[k].push(pair[k]);
+                    }
+                    ratios.push(pair[1] / pair[0]);
+                }
+                let (e, n, r) = (stats(&mut times[0]), stats(&mut times[1]), stats(&mut ratios));
+                eprintln!(
+                    "{threads} thread(s), {name}, {} tets: element {:.2} ms [{:.2}, {:.2}], nodal {:.2} ms [{:.2}, {:.2}]; \
+                     ratio of each pair: median {:.2}x [{:.2}, {:.2}]",
+                    mesh.n_tets(),
+                    e.0 * 1e3,
+                    e.1 * 1e3,
+                    e.2 * 1e3,
+                    n.0 * 1e3,
+                    n.1 * 1e3,
+                    n.2 * 1e3,
+                    r.0,
+                    r.1,
+                    r.2
+                );
             }
-        }
-        eprintln!(
-            "{name}: element {:.2} ms, nodal {:.2} ms per evaluation of {} tets: {:.2}x",
-            best[0] * 1e3,
-            best[1] * 1e3,
-            mesh.n_tets(),
-            best[1] / best[0]
-        );
+        });
     }
 }
 

@@ -171,6 +171,38 @@ fn forces_and_tangent_are_derivatives_of_the_energy() {
             "{name}: K u off by {:e}",
             max_diff(&ku, &fd) / scale
         );
+        if nodal {
+            // the nodal couplings as blocks (banded static solve) and their diagonal
+            // (preconditioner) carry the same ω weights as the product: rebuilt from
+            // the blocks, K_nonlocal u and its diagonal agree to round-off (sums of
+            // the same terms in another order, 1e-12 relative)
+            let (mut by_blocks, mut diag) = (vec![Vec3::zeros(); x.len()], vec![Matrix3::zeros(); x.len()]);
+            k.for_each_nonlocal_block(&mut |i, j, b| {
+                by_blocks[i] += b * u[j];
+                if i == j {
+                    diag[i] += b;
+                }
+            });
+            let mut product = vec![Vec3::zeros(); x.len()];
+            k.add_nonlocal_product(&u, &mut product).unwrap();
+            let scale = max_norm(&product);
+            assert!(
+                max_diff(&by_blocks, &product) <= 1e-12 * scale,
+                "{name}: blocks off by {:e}",
+                max_diff(&by_blocks, &product) / scale
+            );
+            let mut d = vec![Matrix3::zeros(); x.len()];
+            k.add_nonlocal_diagonal(&mut d).unwrap();
+            // the diagonal blocks hold the k_b ∇v_b∇v_bᵀ part only (U' ∇²vol has a
+            // zero diagonal block: ∇²vol couples distinct corners only)
+            let worst = d.iter().zip(&diag).map(|(a, b)| (a - b).amax()).fold(0.0, f64::max);
+            let size = diag.iter().map(|m| m.amax()).fold(0.0, f64::max);
+            assert!(
+                worst <= 1e-12 * size,
+                "{name}: diagonal blocks off by {:e}",
+                worst / size
+            );
+        }
     }
 }
 

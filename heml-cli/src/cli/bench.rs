@@ -85,6 +85,11 @@ pub struct BenchArgs {
     /// print --law's cost relative to it (e.g. a fibre law against neo_hookean).
     #[arg(long, value_name = "LAW")]
     pub against: Option<String>,
+    /// Instead of the usual table: the anti-locking volumetric formulation
+    /// (`volumetric = "nodal"`) of --law against the standard (element) one at
+    /// ν = 0.49, cost per tet and ratio, at 1 and --threads threads, timed round-robin.
+    #[arg(long)]
+    pub nodal: bool,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -297,14 +302,18 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         repeats,
         inner
     );
-
-    let law = with_bench_fibres(law, &mesh)?;
-    let heml_field = law.force_field(&mesh, None, &opts)?;
-    let fem_field = law.fem_field(&mesh, None, &opts)?;
     let mut counts = vec![1];
     if threads != 1 {
         counts.push(threads);
     }
+    let pools = counts.iter().map(|&n| pool(n)).collect::<heml::Result<Vec<_>>>()?;
+    if args.nodal {
+        return super::bench_nodal::run(entry, &mesh, &x, &pools, repeats, inner);
+    }
+
+    let law = with_bench_fibres(law, &mesh)?;
+    let heml_field = law.force_field(&mesh, None, &opts)?;
+    let fem_field = law.fem_field(&mesh, None, &opts)?;
     outln!();
     outln!(
         "{:<8} {:>14} {:>10} {:>14} {:>10} {:>12}",
@@ -317,7 +326,6 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     );
     // every (thread count, field) case in one round-robin, so that the speed-up and
     // the HEML/P1 ratio are taken sample by sample under the same machine load
-    let pools = counts.iter().map(|&n| pool(n)).collect::<heml::Result<Vec<_>>>()?;
     let mut cases = Vec::new();
     for p in &pools {
         cases.push(Case {

@@ -15,6 +15,7 @@ macro_rules! out {
 pub mod bench;
 pub mod bench_energy;
 pub mod bench_implicit;
+pub mod bench_nodal;
 pub mod demo;
 pub mod device_tuning;
 pub mod haptic;

@@ -45,6 +45,27 @@ impl<K: TetKernel> BatchKernel for Tets<'_, K> {
     }
 }
 
+/// Two batch kernels over one layout, summed.
+struct Both<'a, A, B> {
+    first: &'a A,
+    second: &'a B,
+}
+
+impl<A: BatchKernel, B: BatchKernel> BatchKernel for Both<'_, A, B> {
+    #[inline(always)]
+    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
+        self.first.batch(b, p, f, e);
+        let (mut g, mut e2) = ([[[0.0; LANES]; 3]; 4], [0.0; LANES]);
+        self.second.batch(b, p, &mut g, &mut e2);
+        for (fa, ga) in f.iter_mut().zip(&g) {
+            for (fc, gc) in fa.iter_mut().zip(ga) {
+                fc.iter_mut().zip(gc).for_each(|(u, v)| *u += v);
+            }
+        }
+        e.iter_mut().zip(&e2).for_each(|(u, v)| *u += v);
+    }
+}
+
 impl<K: TetKernel> PlainKernel for Tets<'_, K> {
     #[inline(always)]
     fn tet(&self, k: usize, p: &[Vec3; 4], add: impl FnMut(usize, Vec3)) -> f64 {
@@ -103,6 +124,31 @@ impl<K: Formulation> TetField<K> {
     /// by node. The reference every optimised path is tested against.
     pub fn add_forces_reference(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         self.layout.add_plain(&self.tets(), x, f)
+    }
+
+    /// The field's forces plus those of `extra`, a batch kernel over the same layout
+    /// (its batch `b` holds the field's tets `b*LANES..`), added to `f` in one pass of
+    /// the block driver (one gather and scatter for both: the nodal volumetric term's
+    /// pressure forces ride on the element pass); returns the sum of both energies.
+    /// The reference path runs the field's plain kernel, then `extra` batched.
+    pub(crate) fn add_forces_with<E: BatchKernel>(&self, extra: &E, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        match self.assembly {
+            Assembly::Reference => Ok(self.add_forces_reference(x, f)? + self.layout.add_batched(extra, false, x, f)?),
+            a => self.layout.add_batched(
+                &Both {
+                    first: &self.tets(),
+                    second: extra,
+                },
+                a == Assembly::Parallel,
+                x,
+                f,
+            ),
+        }
+    }
+
+    /// Global ids of the field's tets in its order (removed ones included).
+    pub(crate) fn layout_ids(&self) -> &[usize] {
+        &self.layout.ids
     }
 
     fn tets(&self) -> Tets<'_, K> {

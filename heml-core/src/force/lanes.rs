@@ -83,16 +83,29 @@ pub(crate) fn squared_lengths(p: &LanePoints) -> [[f64; LANES]; 6] {
     len
 }
 
-/// J = det(v1, v2, v3)/(6·vol) of a batch's tets and the cross products v2×v3,
-/// v3×v1, v1×v2 (`[a][component][lane]`; ∂vol/∂x_{a+1} = cr[a]/6), as in the plain
-/// kernel's [`super::heml::volume_terms`]. The division depends on rest data only,
-/// so it runs early, off the chain positions → J → law → forces.
+/// J = det(v1, v2, v3)/(6·vol) of a batch's tets and the cross products of
+/// [`lane_crosses`], as in the plain kernel's [`super::heml::volume_terms`]. The
+/// division depends on rest data only, so it runs early, off the chain positions →
+/// J → law → forces.
 #[inline(always)]
 pub(crate) fn volume_lanes(p: &LanePoints, vol: &[f64; LANES]) -> ([f64; LANES], [[[f64; LANES]; 3]; 3]) {
     let mut inv_6vol = [0.0; LANES];
     for l in 0..LANES {
         inv_6vol[l] = 1.0 / (6.0 * vol[l]);
     }
+    let (cr, det) = lane_crosses(p);
+    let mut j = [0.0; LANES];
+    for l in 0..LANES {
+        j[l] = det[l] * inv_6vol[l];
+    }
+    (j, cr)
+}
+
+/// The cross products v2×v3, v3×v1, v1×v2 of a batch's tets (v_a = p_a − p_0;
+/// `[a][component][lane]`, so ∂vol/∂x_{a+1} = cr[a]/6) and the determinants
+/// det(v1, v2, v3) = 6 vol. Shared by the element kernels and the nodal volume term.
+#[inline(always)]
+pub(crate) fn lane_crosses(p: &LanePoints) -> ([[[f64; LANES]; 3]; 3], [f64; LANES]) {
     let mut cr = [[[0.0; LANES]; 3]; 3];
     for (a, (s, t)) in [(2, 3), (3, 1), (1, 2)].into_iter().enumerate() {
         for l in 0..LANES {
@@ -111,14 +124,13 @@ pub(crate) fn volume_lanes(p: &LanePoints, vol: &[f64; LANES]) -> ([f64; LANES],
             cr[a][2][l] = ux * wy - uy * wx;
         }
     }
-    let mut j = [0.0; LANES];
+    let mut det = [0.0; LANES];
     for l in 0..LANES {
-        let det = (p[1][0][l] - p[0][0][l]) * cr[0][0][l]
+        det[l] = (p[1][0][l] - p[0][0][l]) * cr[0][0][l]
             + (p[1][1][l] - p[0][1][l]) * cr[0][1][l]
             + (p[1][2][l] - p[0][2][l]) * cr[0][2][l];
-        j[l] = det * inv_6vol[l];
     }
-    (j, cr)
+    (cr, det)
 }
 
 /// Adds the volume term of a batch's forces, −∂J/∂x·w_J·vol = −(cr/6)·w_J at the

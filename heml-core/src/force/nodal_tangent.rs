@@ -217,21 +217,66 @@ impl<M: InvariantLaw> TangentOperator for NodalVolumeTangent<M> {
             if self.kn[b] == 0.0 {
                 continue;
             }
-            ring.clear();
-            for &(k, _) in &self.inc[self.start[b]..self.start[b + 1]] {
-                let g = volume_gradient(&self.pts[k as usize]);
-                let q = 0.25 * self.weights[k as usize];
-                for (a, &i) in self.tets[k as usize].iter().enumerate() {
-                    match ring.iter_mut().find(|e| e.0 == i) {
-                        Some(e) => e.1 += g[a] * q,
-                        None => ring.push((i, g[a] * q)),
-                    }
-                }
-            }
+            self.ring_gradient(b, &mut ring);
             for (i, g) in &ring {
                 d[*i as usize] += g * g.transpose() * self.kn[b];
             }
         }
         Ok(())
+    }
+
+    fn for_each_nonlocal_block(&self, f: &mut dyn FnMut(usize, usize, &Matrix3<f64>)) {
+        // k_b ∇v_b∇v_bᵀ: every pair of nodes around b
+        let mut ring: Vec<(u32, Vec3)> = Vec::new();
+        for b in 0..self.kn.len() {
+            if self.kn[b] == 0.0 {
+                continue;
+            }
+            self.ring_gradient(b, &mut ring);
+            for (i, gi) in &ring {
+                for (j, gj) in &ring {
+                    f(*i as usize, *j as usize, &(gi * gj.transpose() * self.kn[b]));
+                }
+            }
+        }
+        // p̄_t ∇²vol_t: column c of block (a, b) is ∇²vol·e_c at corner b, read at a
+        for (k, t) in self.tets.iter().enumerate() {
+            if self.pbar[k] == 0.0 {
+                continue;
+            }
+            let mut blocks = [[Matrix3::zeros(); 4]; 4];
+            for b in 0..4 {
+                for c in 0..3 {
+                    let mut u = [Vec3::zeros(); 4];
+                    u[b][c] = 1.0;
+                    for (a, col) in volume_curvature(&self.pts[k], &u).iter().enumerate() {
+                        blocks[a][b].set_column(c, &(col * self.pbar[k]));
+                    }
+                }
+            }
+            for a in 0..4 {
+                for b in 0..4 {
+                    f(t[a] as usize, t[b] as usize, &blocks[a][b]);
+                }
+            }
+        }
+    }
+}
+
+impl<M> NodalVolumeTangent<M> {
+    /// ∇v_b = ¼ Σ_{t∋b} ω_t ∇vol_t as (node, gradient) pairs over the nodes around b
+    /// (into `ring`, cleared first).
+    fn ring_gradient(&self, b: usize, ring: &mut Vec<(u32, Vec3)>) {
+        ring.clear();
+        for &(k, _) in &self.inc[self.start[b]..self.start[b + 1]] {
+            let g = volume_gradient(&self.pts[k as usize]);
+            let q = 0.25 * self.weights[k as usize];
+            for (a, &i) in self.tets[k as usize].iter().enumerate() {
+                match ring.iter_mut().find(|e| e.0 == i) {
+                    Some(e) => e.1 += g[a] * q,
+                    None => ring.push((i, g[a] * q)),
+                }
+            }
+        }
     }
 }

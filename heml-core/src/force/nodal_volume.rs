@@ -33,20 +33,22 @@
 //! element volume change costs energy. s = 0 is the plain nodal-J tet.
 //!
 //! # Evaluation
-//! Three passes, each deterministic (the same bits for any number of threads):
-//! the lumped volumes v_a (the block driver of [`super::assembly`], with a kernel
-//! that scatters vol_t/4 to the corners), the nodal pressures (parallel over nodes,
-//! the energy summed in fixed chunks), and the forces −p̄_t ∇vol_t (the block driver
-//! again). The isochoric part runs on the formulation's own field
-//! (HEML link kernels, or P1 for the oracle) with the law [`super::Isochoric`].
+//! Two passes of the block driver of [`super::assembly`] and one over nodes, each
+//! deterministic (the same bits for any number of threads): the lumped volumes v_a
+//! (a kernel that scatters vol_t/4 to the corners), the nodal pressures (parallel
+//! over nodes, the energy summed in fixed chunks), then the element part and the
+//! pressure forces −p̄_t ∇vol_t together in one pass (one gather and scatter). The
+//! isochoric part runs on the formulation's own field (HEML link kernels, or P1 for
+//! the oracle) with the law [`super::Isochoric`].
 
 // The lanes are indexed in lock-step on purpose (it is what vectorises).
 #![allow(clippy::needless_range_loop)]
 
 use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
 use super::field::{check_sizes, selection};
+use super::lanes::lane_crosses;
 use super::volumetric::Dilation;
-use super::{Assembly, ElasticForces, ForceOptions};
+use super::{Assembly, ElasticForces, ForceOptions, Formulation, TetField};
 use crate::error::{HemlError, Result};
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
@@ -99,37 +101,6 @@ struct VolumeKernel;
 struct PressureKernel<'a> {
     tets: &'a [[u32; 4]],
     p: &'a [f64],
-}
-
-/// Cross products v2×v3, v3×v1, v1×v2 of the lanes (v_a = p_a − p_0) and the
-/// determinants v1·(v2×v3).
-#[inline(always)]
-fn lane_crosses(p: &LanePoints) -> ([[[f64; LANES]; 3]; 3], [f64; LANES]) {
-    let mut cr = [[[0.0; LANES]; 3]; 3];
-    for (a, (s, t)) in [(2, 3), (3, 1), (1, 2)].into_iter().enumerate() {
-        for l in 0..LANES {
-            let (ux, uy, uz) = (
-                p[s][0][l] - p[0][0][l],
-                p[s][1][l] - p[0][1][l],
-                p[s][2][l] - p[0][2][l],
-            );
-            let (wx, wy, wz) = (
-                p[t][0][l] - p[0][0][l],
-                p[t][1][l] - p[0][1][l],
-                p[t][2][l] - p[0][2][l],
-            );
-            cr[a][0][l] = uy * wz - uz * wy;
-            cr[a][1][l] = uz * wx - ux * wz;
-            cr[a][2][l] = ux * wy - uy * wx;
-        }
-    }
-    let mut det = [0.0; LANES];
-    for l in 0..LANES {
-        det[l] = (p[1][0][l] - p[0][0][l]) * cr[0][0][l]
-            + (p[1][1][l] - p[0][1][l]) * cr[0][1][l]
-            + (p[1][2][l] - p[0][2][l]) * cr[0][2][l];
-    }
-    (cr, det)
 }
 
 impl BatchKernel for VolumeKernel {
@@ -338,17 +309,17 @@ pub(crate) fn volume_gradient(p: &[Vec3; 4]) -> [Vec3; 4] {
 /// The anti-locking field of an invariant law: its isochoric part (plus β of the
 /// element volumetric energy) on an element field, and the nodal volumetric term
 /// (see the module doc). Built by [`crate::material::Volumetric::Nodal`] materials.
-pub struct NodalVolumeField<M> {
-    iso: Box<dyn ElasticForces>,
+pub struct NodalVolumeField<M, K: Formulation> {
+    iso: TetField<K>,
     nodal: NodalVolume<M>,
     assembly: Assembly,
 }
 
-impl<M: InvariantLaw> NodalVolumeField<M> {
+impl<M: InvariantLaw, K: Formulation> NodalVolumeField<M, K> {
     /// The field of element part `iso` (a field of [`super::Isochoric`]`<M>` over the
-    /// same tets) and nodal term `nodal`.
-    pub fn new(iso: Box<dyn ElasticForces>, nodal: NodalVolume<M>) -> Result<Self> {
-        if iso.n_tets() != nodal.layout.n_live() || iso.n_nodes() != nodal.rest.len() {
+    /// same tets, in the same order) and nodal term `nodal`.
+    pub fn new(iso: TetField<K>, nodal: NodalVolume<M>) -> Result<Self> {
+        if iso.layout_ids() != nodal.layout.ids.as_slice() || iso.n_nodes() != nodal.rest.len() {
             return Err(HemlError::Invalid(
                 "nodal volume term and element field cover different tets".into(),
             ));
@@ -366,7 +337,7 @@ impl<M: InvariantLaw> NodalVolumeField<M> {
     }
 }
 
-impl<M: InvariantLaw> ElasticForces for NodalVolumeField<M> {
+impl<M: InvariantLaw, K: Formulation> ElasticForces for NodalVolumeField<M, K> {
     fn n_nodes(&self) -> usize {
         self.iso.n_nodes()
     }
@@ -381,9 +352,16 @@ impl<M: InvariantLaw> ElasticForces for NodalVolumeField<M> {
         let e = self.iso.energy(x)?;
         Ok(e + self.nodal.pressures(x, self.assembly == Assembly::Parallel).0)
     }
+    /// The lumped volumes and nodal pressures first, then the element part and the
+    /// pressure forces −p̄_t ∇vol_t in one pass of the block driver.
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        let e = self.iso.add_forces(x, f)?;
-        Ok(e + self.nodal.add_forces(x, f, self.assembly == Assembly::Parallel)?)
+        check_sizes(self.n_nodes(), x, Some(f))?;
+        let (e, p) = self.nodal.pressures(x, self.assembly == Assembly::Parallel);
+        let k = PressureKernel {
+            tets: &self.nodal.tets,
+            p: &p,
+        };
+        Ok(e + self.iso.add_forces_with(&k, x, f)?)
     }
     /// J and the law's own energy density w = w_iso + U(J_t) of each tet (the element
     /// view; the nodal term redistributes the volumetric part among nodes).
@@ -395,11 +373,11 @@ impl<M: InvariantLaw> ElasticForces for NodalVolumeField<M> {
         Ok(s)
     }
     fn set_assembly(&mut self, assembly: Assembly) {
-        self.iso.set_assembly(assembly);
+        ElasticForces::set_assembly(&mut self.iso, assembly);
         self.assembly = assembly;
     }
     fn bytes_per_tet(&self) -> Option<f64> {
-        Some(self.iso.bytes_per_tet()? + self.nodal.bytes_per_tet())
+        Some(ElasticForces::bytes_per_tet(&self.iso)? + self.nodal.bytes_per_tet())
     }
     fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
         // the nodal term first: it refuses unknown ids before anything is removed

@@ -157,6 +157,12 @@ pub trait TangentOperator: Send + Sync {
         let _ = d;
         Ok(())
     }
+    /// Calls `f(i, j, block)` with parts of the 3×3 blocks of K_nonlocal (rows of
+    /// node i, columns of node j) that sum to K_nonlocal, for solvers that assemble
+    /// K in full (the banded static solve). None by default.
+    fn for_each_nonlocal_block(&self, f: &mut dyn FnMut(usize, usize, &Matrix3<f64>)) {
+        let _ = f;
+    }
 }
 
 /// The stiffness of one tet from its current vertex positions.

@@ -56,6 +56,27 @@ impl DofMap {
         self.band
     }
 
+    /// Half-bandwidth of a matrix that couples every pair of nodes around a common
+    /// node (e.g. the nodal volumetric term: the tets around a node and their nodes),
+    /// about twice [`DofMap::band`].
+    pub(in crate::system) fn ring_band(&self, tets: &[[u32; 4]]) -> usize {
+        let n = self.dof.len();
+        let (mut lo, mut hi) = (vec![usize::MAX; n], vec![0; n]);
+        for tet in tets {
+            let ids = tet.iter().flat_map(|&i| self.dof[i as usize]).filter(|&d| d != HELD);
+            let (l, h) = ids.fold((usize::MAX, 0), |(l, h), d| (l.min(d), h.max(d)));
+            for &b in tet {
+                lo[b as usize] = lo[b as usize].min(l);
+                hi[b as usize] = hi[b as usize].max(h);
+            }
+        }
+        (0..n)
+            .filter(|&b| lo[b] <= hi[b])
+            .map(|b| hi[b] - lo[b])
+            .max()
+            .unwrap_or(0)
+    }
+
     /// The degree of freedom of coordinate `axis` of `node`, if free.
     pub(in crate::system) fn get(&self, node: usize, axis: usize) -> Option<usize> {
         let d = self.dof[node][axis];

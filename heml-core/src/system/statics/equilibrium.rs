@@ -9,7 +9,7 @@ use super::banded::BandLdl;
 use super::dofs::DofMap;
 use super::newton::{newton, NewtonProblem};
 use super::options::{Slider, StaticOptions, StaticReport};
-use super::tangent::Stiffness;
+use super::tangent::{add_operators, Stiffness};
 use crate::error::Result;
 use crate::force::TangentOperator;
 use crate::system::implicit::linear::{SolveCache, TangentSolve};
@@ -21,6 +21,10 @@ use crate::Vec3;
 enum Linear {
     /// Banded LDLᵀ of the assembled stiffness (fits in memory).
     Banded(Stiffness),
+    /// Banded LDLᵀ of the exact generated tangents (per-tet blocks and the nodal
+    /// volumetric couplings, which reach two links: a nodal-volume material whose
+    /// band fits in memory).
+    BandedTangent(Vec<Box<dyn TangentOperator>>),
     /// Preconditioned conjugate gradients, or a sparse Cholesky factorisation, of
     /// the assembled generated tangent (projected to positive semi-definite per tet).
     Cg(Vec<Box<dyn TangentOperator>>, Box<SolveCache>, LinearSolver),
@@ -71,21 +75,15 @@ impl NewtonProblem for Equilibrium<'_> {
             Linear::Banded(stiffness) => {
                 let mut k = BandLdl::new(dofs.len(), dofs.band());
                 stiffness.add_to(sys, dofs, &mut k);
-                if let Some(g) = sys.model.grasps.diagonal(sys.state.x.len(), 0.0) {
-                    for (i, d) in g.iter().enumerate().filter(|(_, d)| **d != 0.0) {
-                        for a in 0..3 {
-                            if let Some(j) = dofs.get(i, a) {
-                                k.add(j, j, *d);
-                            }
-                        }
-                    }
+                Ok(solve_banded(sys, dofs, k, rhs))
+            }
+            Linear::BandedTangent(tangents) => {
+                for t in tangents.iter_mut() {
+                    t.update(&sys.state.x)?;
                 }
-                add_contact_stiffness(sys, dofs, &mut k);
-                if !k.factor() {
-                    return Ok(false);
-                }
-                k.solve(rhs);
-                Ok(true)
+                let mut k = BandLdl::new(dofs.len(), dofs.ring_band(sys.model.mesh.tets()));
+                add_operators(tangents, sys, dofs, &mut k);
+                Ok(solve_banded(sys, dofs, k, rhs))
             }
             Linear::Cg(tangents, cache, linear_solver) => {
                 let solve = TangentSolve {
@@ -116,6 +114,31 @@ impl NewtonProblem for Equilibrium<'_> {
     fn merit(&self, sys: &System) -> Result<f64> {
         let e = sys.energies()?;
         Ok(e.elastic + e.gravity + e.loads + sys.model.tools.energy())
+    }
+}
+
+/// Adds the grasps' and contacts' stiffness to the banded tissue stiffness `k`, then
+/// factors it and solves in place; false when `k` is not positive definite.
+fn solve_banded(sys: &System, dofs: &DofMap, mut k: BandLdl, rhs: &mut [f64]) -> bool {
+    add_grasp_stiffness(sys, dofs, &mut k);
+    add_contact_stiffness(sys, dofs, &mut k);
+    if !k.factor() {
+        return false;
+    }
+    k.solve(rhs);
+    true
+}
+
+/// Adds the grasp springs' stiffness (diagonal) on the free coordinates.
+fn add_grasp_stiffness(sys: &System, dofs: &DofMap, k: &mut BandLdl) {
+    if let Some(g) = sys.model.grasps.diagonal(sys.state.x.len(), 0.0) {
+        for (i, d) in g.iter().enumerate().filter(|(_, d)| **d != 0.0) {
+            for a in 0..3 {
+                if let Some(j) = dofs.get(i, a) {
+                    k.add(j, j, *d);
+                }
+            }
+        }
     }
 }
 
@@ -159,33 +182,36 @@ impl System {
         let Some(stiffness) = Stiffness::new(self) else {
             return Ok(None);
         };
-        let linear = match stiffness {
-            // the banded stiffness is per element: a nodal volumetric term (which
-            // couples beyond a tet) goes through CG on its own tangent
-            stiffness
-                if opts.linear_solver.is_none()
-                    && BandLdl::fits(dofs.len(), dofs.band())
-                    && self
-                        .model
-                        .regions
-                        .iter()
-                        .all(|r| r.material.volumetric() == crate::material::Volumetric::Element) =>
-            {
-                Linear::Banded(stiffness)
-            }
-            _ => {
-                let mut tangents = Vec::with_capacity(self.model.regions.len());
-                for r in &self.model.regions {
-                    match r.material.tangent(
-                        &self.model.mesh,
-                        Some(r.field.tet_ids()),
-                        &self.model.force_options,
-                        true,
-                    )? {
-                        Some(t) => tangents.push(t),
-                        None => return Ok(None),
-                    }
+        // the banded stiffness is per element: a nodal volumetric term (which couples
+        // beyond a tet) is assembled from its exact generated tangent with the wider
+        // band it needs, or, when that does not fit, goes through CG on its own
+        // (projected) tangent; a linear solver named in the options overrides both
+        let nodal = self
+            .model
+            .regions
+            .iter()
+            .any(|r| r.material.volumetric() != crate::material::Volumetric::Element);
+        let linear = if opts.linear_solver.is_none() && !nodal && BandLdl::fits(dofs.len(), dofs.band()) {
+            Linear::Banded(stiffness)
+        } else {
+            let banded = opts.linear_solver.is_none()
+                && nodal
+                && BandLdl::fits(dofs.len(), dofs.ring_band(self.model.mesh.tets()));
+            let mut tangents = Vec::with_capacity(self.model.regions.len());
+            for r in &self.model.regions {
+                match r.material.tangent(
+                    &self.model.mesh,
+                    Some(r.field.tet_ids()),
+                    &self.model.force_options,
+                    !banded,
+                )? {
+                    Some(t) => tangents.push(t),
+                    None => return Ok(None),
                 }
+            }
+            if banded {
+                Linear::BandedTangent(tangents)
+            } else {
                 Linear::Cg(tangents, Box::default(), opts.linear_solver.unwrap_or_default())
             }
         };

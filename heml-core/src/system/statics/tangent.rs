@@ -5,7 +5,7 @@
 
 use super::banded::BandLdl;
 use super::dofs::DofMap;
-use crate::force::ForceOptions;
+use crate::force::{ForceOptions, TangentOperator};
 use crate::rest::rest_edge_matrix;
 use crate::system::System;
 use nalgebra::Matrix3;
@@ -103,5 +103,35 @@ impl Stiffness {
                 }
             }
         }
+    }
+}
+
+/// Adds the stiffness held by generated tangent operators, updated at the system's
+/// positions — their per-tet blocks and the couplings beyond a tet (the nodal
+/// volumetric term) — into the lower triangle of `k`, whose band must hold the
+/// latter ([`DofMap::ring_band`]).
+pub(super) fn add_operators(tangents: &[Box<dyn TangentOperator>], sys: &System, dofs: &DofMap, k: &mut BandLdl) {
+    let mut add_block = |i: usize, j: usize, b: &Matrix3<f64>| {
+        for r in 0..3 {
+            let Some(row) = dofs.get(i, r) else { continue };
+            for c in 0..3 {
+                match dofs.get(j, c) {
+                    Some(col) if col <= row => k.add(row, col, b[(r, c)]),
+                    _ => {}
+                }
+            }
+        }
+    };
+    for t in tangents {
+        for (e, &tet) in t.tet_ids().iter().enumerate() {
+            let idx = sys.model.mesh.tets()[tet].map(|i| i as usize);
+            let ke = t.tet_stiffness(e);
+            for a in 0..4 {
+                for b in 0..4 {
+                    add_block(idx[a], idx[b], &ke.fixed_view::<3, 3>(3 * a, 3 * b).into_owned());
+                }
+            }
+        }
+        t.for_each_nonlocal_block(&mut add_block);
     }
 }

@@ -1,0 +1,102 @@
+//! `heml bench --nodal`: the cost per tet of the anti-locking (nodal) volumetric
+//! formulation against the standard (element) one, both fields of `--law` at
+//! ν = 0.49 on the same mesh, timed round-robin at 1 and `--threads` threads, so
+//! that their ratio is taken sample by sample under the same machine load.
+
+use super::bench::{median, median_ratio, time_round_robin, Case};
+use heml::law::Volumetric;
+use heml::prelude::*;
+use heml::registry::MaterialEntry;
+use heml_validation::fixtures::tissue_params;
+
+/// Times the element and nodal fields of `entry` on `mesh` at `x`, one case per
+/// (pool, field), `repeats` samples of `inner` calls each.
+pub(super) fn run(
+    entry: &MaterialEntry,
+    mesh: &TetMesh,
+    x: &[Vec3],
+    pools: &[rayon::ThreadPool],
+    repeats: usize,
+    inner: usize,
+) -> heml::Result<()> {
+    let params = tissue_params(entry, 3e3, 0.49).ok_or_else(|| {
+        HemlError::Invalid(format!(
+            "heml bench --nodal knows soft-tissue parameters for the built-in laws only, not '{}'",
+            entry.name
+        ))
+    })?;
+    let law = entry.instantiate(&params)?;
+    let opts = ForceOptions::default();
+    let element = law.force_field(mesh, None, &opts)?;
+    let nodal = law
+        .with_volumetric(Volumetric::nodal())?
+        .force_field(mesh, None, &opts)?;
+    let mut cases = Vec::new();
+    for pool in pools {
+        for field in [&element, &nodal] {
+            cases.push(Case {
+                pool,
+                field: field.as_ref(),
+                x,
+                inner,
+            });
+        }
+    }
+    let samples = time_round_robin(&cases, repeats)?;
+    let ns = |s: &[f64]| -> Vec<f64> { s.iter().map(|t| t / mesh.n_tets().max(1) as f64 * 1e9).collect() };
+    outln!();
+    outln!(
+        "volumetric term of {} at nu = 0.49: element (standard) vs nodal (anti-locking, default stabilisation)",
+        entry.name
+    );
+    outln!(
+        "{:<8} {:>24} {:>24} {:>24}",
+        "threads",
+        "element ns/tet [range]",
+        "nodal ns/tet [range]",
+        "nodal/element [range]"
+    );
+    for (pool, s) in pools.iter().zip(samples.chunks(2)) {
+        let (e, n) = (ns(&s[0]), ns(&s[1]));
+        let ratios: Vec<f64> = n.iter().zip(&e).map(|(n, e)| n / e).collect();
+        outln!(
+            "{:<8} {:>24} {:>24} {:>23}×",
+            pool.current_num_threads(),
+            spread(&e, 2),
+            spread(&n, 2),
+            format!(
+                "{:.2} [{:.2}–{:.2}]",
+                median_ratio(&s[1], &s[0]),
+                min(&ratios),
+                max(&ratios)
+            )
+        );
+    }
+    outln!("(medians over {repeats} rounds of {inner} calls, range: fastest–slowest sample; ratio: median of the per-round ratios)");
+    if let Ok(load) = std::fs::read_to_string("/proc/loadavg") {
+        outln!(
+            "load average: {}",
+            load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
+        );
+    }
+    Ok(())
+}
+
+/// "median [min–max]" of `v` with `digits` decimals.
+fn spread(v: &[f64], digits: usize) -> String {
+    format!(
+        "{:.d$} [{:.d$}–{:.d$}]",
+        median(&mut v.to_vec()),
+        min(v),
+        max(v),
+        d = digits
+    )
+}
+
+fn min(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+fn max(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+}
