@@ -59,7 +59,8 @@ const VARS: [Var; 4] = [Var::I1, Var::I2, Var::J, Var::J0];
 #[derive(Debug, Clone)]
 pub(super) struct Tape {
     ops: Vec<Op>,
-    /// Register count: 4 variables, the parameters, the constants, the temporaries.
+    /// Register count: 4 variables, the parameters, the constants, the temporaries
+    /// (registers of temporaries are reused once their value is dead).
     regs: usize,
     n_params: usize,
     /// `(register, value)` of each constant.
@@ -68,6 +69,14 @@ pub(super) struct Tape {
     outputs: Vec<u32>,
     /// What the plain evaluation costs.
     ops_count: OpCount,
+}
+
+/// Whether `code` reads its second operand from a register (`Powi` holds its exponent there).
+fn reads_b(code: Code) -> bool {
+    matches!(
+        code,
+        Code::Add | Code::Sub | Code::Mul | Code::Div | Code::Max | Code::Powf(_)
+    )
 }
 
 impl Tape {
@@ -90,6 +99,7 @@ impl Tape {
                 _ => {}
             }
         }
+        let fixed = next;
         let mut ops = Vec::new();
         let mut ops_count = OpCount::default();
         for (id, _) in live.iter().enumerate().filter(|(_, &l)| l) {
@@ -140,12 +150,14 @@ impl Tape {
             });
             next += 1;
         }
+        let mut outputs: Vec<u32> = roots.iter().map(|&r| reg[r]).collect();
+        let regs = allocate(&mut ops, &mut outputs, fixed, next);
         Self {
             ops,
-            regs: next as usize,
+            regs,
             n_params,
             consts,
-            outputs: roots.iter().map(|&r| reg[r]).collect(),
+            outputs,
             ops_count,
         }
     }
@@ -163,25 +175,61 @@ impl Tape {
         &self,
         vars: [[f64; N]; 4],
         params: &[f64],
-        out: impl FnOnce(&mut dyn Iterator<Item = [f64; N]>) -> R,
+        out: impl FnOnce(Outputs<'_, N>) -> R,
     ) -> R {
         thread_local! {
             /// Registers, reused across calls: a tape is run once per batch of tets.
             static SCRATCH: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
         }
         let go = |buffer: &mut Vec<f64>| {
-            buffer.resize(self.regs.max(VARS.len() + self.n_params) * N, 0.0);
+            let size = self.regs.max(VARS.len() + self.n_params);
+            let file = if size <= SMALL {
+                SMALL
+            } else if size <= LARGE {
+                LARGE
+            } else {
+                size
+            };
+            if buffer.len() < file * N {
+                buffer.resize(file * N, 0.0);
+            }
             let (regs, _) = buffer.as_chunks_mut::<N>();
+            let regs = &mut regs[..file];
             self.fill(regs, vars, params);
-            self.execute::<N, FAST>(regs);
-            let mut outputs = self.outputs.iter().map(|&o| regs[o as usize]);
-            out(&mut outputs)
+            if file == SMALL {
+                if let Some(small) = regs.first_chunk_mut::<SMALL>() {
+                    self.dispatch::<N, FAST, _>(&mut Masked(small));
+                }
+            } else if file == LARGE {
+                if let Some(large) = regs.first_chunk_mut::<LARGE>() {
+                    self.dispatch::<N, FAST, _>(&mut Masked(large));
+                }
+            } else {
+                self.dispatch::<N, FAST, _>(&mut Checked(&mut *regs));
+            }
+            out(Outputs {
+                regs,
+                outputs: &self.outputs,
+            })
         };
         SCRATCH.with(|s| match s.try_borrow_mut() {
             Ok(mut buffer) => go(&mut buffer),
             // re-entered (a law evaluated inside a law): registers of its own
             Err(_) => go(&mut Vec::new()),
         })
+    }
+
+    /// Runs the operations with the widest instruction set this CPU has: the lane
+    /// loops then take one AVX2 instruction for four lanes.
+    #[inline(always)]
+    fn dispatch<const N: usize, const FAST: bool, F: Registers<N>>(&self, regs: &mut F) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, the one feature `execute_avx2` enables.
+            unsafe { execute_avx2::<N, FAST, F>(&self.ops, regs) };
+            return;
+        }
+        execute::<N, FAST, F>(&self.ops, regs);
     }
 
     /// Writes the variables, parameters and constants into their registers.
@@ -195,40 +243,156 @@ impl Tape {
             regs[r as usize] = [c; N];
         }
     }
+}
 
-    /// Runs the operations in order.
+/// Registers of the small file (a power of two: see [`Masked`]).
+const SMALL: usize = 64;
+/// Registers of the large file.
+const LARGE: usize = 1024;
+
+/// The outputs of one run of a tape.
+pub(super) struct Outputs<'a, const N: usize> {
+    regs: &'a [[f64; N]],
+    outputs: &'a [u32],
+}
+
+impl<const N: usize> Outputs<'_, N> {
+    /// Root number `k` (zero for a root that does not exist).
     #[inline(always)]
-    fn execute<const N: usize, const FAST: bool>(&self, regs: &mut [[f64; N]]) {
-        for op in &self.ops {
-            let a = regs[op.a as usize];
-            let b = || regs[op.b as usize];
-            let z: [f64; N] = match op.code {
-                Code::Add => lanes2(a, b(), |x, y| x + y),
-                Code::Sub => lanes2(a, b(), |x, y| x - y),
-                Code::Mul => lanes2(a, b(), |x, y| x * y),
-                // as the generated fast kernels: the reciprocal first (≤ 1 ulp apart)
-                Code::Div if FAST => lanes2(a, b(), |x, y| x * (1.0 / y)),
-                Code::Div => lanes2(a, b(), |x, y| x / y),
-                Code::Neg => lanes(a, |x| -x),
-                Code::Ln if FAST => lanes(a, fastmath::ln),
-                Code::Ln => lanes(a, f64::ln),
-                Code::Exp if FAST => lanes(a, fastmath::exp),
-                Code::Exp => lanes(a, f64::exp),
-                Code::Sqrt => lanes(a, f64::sqrt),
-                Code::Abs => lanes(a, f64::abs),
-                Code::Signum => lanes(a, f64::signum),
-                Code::Powi => {
-                    let n = op.b as i32;
-                    lanes(a, |x| x.powi(n))
-                }
-                Code::Powf(Some(n)) if FAST => lanes(a, |x| fastmath::pow_thirds(x, n)),
-                Code::Powf(_) if FAST => lanes2(a, b(), fastmath::powf),
-                Code::Powf(_) => lanes2(a, b(), f64::powf),
-                Code::Max => lanes2(a, b(), f64::max),
-                Code::Step => lanes(a, |x| f64::from(u8::from(x > 0.0))),
-            };
-            regs[op.dst as usize] = z;
+    pub(super) fn get(&self, k: usize) -> [f64; N] {
+        self.outputs
+            .get(k)
+            .and_then(|&r| self.regs.get(r as usize))
+            .copied()
+            .unwrap_or([0.0; N])
+    }
+}
+
+/// Renames the temporaries of `ops` (SSA registers `fixed..count`) so that a
+/// register is reused once its value is dead: the register file stays small (a few
+/// dozen registers for the usual laws) and in L1. Returns the register count.
+fn allocate(ops: &mut [Op], outputs: &mut [u32], fixed: u32, count: u32) -> usize {
+    let count = count as usize;
+    let mut last_use = vec![0usize; count];
+    for (i, op) in ops.iter().enumerate() {
+        last_use[op.a as usize] = i;
+        if reads_b(op.code) {
+            last_use[op.b as usize] = i;
         }
+    }
+    for &o in outputs.iter() {
+        last_use[o as usize] = usize::MAX;
+    }
+    let mut name = vec![u32::MAX; count];
+    for r in 0..fixed as usize {
+        name[r] = r as u32;
+    }
+    let mut free: Vec<u32> = Vec::new();
+    let mut used = fixed;
+    for (i, op) in ops.iter_mut().enumerate() {
+        let (a, b) = (op.a as usize, op.b as usize);
+        op.a = name[a];
+        if reads_b(op.code) {
+            op.b = name[b];
+        }
+        // operands read for the last time free their registers before the result
+        // takes one (an operation reads its operands before it writes)
+        if a >= fixed as usize && last_use[a] == i {
+            free.push(name[a]);
+        }
+        if reads_b(op.code) && b != a && b >= fixed as usize && last_use[b] == i {
+            free.push(name[b]);
+        }
+        let dst = op.dst as usize;
+        name[dst] = free.pop().unwrap_or_else(|| {
+            used += 1;
+            used - 1
+        });
+        op.dst = name[dst];
+    }
+    for o in outputs.iter_mut() {
+        *o = name[*o as usize];
+    }
+    used as usize
+}
+
+/// A register file.
+trait Registers<const N: usize> {
+    fn get(&self, r: u32) -> [f64; N];
+    fn set(&mut self, r: u32, v: [f64; N]);
+}
+
+/// A file of `F` registers (a power of two) holding every register of the tape: the
+/// index is masked into range, so no access needs a bounds check.
+struct Masked<'a, const N: usize, const F: usize>(&'a mut [[f64; N]; F]);
+
+impl<const N: usize, const F: usize> Registers<N> for Masked<'_, N, F> {
+    #[inline(always)]
+    fn get(&self, r: u32) -> [f64; N] {
+        self.0[r as usize & (F - 1)]
+    }
+    #[inline(always)]
+    fn set(&mut self, r: u32, v: [f64; N]) {
+        self.0[r as usize & (F - 1)] = v;
+    }
+}
+
+/// Any number of registers, each access checked (tapes too long for [`Masked`]).
+struct Checked<'a, const N: usize>(&'a mut [[f64; N]]);
+
+impl<const N: usize> Registers<N> for Checked<'_, N> {
+    #[inline(always)]
+    fn get(&self, r: u32) -> [f64; N] {
+        self.0[r as usize]
+    }
+    #[inline(always)]
+    fn set(&mut self, r: u32, v: [f64; N]) {
+        self.0[r as usize] = v;
+    }
+}
+
+/// [`execute`] compiled with AVX2.
+///
+/// # Safety
+/// The CPU has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn execute_avx2<const N: usize, const FAST: bool, F: Registers<N>>(ops: &[Op], regs: &mut F) {
+    execute::<N, FAST, F>(ops, regs);
+}
+
+/// Runs the operations in order.
+#[inline(always)]
+fn execute<const N: usize, const FAST: bool, F: Registers<N>>(ops: &[Op], regs: &mut F) {
+    for op in ops {
+        let a = regs.get(op.a);
+        let b = || regs.get(op.b);
+        let z: [f64; N] = match op.code {
+            Code::Add => lanes2(a, b(), |x, y| x + y),
+            Code::Sub => lanes2(a, b(), |x, y| x - y),
+            Code::Mul => lanes2(a, b(), |x, y| x * y),
+            // as the generated fast kernels: the reciprocal first (≤ 1 ulp apart)
+            Code::Div if FAST => lanes2(a, b(), |x, y| x * (1.0 / y)),
+            Code::Div => lanes2(a, b(), |x, y| x / y),
+            Code::Neg => lanes(a, |x| -x),
+            Code::Ln if FAST => lanes(a, fastmath::ln),
+            Code::Ln => lanes(a, f64::ln),
+            Code::Exp if FAST => lanes(a, fastmath::exp),
+            Code::Exp => lanes(a, f64::exp),
+            Code::Sqrt => lanes(a, f64::sqrt),
+            Code::Abs => lanes(a, f64::abs),
+            Code::Signum => lanes(a, f64::signum),
+            Code::Powi => {
+                let n = op.b as i32;
+                lanes(a, |x| x.powi(n))
+            }
+            Code::Powf(Some(n)) if FAST => lanes(a, |x| fastmath::pow_thirds(x, n)),
+            Code::Powf(_) if FAST => lanes2(a, b(), fastmath::powf),
+            Code::Powf(_) => lanes2(a, b(), f64::powf),
+            Code::Max => lanes2(a, b(), f64::max),
+            Code::Step => lanes(a, |x| f64::from(u8::from(x > 0.0))),
+        };
+        regs.set(op.dst, z);
     }
 }
 
