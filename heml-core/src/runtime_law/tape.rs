@@ -382,11 +382,8 @@ fn execute<const N: usize, const FAST: bool, F: Registers<N>>(ops: &[Op], regs: 
             Code::Sqrt => lanes(a, f64::sqrt),
             Code::Abs => lanes(a, f64::abs),
             Code::Signum => lanes(a, f64::signum),
-            Code::Powi => {
-                let n = op.b as i32;
-                lanes(a, |x| x.powi(n))
-            }
-            Code::Powf(Some(n)) if FAST => lanes(a, |x| fastmath::pow_thirds(x, n)),
+            Code::Powi => powi(a, op.b as i32),
+            Code::Powf(Some(n)) if FAST => pow_thirds(a, n),
             Code::Powf(_) if FAST => lanes2(a, b(), fastmath::powf),
             Code::Powf(_) => lanes2(a, b(), f64::powf),
             Code::Max => lanes2(a, b(), f64::max),
@@ -412,4 +409,45 @@ fn lanes2<const N: usize>(a: [f64; N], b: [f64; N], f: impl Fn(f64, f64) -> f64)
         z[l] = f(a[l], b[l]);
     }
     z
+}
+
+/// `x.powi(n)` on every lane, as the compiled code computes it for a constant `n`
+/// (LLVM's expansion into a product tree, and compiler-rt's `__powidf2`: the
+/// same repeated squaring, then the reciprocal for n < 0), with the loop over the
+/// bits of `n` outside the lane loops so that these vectorise: `f64::powi` with a
+/// run-time `n` is a library call per lane.
+#[inline(always)]
+fn powi<const N: usize>(x: [f64; N], n: i32) -> [f64; N] {
+    let mut bits = n.unsigned_abs();
+    let (mut square, mut product) = (x, None::<[f64; N]>);
+    while bits != 0 {
+        if bits & 1 == 1 {
+            product = Some(product.map_or(square, |p| lanes2(p, square, |a, b| a * b)));
+        }
+        bits >>= 1;
+        if bits != 0 {
+            square = lanes2(square, square, |a, b| a * b);
+        }
+    }
+    let y = product.unwrap_or([1.0; N]);
+    if n < 0 {
+        lanes(y, |v| 1.0 / v)
+    } else {
+        y
+    }
+}
+
+/// [`fastmath::pow_thirds`] on every lane, the cube roots vectorised and the
+/// product loop (its length `n` known at run time only) outside the lane loops:
+/// the same operations in the same order per lane.
+#[inline(always)]
+fn pow_thirds<const N: usize>(x: [f64; N], n: i32) -> [f64; N] {
+    let c = lanes(x, fastmath::cbrt);
+    let base = if n < 0 { lanes(c, |v| 1.0 / v) } else { c };
+    let mut y = [1.0; N];
+    for _ in 0..n.unsigned_abs() {
+        y = lanes2(y, base, |a, b| a * b);
+    }
+    let nan = n % 3 != 0;
+    lanes2(x, y, |x, y| if x < 0.0 && nan { f64::NAN } else { y })
 }
