@@ -40,6 +40,13 @@ enum Code {
     Max,
     /// 1 where `a > 0`, else 0 (the derivative of `max`).
     Step,
+    /// `a·b + c`: a product read only by a sum, fused into it (two roundings, as
+    /// the two operations: no FMA).
+    MulAdd,
+    /// `a·b − c`.
+    MulSub,
+    /// `c − a·b`.
+    SubMul,
 }
 
 /// One operation: `reg[dst] = code(reg[a], reg[b])`.
@@ -50,6 +57,8 @@ struct Op {
     a: u32,
     /// The second operand's register, or the exponent of `Powi`.
     b: u32,
+    /// The third operand's register (the fused operations only).
+    c: u32,
 }
 
 /// The variables' registers, in this order.
@@ -76,7 +85,18 @@ fn reads_b(code: Code) -> bool {
     matches!(
         code,
         Code::Add | Code::Sub | Code::Mul | Code::Div | Code::Max | Code::Powf(_)
-    )
+    ) || reads_c(code)
+}
+
+/// Whether `code` reads a third operand.
+fn reads_c(code: Code) -> bool {
+    matches!(code, Code::MulAdd | Code::MulSub | Code::SubMul)
+}
+
+/// The registers `op` reads.
+fn operands(op: &Op) -> impl Iterator<Item = u32> {
+    let (b, c) = (reads_b(op.code), reads_c(op.code));
+    [Some(op.a), b.then_some(op.b), c.then_some(op.c)].into_iter().flatten()
 }
 
 impl Tape {
@@ -124,6 +144,7 @@ impl Tape {
                         dst: next,
                         a: reg[a],
                         b: n as u32,
+                        c: 0,
                     });
                     ops_count.func += 1;
                     next += 1;
@@ -147,10 +168,12 @@ impl Tape {
                 dst: next,
                 a: reg[a],
                 b: b.map_or(0, |b| reg[b]),
+                c: 0,
             });
             next += 1;
         }
         let mut outputs: Vec<u32> = roots.iter().map(|&r| reg[r]).collect();
+        let mut ops = fuse(ops, &outputs, next);
         let regs = allocate(&mut ops, &mut outputs, fixed, next);
         Self {
             ops,
@@ -275,9 +298,8 @@ fn allocate(ops: &mut [Op], outputs: &mut [u32], fixed: u32, count: u32) -> usiz
     let count = count as usize;
     let mut last_use = vec![0usize; count];
     for (i, op) in ops.iter().enumerate() {
-        last_use[op.a as usize] = i;
-        if reads_b(op.code) {
-            last_use[op.b as usize] = i;
+        for r in operands(op) {
+            last_use[r as usize] = i;
         }
     }
     for &o in outputs.iter() {
@@ -290,18 +312,21 @@ fn allocate(ops: &mut [Op], outputs: &mut [u32], fixed: u32, count: u32) -> usiz
     let mut free: Vec<u32> = Vec::new();
     let mut used = fixed;
     for (i, op) in ops.iter_mut().enumerate() {
-        let (a, b) = (op.a as usize, op.b as usize);
-        op.a = name[a];
+        let read: Vec<u32> = operands(op).collect();
+        op.a = name[op.a as usize];
         if reads_b(op.code) {
-            op.b = name[b];
+            op.b = name[op.b as usize];
+        }
+        if reads_c(op.code) {
+            op.c = name[op.c as usize];
         }
         // operands read for the last time free their registers before the result
         // takes one (an operation reads its operands before it writes)
-        if a >= fixed as usize && last_use[a] == i {
-            free.push(name[a]);
-        }
-        if reads_b(op.code) && b != a && b >= fixed as usize && last_use[b] == i {
-            free.push(name[b]);
+        for (k, &r) in read.iter().enumerate() {
+            let r = r as usize;
+            if r >= fixed as usize && last_use[r] == i && !read[..k].contains(&(r as u32)) {
+                free.push(name[r]);
+            }
         }
         let dst = op.dst as usize;
         name[dst] = free.pop().unwrap_or_else(|| {
@@ -314,6 +339,58 @@ fn allocate(ops: &mut [Op], outputs: &mut [u32], fixed: u32, count: u32) -> usiz
         *o = name[*o as usize];
     }
     used as usize
+}
+
+/// Fuses each product read once, by a sum or difference, into that operation
+/// ([`Code::MulAdd`], [`Code::MulSub`], [`Code::SubMul`]): one dispatch instead of
+/// two, the same two roundings. On the SSA tape (registers `..count`, each written
+/// once), so the product's operands still hold their values where the sum is.
+fn fuse(ops: Vec<Op>, outputs: &[u32], count: u32) -> Vec<Op> {
+    let mut uses = vec![0usize; count as usize];
+    for op in &ops {
+        for r in operands(op) {
+            uses[r as usize] += 1;
+        }
+    }
+    for &o in outputs {
+        uses[o as usize] += 1;
+    }
+    // the product writing each register, if any
+    let mut product: Vec<Option<usize>> = vec![None; count as usize];
+    for (i, op) in ops.iter().enumerate() {
+        if op.code == Code::Mul {
+            product[op.dst as usize] = Some(i);
+        }
+    }
+    let single = |r: u32| -> Option<usize> { product[r as usize].filter(|_| uses[r as usize] == 1) };
+    let mut gone = vec![false; ops.len()];
+    let mut fused = ops.clone();
+    for (i, op) in ops.iter().enumerate() {
+        if !matches!(op.code, Code::Add | Code::Sub) || op.a == op.b {
+            continue;
+        }
+        let (code, p, other) = match (op.code, single(op.a), single(op.b)) {
+            (Code::Add, Some(p), _) => (Code::MulAdd, p, op.b),
+            (Code::Add, None, Some(p)) => (Code::MulAdd, p, op.a),
+            (Code::Sub, Some(p), _) => (Code::MulSub, p, op.b),
+            (Code::Sub, None, Some(p)) => (Code::SubMul, p, op.a),
+            _ => continue,
+        };
+        gone[p] = true;
+        fused[i] = Op {
+            code,
+            dst: op.dst,
+            a: ops[p].a,
+            b: ops[p].b,
+            c: other,
+        };
+    }
+    fused
+        .into_iter()
+        .zip(gone)
+        .filter(|(_, g)| !g)
+        .map(|(op, _)| op)
+        .collect()
 }
 
 /// A register file.
@@ -388,6 +465,9 @@ fn execute<const N: usize, const FAST: bool, F: Registers<N>>(ops: &[Op], regs: 
             Code::Powf(_) => lanes2(a, b(), f64::powf),
             Code::Max => lanes2(a, b(), f64::max),
             Code::Step => lanes(a, |x| f64::from(u8::from(x > 0.0))),
+            Code::MulAdd => lanes3(a, b(), regs.get(op.c), |x, y, z| x * y + z),
+            Code::MulSub => lanes3(a, b(), regs.get(op.c), |x, y, z| x * y - z),
+            Code::SubMul => lanes3(a, b(), regs.get(op.c), |x, y, z| z - x * y),
         };
         regs.set(op.dst, z);
     }
@@ -398,6 +478,15 @@ fn lanes<const N: usize>(a: [f64; N], f: impl Fn(f64) -> f64) -> [f64; N] {
     let mut z = [0.0; N];
     for l in 0..N {
         z[l] = f(a[l]);
+    }
+    z
+}
+
+#[inline(always)]
+fn lanes3<const N: usize>(a: [f64; N], b: [f64; N], c: [f64; N], f: impl Fn(f64, f64, f64) -> f64) -> [f64; N] {
+    let mut z = [0.0; N];
+    for l in 0..N {
+        z[l] = f(a[l], b[l], c[l]);
     }
     z
 }
