@@ -306,8 +306,8 @@ fn allocate(ops: &mut [Op], outputs: &mut [u32], fixed: u32, count: u32) -> usiz
         last_use[o as usize] = usize::MAX;
     }
     let mut name = vec![u32::MAX; count];
-    for r in 0..fixed as usize {
-        name[r] = r as u32;
+    for (r, slot) in name.iter_mut().enumerate().take(fixed as usize) {
+        *slot = r as u32;
     }
     let mut free: Vec<u32> = Vec::new();
     let mut used = fixed;
