@@ -23,6 +23,7 @@ fn _heml(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(materials::materials, m)?)?;
     m.add_function(wrap_pyfunction!(materials::material, m)?)?;
+    m.add_function(wrap_pyfunction!(materials::material_from_energy, m)?)?;
     m.add_function(wrap_pyfunction!(materials::integrators, m)?)?;
     m.add_class::<materials::Material>()?;
     m.add_function(wrap_pyfunction!(mesh::read_mesh, m)?)?;

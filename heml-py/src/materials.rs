@@ -57,11 +57,41 @@ pub fn integrators() -> Vec<(&'static str, &'static str)> {
 pub fn material(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
     Ok(Material {
         law: Arc::from(build_law(name, params)?),
+        energy: None,
+    })
+}
+
+/// A law declared at run time by its strain energy, in the language of the Rust
+/// `#[energy(...)]` (variables `I1`, `I2`, `J`, `I1bar`, `I2bar`; `ln`, `exp`,
+/// `sqrt`, `powi`, `powf`, `max`, …) over the keyword parameters, e.g.
+/// `heml.material_from_energy("mu/2*(I1-3) - mu*ln(J) + lam/2*ln(J).powi(2)", mu=1e3, lam=4e3)`.
+/// Its derivatives are exact (differentiated once, symbolically) and its forces
+/// equal those of a built-in law with the same energy. A mistake in the text raises
+/// `HemlError` with the column and what is allowed there; every parameter must be
+/// used by the energy. `inversion_fix=False` drops the J0 extension (for energies
+/// finite at J <= 0).
+#[pyfunction]
+#[pyo3(signature = (energy, *, inversion_fix = true, **params))]
+pub fn material_from_energy(
+    energy: &str,
+    inversion_fix: bool,
+    params: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Material> {
+    let p = to_params("energy", params)?;
+    let law = heml::RuntimeLaw::with_inversion_fix(energy, &p, inversion_fix).py()?;
+    Ok(Material {
+        law: Arc::new(law),
+        energy: Some(energy.to_string()),
     })
 }
 
 /// The law `name` with the parameters of a Python dict (values: numbers).
 pub(crate) fn build_law(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Box<dyn heml::prelude::Material>> {
+    heml::material(name, &to_params(name, params)?).py()
+}
+
+/// The parameters of a Python dict (values: numbers) of law `name`.
+fn to_params(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Params> {
     let mut p = Params::new();
     for (k, v) in params.iter().flat_map(|d| d.iter()) {
         let key: String = k.extract()?;
@@ -73,18 +103,26 @@ pub(crate) fn build_law(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyRes
         })?;
         p.set(&key, value);
     }
-    heml::material(name, &p).py()
+    Ok(p)
 }
 
 /// A hyperelastic law with its parameter values (from `heml.material`).
 #[pyclass(frozen, module = "heml")]
 pub struct Material {
     pub(crate) law: Arc<dyn heml::prelude::Material>,
+    /// The energy text of a law from `heml.material_from_energy`.
+    pub(crate) energy: Option<String>,
 }
 
 #[pymethods]
 impl Material {
-    /// Registry name of the law.
+    /// The energy text of a law from `heml.material_from_energy`, else `None`.
+    #[getter]
+    fn energy(&self) -> Option<&str> {
+        self.energy.as_deref()
+    }
+
+    /// Registry name of the law (`"energy"` for one from `heml.material_from_energy`).
     #[getter]
     fn name(&self) -> &'static str {
         self.law.name()
@@ -123,6 +161,9 @@ impl Material {
             .zip(self.law.param_values())
             .map(|(i, v)| format!("{}={v}", i.name))
             .collect();
-        format!("heml.material({:?}, {})", self.law.name(), params.join(", "))
+        match &self.energy {
+            Some(energy) => format!("heml.material_from_energy({energy:?}, {})", params.join(", ")),
+            None => format!("heml.material({:?}, {})", self.law.name(), params.join(", ")),
+        }
     }
 }

@@ -129,6 +129,38 @@ fn runtime_laws_with_i2_blocks_exp_and_no_inversion_fix_equal_the_compiled_laws(
     check_equal::<StableNeoHookean>(7); // no inversion fix
 }
 
+/// Through the `Material` interface (scenes, Python, the CLI) a runtime law whose
+/// energy has no I2 runs the kernels with their I2 terms off, as the compiled law
+/// does, and one with I2 runs them on: the HEML and P1 forces still equal the
+/// compiled law's (tolerance: [`TOL`]).
+fn check_equal_as_material<M: InvariantLaw>(seed: u64) {
+    let mut rng = rng(seed);
+    let (mesh, x) = random_tets(&mut rng, 2_000);
+    let (compiled, runtime) = pair::<M>(&mut rng);
+    let opts = ForceOptions::default();
+    let (c, r): (&dyn Material, &dyn Material) = (&heml::law::Invariant(compiled), &runtime);
+    let (_, fc) = c.force_field(&mesh, None, &opts).unwrap().forces(&x).unwrap();
+    let (_, fr) = r.force_field(&mesh, None, &opts).unwrap().forces(&x).unwrap();
+    let err = max_tet_relative(&fc, &fr);
+    assert!(err <= TOL, "{} (as a Material): forces differ by {err:e}", M::NAME);
+    let p1 = |m: &dyn Material| m.fem_field(&mesh, None, &opts).unwrap().unwrap().forces(&x).unwrap().1;
+    let err = max_tet_relative(&p1(c), &p1(r));
+    assert!(err <= TOL, "{} (P1, as a Material): forces differ by {err:e}", M::NAME);
+}
+
+#[test]
+fn runtime_laws_as_materials_equal_the_compiled_laws() {
+    assert!(
+        !RuntimeLaw::from_energy(NeoHookean::ENERGY, &Params::from([("mu", 1.0), ("lambda", 1.0)]))
+            .unwrap()
+            .uses()
+            .0
+    );
+    check_equal_as_material::<NeoHookean>(8); // without I2
+    check_equal_as_material::<FungDemiray>(9); // without I2, exp
+    check_equal_as_material::<MooneyRivlin>(10); // with I2
+}
+
 /// The runtime law through the checks every registered law gets: forces are minus
 /// the energy gradient (inverted tet included), rest is energy- and force-free,
 /// and the HEML field equals the P1 FEM field.

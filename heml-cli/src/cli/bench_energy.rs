@@ -63,9 +63,32 @@ pub fn run(args: &BenchArgs, energy: &str, pool: &rayon::ThreadPool) -> heml::Re
     });
     let samples = time_round_robin(&cases, repeats)?;
     let ns = |s: &[f64]| median(&mut s.to_vec()) / n_tets as f64 * 1e9;
-    outln!("{:<10} {:>12} {:>12}", "", "HEML ns/tet", "P1 ns/tet");
-    outln!("{:<10} {:>12.2} {:>12.2}", "compiled", ns(&samples[0]), ns(&samples[1]));
-    outln!("{:<10} {:>12.2} {:>12.2}", "runtime", ns(&samples[2]), ns(&samples[3]));
+    // the range of the samples, as min–max ns/tet
+    let range = |s: &[f64]| {
+        let per_tet = |t: f64| t / n_tets as f64 * 1e9;
+        let (lo, hi) = s
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+        format!("{:.0}–{:.0}", per_tet(lo), per_tet(hi))
+    };
+    outln!(
+        "{:<10} {:>12} {:>12} {:>12} {:>12}",
+        "",
+        "HEML ns/tet",
+        "(range)",
+        "P1 ns/tet",
+        "(range)"
+    );
+    for (name, k) in [("compiled", 0), ("runtime", 2)] {
+        outln!(
+            "{:<10} {:>12.2} {:>12} {:>12.2} {:>12}",
+            name,
+            ns(&samples[k]),
+            range(&samples[k]),
+            ns(&samples[k + 1]),
+            range(&samples[k + 1])
+        );
+    }
     outln!(
         "runtime / compiled: HEML {:.2}×, P1 {:.2}× (medians of the per-round ratios)",
         median_ratio(&samples[2], &samples[0]),

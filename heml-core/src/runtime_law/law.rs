@@ -189,18 +189,15 @@ impl RuntimeLaw {
         let Some(t) = self.tapes(ext) else {
             return Derivs::default();
         };
-        t.dw.run::<1, FAST, _>([[i1], [i2], [j], [j0]], &self.values, |o| {
-            let mut next = || o.next().map_or(0.0, |[x]| x);
-            Derivs {
-                w: next(),
-                d: [next(), next(), next()],
-            }
+        t.dw.run::<1, FAST, _>([[i1], [i2], [j], [j0]], &self.values, |o| Derivs {
+            w: o.get(0)[0],
+            d: [o.get(1)[0], o.get(2)[0], o.get(3)[0]],
         })
     }
 
     fn value(&self, ext: bool, i1: f64, i2: f64, j: f64, j0: f64) -> f64 {
         self.tapes(ext).map_or(0.0, |t| {
-            t.w.run::<1, false, _>([[i1], [i2], [j], [j0]], &self.values, |o| o.next().map_or(0.0, |[x]| x))
+            t.w.run::<1, false, _>([[i1], [i2], [j], [j0]], &self.values, |o| o.get(0)[0])
         })
     }
 
@@ -208,8 +205,8 @@ impl RuntimeLaw {
         self.tapes(ext).map_or([[0.0; 3]; 3], |t| {
             t.d2w.run::<1, false, _>([[i1], [i2], [j], [j0]], &self.values, |o| {
                 let mut h = [[0.0; 3]; 3];
-                for (slot, [x]) in h.iter_mut().flatten().zip(o) {
-                    *slot = x;
+                for (k, slot) in h.iter_mut().flatten().enumerate() {
+                    *slot = o.get(k)[0];
                 }
                 h
             })
@@ -361,8 +358,7 @@ impl InvariantLaw for RuntimeLaw {
             return [[0.0; N]; 4];
         };
         t.dw.run::<N, true, _>([*i1, *i2, *j, [0.0; N]], &self.values, |o| {
-            let mut next = || o.next().unwrap_or([0.0; N]);
-            [next(), next(), next(), next()]
+            [o.get(0), o.get(1), o.get(2), o.get(3)]
         })
     }
 }

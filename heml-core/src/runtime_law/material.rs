@@ -5,7 +5,7 @@
 use super::RuntimeLaw;
 use crate::error::Result;
 use crate::force::{ElasticForces, ForceOptions, TangentOperator};
-use crate::law::{LawKind, OpCount, ParamInfo};
+use crate::law::{Derivs, InvariantLaw, LawKind, MaterialInfo, OpCount, ParamInfo};
 use crate::material::{Invariant, Material};
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
@@ -37,7 +37,10 @@ impl Material for RuntimeLaw {
         tets: Option<&[usize]>,
         opts: &ForceOptions,
     ) -> Result<Box<dyn ElasticForces>> {
-        Invariant(*self).force_field(mesh, tets, opts)
+        match self.without_i2() {
+            Some(law) => Invariant(law).force_field(mesh, tets, opts),
+            None => Invariant(*self).force_field(mesh, tets, opts),
+        }
     }
     fn fem_field(
         &self,
@@ -45,7 +48,10 @@ impl Material for RuntimeLaw {
         tets: Option<&[usize]>,
         opts: &ForceOptions,
     ) -> Result<Option<Box<dyn ElasticForces>>> {
-        Invariant(*self).fem_field(mesh, tets, opts)
+        match self.without_i2() {
+            Some(law) => Invariant(law).fem_field(mesh, tets, opts),
+            None => Invariant(*self).fem_field(mesh, tets, opts),
+        }
     }
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
         Invariant(*self).stress(f, opts)
@@ -58,5 +64,69 @@ impl Material for RuntimeLaw {
         project_psd: bool,
     ) -> Result<Option<Box<dyn TangentOperator>>> {
         Invariant(*self).tangent(mesh, tets, opts, project_psd)
+    }
+}
+
+impl RuntimeLaw {
+    /// The law seen as not depending on I2, when its energy does not.
+    fn without_i2(&self) -> Option<WithoutI2> {
+        (!self.uses().0).then_some(WithoutI2(*self))
+    }
+}
+
+/// A runtime law whose energy does not depend on I2, with the kernels' compile-time
+/// switch `USES_I2` off: the force kernels then skip the I2 terms, as they do for a
+/// compiled law without I2 (neo-Hookean, Fung: a third of a HEML tet's work besides
+/// the law). The terms it skips are exact zeros (w₂ = 0), so the forces are the same.
+#[derive(Debug, Clone, Copy)]
+struct WithoutI2(RuntimeLaw);
+
+impl MaterialInfo for WithoutI2 {
+    const NAME: &'static str = RuntimeLaw::NAME;
+    const PARAMS: &'static [ParamInfo] = RuntimeLaw::PARAMS;
+    const ENERGY: &'static str = RuntimeLaw::ENERGY;
+    const DOC: &'static str = RuntimeLaw::DOC;
+    fn to_params(&self) -> Vec<f64> {
+        self.0.to_params()
+    }
+    fn from_params(values: &[f64]) -> Self {
+        Self(RuntimeLaw::from_params(values))
+    }
+}
+
+impl InvariantLaw for WithoutI2 {
+    const USES_I2: bool = false;
+    const USES_J: bool = RuntimeLaw::USES_J;
+    const INVERSION_FIX: bool = RuntimeLaw::INVERSION_FIX;
+    const OPS: OpCount = RuntimeLaw::OPS;
+    const BATCHED: bool = RuntimeLaw::BATCHED;
+
+    fn w(&self, i1: f64, i2: f64, j: f64) -> f64 {
+        self.0.w(i1, i2, j)
+    }
+    fn dw(&self, i1: f64, i2: f64, j: f64) -> Derivs {
+        self.0.dw(i1, i2, j)
+    }
+    fn d2w(&self, i1: f64, i2: f64, j: f64) -> [[f64; 3]; 3] {
+        self.0.d2w(i1, i2, j)
+    }
+    fn w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> f64 {
+        self.0.w_ext(i1, i2, j, j0)
+    }
+    fn dw_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        self.0.dw_ext(i1, i2, j, j0)
+    }
+    fn d2w_ext(&self, i1: f64, i2: f64, j: f64, j0: f64) -> [[f64; 3]; 3] {
+        self.0.d2w_ext(i1, i2, j, j0)
+    }
+    fn dw_fast(&self, i1: f64, i2: f64, j: f64) -> Derivs {
+        self.0.dw_fast(i1, i2, j)
+    }
+    fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
+        self.0.dw_ext_fast(i1, i2, j, j0)
+    }
+    #[inline]
+    fn dw_lanes<const N: usize>(&self, i1: &[f64; N], i2: &[f64; N], j: &[f64; N]) -> [[f64; N]; 4] {
+        self.0.dw_lanes(i1, i2, j)
     }
 }

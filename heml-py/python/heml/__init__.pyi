@@ -34,6 +34,10 @@ def integrators() -> list[tuple[str, str]]:
 def material(name: str, **params: float) -> Material:
     """The law `name` with keyword parameters (E/nu accepted where the law maps them)."""
 
+def material_from_energy(energy: str, *, inversion_fix: bool = True, **params: float) -> Material:
+    """A law declared at run time by its strain energy over the keyword parameters;
+    a mistake in the text raises HemlError with the column."""
+
 def read_mesh(path: _Path) -> Mesh:
     """Reads a .msh/.vtk/.vtu/.node/.ele/.mesh file and validates it."""
 
@@ -50,7 +54,10 @@ class Material:
 
     @property
     def name(self) -> str:
-        """Registry name."""
+        """Registry name ("energy" for a law from material_from_energy)."""
+    @property
+    def energy(self) -> str | None:
+        """The energy text of a law from material_from_energy, else None."""
     @property
     def kind(self) -> Literal["invariant", "link", "stretch"]:
         """Invariant or link law."""
