@@ -68,15 +68,19 @@ duration = 0.01
 /// The elastic energy of the scene's body stretched by 1.2 along z.
 fn stretched_energy(fibres: &str, dir: &std::path::Path) -> Result<f64> {
     link();
-    let sim = Scene::from_toml_str(&SCENE.replace("FIBRES", fibres), dir)?.build()?;
-    let field = sim.system.regions()[0].field();
+    body_stretched_energy(&Scene::from_toml_str(&SCENE.replace("FIBRES", fibres), dir)?.build()?)
+}
+
+/// The elastic energy of a built scene's (first) body stretched by 1.2 along z, at
+/// its own (renumbered) positions.
+fn body_stretched_energy(sim: &heml::scene::Simulation) -> Result<f64> {
     let x: Vec<Vec3> = sim
         .system
         .positions()
         .iter()
         .map(|p| Vec3::new(p.x, p.y, 1.2 * p.z))
         .collect();
-    field.energy(&x)
+    sim.system.regions()[0].field().energy(&x)
 }
 
 /// A constant direction, the same from a VTU cell field, and the library path
@@ -156,13 +160,7 @@ fn scene_fibre_sources_agree_and_the_switch_shows() {
     link();
     let sim = Scene::from_toml_str(&from_file, &dir).unwrap().build().unwrap();
     // (the scene renumbers nodes: stretch its own positions)
-    let xs: Vec<Vec3> = sim
-        .system
-        .positions()
-        .iter()
-        .map(|p| Vec3::new(p.x, p.y, 1.2 * p.z))
-        .collect();
-    let e_file = sim.system.regions()[0].field().energy(&xs).unwrap();
+    let e_file = body_stretched_energy(&sim).unwrap();
     assert!((e_file - along).abs() <= 1e-12 * along, "{e_file} vs {along}");
 
     // the same field in a legacy VTK file (CELL_DATA VECTORS) and a Gmsh 4.1 file
@@ -186,14 +184,7 @@ fn scene_fibre_sources_agree_and_the_switch_shows() {
         Scene::from_toml_str(&from_file.replace("box.vtu", name), &dir).and_then(|s| s.build())
     };
     for name in ["box.vtk", "box.msh"] {
-        let sim = with_field(name, None).unwrap();
-        let xs: Vec<Vec3> = sim
-            .system
-            .positions()
-            .iter()
-            .map(|p| Vec3::new(p.x, p.y, 1.2 * p.z))
-            .collect();
-        let e = sim.system.regions()[0].field().energy(&xs).unwrap();
+        let e = body_stretched_energy(&with_field(name, None).unwrap()).unwrap();
         assert!((e - along).abs() <= 1e-12 * along, "{name}: {e} vs {along}");
     }
     // a zero vector is an error naming the file, the field and the element
