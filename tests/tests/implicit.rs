@@ -5,21 +5,13 @@
 //! at 10 ms runs implicitly. The 20k-tet organ case is `#[ignore]`d (long mode:
 //! `cargo test --release -p heml-tests --test implicit -- --ignored --nocapture`).
 
-use heml::integrators::{BackwardEuler, Newmark};
+use heml::integrators::BackwardEuler;
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
 use heml::system::{CgPreconditioner, ImplicitSettings, StaticOptions, System, SystemBuilder, TimeStepPolicy};
 use std::path::Path;
 
-fn link() {
-    let _ = (heml::integrators_list(), heml::materials_list());
-}
-
-/// max_i |a_i − b_i| / max_i |b_i|.
-fn relative_error(a: &[Vec3], b: &[Vec3]) -> f64 {
-    let scale = b.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max) / scale
-}
+use heml_tests::implicit::{link, newmark_energy_drift, plucked_cantilever, relative_error};
 
 /// The demo scene, coarser: an 8 × 6 × 5 cm block of soft tissue (E = 5 kPa,
 /// ν = 0.45) clamped at x = 0, sagging under gravity, with the demo's mass damping.
@@ -105,18 +97,7 @@ fn backward_euler_settles_on_the_static_solution() {
 #[test]
 fn newmark_conserves_energy_of_an_undamped_cantilever() {
     link();
-    let build = || {
-        let mesh = box_mesh([0.1, 0.02, 0.02], [10, 2, 2], HexSplit::Six).unwrap();
-        System::builder(mesh)
-            .material("neo_hookean", Params::from([("E", 1e5), ("nu", 0.3)]))
-            .unwrap()
-            .density(1000.0)
-            .fix_where(|p| p.x < 1e-9)
-            .initial_velocity(|p| Vec3::new(0.0, 0.0, 0.1 * (p.x / 0.1).powi(2)))
-            .energy_every(1)
-            .build()
-            .unwrap()
-    };
+    let build = plucked_cantilever;
     let settings = ImplicitSettings {
         newton_iterations: 20,
         newton_tolerance: 1e-10,
@@ -124,18 +105,9 @@ fn newmark_conserves_energy_of_an_undamped_cantilever() {
         ..ImplicitSettings::default()
     };
     let mut sys = build();
-    let e0 = sys.energies().unwrap().total;
-    assert!(e0 > 0.0);
     let dt = 5.0 * sys.stable_dt();
-    let mut nm = Newmark::with_settings(settings);
-    let mut worst = 0.0f64;
-    let mut max_tip = 0.0f64;
-    for _ in 0..1000 {
-        let stats = nm.step(&mut sys, dt).unwrap();
-        let e = stats.energies.unwrap().total;
-        worst = worst.max((e - e0).abs() / e0);
-        max_tip = sys.displacements().iter().map(|u| u.z.abs()).fold(max_tip, f64::max);
-    }
+    let e0 = sys.energies().unwrap().total;
+    let (worst, max_tip) = newmark_energy_drift(&mut sys, settings, dt, 1000);
     eprintln!("newmark: dt = {dt:.2e} s, worst relative energy error {worst:.2e}, tip amplitude {max_tip:.2e} m");
     // it really vibrated: several periods (ω1 ≈ 20 rad/s, 1000 steps ≈ 1.4 s)
     assert!(max_tip > 1e-3, "tip amplitude {max_tip}");

@@ -5,22 +5,13 @@
 //! a change of constraints or a cut, the fill cap refused with a clear error, and the
 //! scene key.
 
-use heml::integrators::Newmark;
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
 use heml::system::{
     ImplicitScheme, ImplicitSettings, ImplicitSolver, LinearSolver, StaticOptions, System, SystemBuilder,
 };
 
-fn link() {
-    let _ = (heml::integrators_list(), heml::materials_list());
-}
-
-/// max_i |a_i − b_i| / max_i |b_i|.
-fn relative_error(a: &[Vec3], b: &[Vec3]) -> f64 {
-    let scale = b.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max) / scale
-}
+use heml_tests::implicit::{link, newmark_energy_drift, plucked_cantilever, relative_error};
 
 /// An 8 × 6 × 5 cm block of soft tissue clamped at x = 0 under gravity (the
 /// coarsened demo scene of `implicit.rs`), split `split`, Poisson ratio `nu`.
@@ -176,32 +167,15 @@ fn cholesky_factor_is_reused_and_refactored_after_fix_nodes_and_cut() {
 /// conserves energy up to the Newton tolerance, 1e-10 here).
 #[test]
 fn newmark_with_cholesky_conserves_energy_of_an_undamped_cantilever() {
-    link();
-    let mesh = box_mesh([0.1, 0.02, 0.02], [10, 2, 2], HexSplit::Six).unwrap();
-    let mut sys = System::builder(mesh)
-        .material("neo_hookean", Params::from([("E", 1e5), ("nu", 0.3)]))
-        .unwrap()
-        .density(1000.0)
-        .fix_where(|p| p.x < 1e-9)
-        .initial_velocity(|p| Vec3::new(0.0, 0.0, 0.1 * (p.x / 0.1).powi(2)))
-        .energy_every(1)
-        .build()
-        .unwrap();
+    let mut sys = plucked_cantilever();
     let settings = ImplicitSettings {
         newton_iterations: 40,
         newton_tolerance: 1e-10,
         linear_solver: LinearSolver::Cholesky,
         ..ImplicitSettings::default()
     };
-    let e0 = sys.energies().unwrap().total;
     let dt = 5.0 * sys.stable_dt();
-    let mut nm = Newmark::with_settings(settings);
-    let (mut worst, mut max_tip) = (0.0f64, 0.0f64);
-    for _ in 0..1000 {
-        let e = nm.step(&mut sys, dt).unwrap().energies.unwrap().total;
-        worst = worst.max((e - e0).abs() / e0);
-        max_tip = sys.displacements().iter().map(|u| u.z.abs()).fold(max_tip, f64::max);
-    }
+    let (worst, max_tip) = newmark_energy_drift(&mut sys, settings, dt, 1000);
     eprintln!("newmark + cholesky: worst relative energy error {worst:.2e}, tip {max_tip:.2e} m");
     assert!(max_tip > 1e-3, "tip amplitude {max_tip}");
     assert!(worst < 0.01, "Newmark energy drift {worst:e}");
