@@ -282,7 +282,10 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
 /// The README's measurement (not a test: run it by hand, once):
 /// `HEML_VIEW_BENCH=/absolute/path/scene.toml cargo test --release -p heml-cli --test view_browser -- --ignored --nocapture`.
 /// Frames per second received by a headless page over 10 s, bytes per frame, and the
-/// real-time factor with the page open and after it closed.
+/// real-time factor with the page open and after it closed. To compare settings side
+/// by side: `HEML_VIEW_ARGS="--threads 1 --no-pin --fps 30"` (arguments of `heml
+/// view`, default `--threads 2`), `HEML_VIEW_QUERY="?aa=1"` (appended to the page's
+/// URL) and `HEML_VIEW_BIN=/path/to/heml` (another build).
 #[tokio::test(flavor = "current_thread")]
 #[ignore = "a measurement for the README, run by hand"]
 async fn measure_frames_per_second() {
@@ -293,12 +296,21 @@ async fn measure_frames_per_second() {
     let Some((chromium, chromedriver)) = browser_binaries() else {
         return;
     };
-    let threads = std::env::var("HEML_VIEW_THREADS").unwrap_or_else(|_| "2".into());
-    let server = ViewServer::start(&["view", scene.to_str().unwrap(), "--threads", &threads]);
+    let extra = std::env::var("HEML_VIEW_ARGS").unwrap_or_else(|_| "--threads 2".into());
+    let mut args = vec!["view", scene.to_str().unwrap()];
+    args.extend(extra.split_whitespace());
+    let server = match std::env::var_os("HEML_VIEW_BIN") {
+        Some(bin) => ViewServer::start_binary(bin.as_ref(), &args),
+        None => ViewServer::start(&args),
+    };
+    let query = std::env::var("HEML_VIEW_QUERY").unwrap_or_default();
     let mut ws = Client::connect(&server).await;
     let closed_before = mean_rtf(&mut ws, 10).await;
-    let (browser, _driver, profile) = open_browser(&chromium, &chromedriver).await;
-    browser.goto(&server.url).await.expect("open the page");
+    let (browser, driver, profile) = open_browser(&chromium, &chromedriver).await;
+    browser
+        .goto(&format!("{}{query}", server.url))
+        .await
+        .expect("open the page");
     wait_for_frames(&browser, 5).await;
     let count = |b: &fantoccini::Client| {
         let b = b.clone();
@@ -310,22 +322,77 @@ async fn measure_frames_per_second() {
                 .unwrap()
         }
     };
-    let f0 = count(&browser).await;
+    let drawn = |b: &fantoccini::Client| {
+        let b = b.clone();
+        async move {
+            // (NaN from a build whose page does not count them)
+            b.execute("return window.hemlView.drawn", vec![])
+                .await
+                .unwrap()
+                .as_f64()
+                .unwrap_or(f64::NAN)
+        }
+    };
+    let (f0, d0) = (count(&browser).await, drawn(&browser).await);
+    let cpu0 = (
+        cpu_seconds(|_, pgrp| pgrp == driver.0.id()),
+        cpu_seconds(|pid, _| pid == server.pid()),
+    );
     let t0 = Instant::now();
     let open = mean_rtf(&mut ws, 10).await;
-    let fps = (count(&browser).await - f0) / t0.elapsed().as_secs_f64();
+    let wall = t0.elapsed().as_secs_f64();
+    let fps = (count(&browser).await - f0) / wall;
+    let drawn_fps = (drawn(&browser).await - d0) / wall;
+    // CPU the browser (all its processes) and `heml view` took, in cores
+    let cores = (
+        (cpu_seconds(|_, pgrp| pgrp == driver.0.id()) - cpu0.0) / wall,
+        (cpu_seconds(|pid, _| pid == server.pid()) - cpu0.1) / wall,
+    );
     let bytes = browser.execute("return window.hemlView.bytes", vec![]).await.unwrap();
     browser.close().await.unwrap();
     let _ = std::fs::remove_dir_all(&profile);
     let closed_after = mean_rtf(&mut ws, 10).await;
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "{}: {fps:.1} frames/s received, {bytes} bytes/frame, real-time factor {open:.3} with the page open, \
-         {closed_before:.3} / {closed_after:.3} closed (before / after), step p50 {} ms, dt {} s, min J {}",
+        "{} [{extra}{query}]: {fps:.1} frames/s received ({drawn_fps:.1} drawn), {bytes} bytes/frame, \
+         CPU {:.2} cores browser, {:.2} heml, real-time factor {open:.3} with the page open, \
+         {closed_before:.3} / {closed_after:.3} closed (before / after), step p50 {} ms, dt {} s, min J {}; load {}",
         scene.to_string_lossy(),
+        cores.0,
+        cores.1,
         ws.status["step_ms_p50"],
         ws.status["dt"],
-        ws.status["min_j"]
+        ws.status["min_j"],
+        load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
     );
+}
+
+/// User + system CPU time (s) of the processes whose (pid, process group) `pick`
+/// accepts, from /proc (0 where it cannot be read). Clock ticks of 1/100 s, the
+/// Linux USER_HZ on every common architecture.
+fn cpu_seconds(pick: impl Fn(u32, u32) -> bool) -> f64 {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return 0.0;
+    };
+    let mut ticks = 0u64;
+    for entry in dir.flatten() {
+        let Some(pid) = entry.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        // after the command's closing parenthesis: state, ppid, pgrp, …, utime (14th), stime
+        let Some((_, rest)) = stat.rsplit_once(')') else {
+            continue;
+        };
+        let f: Vec<&str> = rest.split_whitespace().collect();
+        let num = |k: usize| f.get(k).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
+        if pick(pid, num(2) as u32) {
+            ticks += num(11) + num(12);
+        }
+    }
+    ticks as f64 / 100.0
 }
 
 /// Mean real-time factor of the status messages over `secs` seconds.

@@ -124,6 +124,34 @@ async fn bad_messages_are_ignored_and_change_nothing() {
     assert!(server.alive());
 }
 
+/// Flow control: a page that acks its frames has at most one in flight (no frame
+/// comes until its next ack, and then exactly one: the newest), and the ack gets no
+/// reply; a client that never acks gets the frames as they are made.
+#[tokio::test(flavor = "current_thread")]
+async fn an_acking_page_has_one_frame_in_flight() {
+    let server = ViewServer::start(&["view", "--demo", "--threads", "1", "--fps", "40"]);
+    let mut free = Client::connect(&server).await;
+    let mut acking = Client::connect(&server).await;
+    assert!(acking.until(WAIT, |c| c.frames > 0).await);
+    acking.send(json!({"type": "ack"})).await;
+    // what was sent before the ack arrives, then the one frame the ack allows
+    acking.drain(Duration::from_secs(1)).await;
+    let held = acking.frames;
+    // a second, 40 frames are made meanwhile: none comes
+    acking.drain(Duration::from_secs(1)).await;
+    assert_eq!(acking.frames, held, "frames came without an ack");
+    for k in 1..=3 {
+        acking.send(json!({"type": "ack"})).await;
+        acking.drain(Duration::from_millis(700)).await;
+        assert_eq!(acking.frames, held + k, "ack {k}: one frame per ack");
+    }
+    assert!(acking.replies.is_empty(), "an ack was answered: {:?}", acking.replies);
+    // the other connection got them all: ~40/s over the 3+ s above; 20 leaves room
+    // for a loaded machine
+    free.drain(Duration::from_millis(500)).await;
+    assert!(free.frames >= 20, "{} frames without acks", free.frames);
+}
+
 /// `heml view OUTPUT_DIR` plays a finished run's frames: the mesh is the run's
 /// surface, the frames carry its positions, `step` shows the next frame and commands
 /// of the live simulation are refused; a directory without a `.pvd` is an error.

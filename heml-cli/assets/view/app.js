@@ -6,8 +6,19 @@ import { OrbitControls } from '/vendor/three/OrbitControls.js';
 const BACKGROUND = 0x1b1d23;
 const HEADER = 32;
 const canvas = document.getElementById('view');
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio || 1);
+// A browser without a GPU renders WebGL on the CPU (SwiftShader, llvmpipe), on the
+// cores the simulation steps on: there, no multisampling and one sample per CSS
+// pixel (each costs the simulation time; ?aa=1 forces them back).
+const software = (() => {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  const info = gl && gl.getExtension('WEBGL_debug_renderer_info');
+  const name = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : '';
+  if (gl) gl.getExtension('WEBGL_lose_context')?.loseContext();
+  return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+})();
+const quality = new URLSearchParams(location.search).get('aa') === '1' || !software;
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: quality });
+renderer.setPixelRatio(quality ? window.devicePixelRatio || 1 : 1);
 renderer.setClearColor(BACKGROUND);
 const scene = new THREE.Scene();
 const camera = new THREE.PerspectiveCamera(40, 1, 1e-4, 100);
@@ -19,8 +30,10 @@ scene.add(sun);
 const $ = (id) => document.getElementById(id);
 const state = {
   mesh: null, geometry: null, surface: null, wire: null, fixedPoints: null, fixedIndex: [],
-  frames: 0, bytes: 0, lastFrame: -1, lastTime: 0, fpsCount: 0, fpsStart: performance.now(),
-  status: null, E0: null, field: 'displacement',
+  frames: 0, drawn: 0, bytes: 0, lastFrame: -1, lastTime: 0, fpsCount: 0, fpsStart: performance.now(),
+  status: null, E0: null, field: 'displacement', software,
+  // the newest frame not drawn yet, and whether anything changed since the last draw
+  pending: null, dirty: true,
 };
 window.hemlView = state;
 
@@ -35,7 +48,12 @@ ws.onmessage = (ev) => {
     else if (msg.type === 'status') onStatus(msg);
     else if (msg.type === 'reply') onReply(msg);
   } else {
-    onFrame(ev.data);
+    // drawn at the next animation frame; a newer one arriving before replaces it.
+    // The ack lets the server send the next one: at most one frame is ever queued
+    // between the simulation and the page, so the page always gets a fresh one
+    state.pending = ev.data;
+    state.frames++; state.fpsCount++; state.bytes = ev.data.byteLength;
+    send({ type: 'ack' });
   }
 };
 
@@ -83,6 +101,7 @@ function onMesh(m) {
   $('mode').textContent = `(${m.mode})`;
   $('source').textContent = m.source;
   if (m.version === 0 || !state.fitted) fit(m.bbox);
+  state.dirty = true;
 }
 
 function fit(bbox) {
@@ -123,8 +142,7 @@ function onFrame(buf) {
   state.geometry.computeBoundingSphere();
   updateFixed();
   $('lo').textContent = lo.toPrecision(3); $('hi').textContent = hi.toPrecision(3);
-  state.frames++; state.fpsCount++; state.bytes = buf.byteLength; state.lastFrame = frame; state.lastTime = time;
-  state.dirty = true;
+  state.drawn++; state.lastFrame = frame; state.lastTime = time;
 }
 
 function fmt(x, unit, digits = 3) { return x === null || x === undefined || Number.isNaN(x) ? '–' : `${Number(x).toPrecision(digits)}${unit}`; }
@@ -137,7 +155,7 @@ function onStatus(s) {
   $('integrator').textContent = `${s.integrator}, ${fmt(s.dt, ' s')}`;
   $('minj').textContent = fmt(s.min_j, '', 4);
   $('force').textContent = s.tool_force ? `${Math.hypot(...s.tool_force).toPrecision(3)} N` : '–';
-  drawTool(s.tool, s.tool_force);
+  if (s.tool || (state.tool && state.tool.visible)) { drawTool(s.tool, s.tool_force); state.dirty = true; }
   $('law').textContent = s.law ? `${s.law} ${s.law_params.map(([k, v]) => `${k}=${v.toPrecision(3)}`).join(' ')}` : '–';
   $('pause').textContent = s.paused ? 'resume' : 'pause';
   if (s.error) message(`stopped: ${s.error}`, true);
@@ -179,7 +197,7 @@ $('pause').onclick = () => send({ type: state.status && state.status.paused ? 'r
 $('step').onclick = () => send({ type: 'step' });
 $('reset').onclick = () => send({ type: 'reset' });
 $('field').onchange = (e) => { state.field = e.target.value; send({ type: 'field', field: e.target.value }); };
-$('wire').onchange = (e) => { if (state.wire) state.wire.visible = e.target.checked; };
+$('wire').onchange = (e) => { if (state.wire) state.wire.visible = e.target.checked; state.dirty = true; };
 const setE = (v) => { if (Number.isFinite(v) && v > 0) send({ type: 'set_param', name: 'E', value: v }); };
 $('setE').onclick = () => setE(parseFloat($('E').value));
 $('Eslider').onchange = (e) => { if (state.E0) { const v = state.E0 * Math.pow(10, parseFloat(e.target.value)); $('E').value = v.toPrecision(4); setE(v); } };
@@ -262,6 +280,8 @@ state.probe = () => {
   }
   x0 = Math.max(0, Math.floor(x0)); y0 = Math.max(0, Math.floor(y0));
   x1 = Math.min(w, Math.ceil(x1)); y1 = Math.min(h, Math.ceil(y1));
+  // drawn and read in one task: the drawing buffer is not preserved after it
+  renderer.render(scene, camera);
   const c2 = document.createElement('canvas'); c2.width = w; c2.height = h;
   const ctx = c2.getContext('2d'); ctx.drawImage(canvas, 0, 0);
   const data = ctx.getImageData(0, 0, w, h).data;
@@ -286,8 +306,10 @@ function resize() {
     const shift = Math.min($('panel').offsetWidth + 20, 0.4 * w) / 2;
     camera.setViewOffset(w, h, -shift, 0, w, h);
     camera.updateProjectionMatrix();
+    state.dirty = true;
   }
 }
+controls.addEventListener('change', () => { state.dirty = true; });
 function animate() {
   resize();
   const now = performance.now();
@@ -298,8 +320,16 @@ function animate() {
     $('bytes').textContent = state.bytes ? state.bytes.toLocaleString() : '–';
   }
   controls.update();
-  sun.position.copy(camera.position);
-  renderer.render(scene, camera);
+  // the newest frame only, and a draw only when something changed: a page that
+  // shows a still scene costs nothing, one that falls behind skips frames
+  const buf = state.pending;
+  state.pending = null;
+  if (buf) { onFrame(buf); state.dirty = true; }
+  if (state.dirty) {
+    sun.position.copy(camera.position);
+    renderer.render(scene, camera);
+    state.dirty = false;
+  }
   requestAnimationFrame(animate);
 }
 animate();

@@ -18,7 +18,12 @@ pub struct ViewServer {
 impl ViewServer {
     /// `heml view ARGS --port 0 --no-open`, once it prints its URL.
     pub fn start(args: &[&str]) -> ViewServer {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_heml"))
+        ViewServer::start_binary(env!("CARGO_BIN_EXE_heml").as_ref(), args)
+    }
+
+    /// [`ViewServer::start`] with another build of `heml` (to compare two builds).
+    pub fn start_binary(heml: &std::path::Path, args: &[&str]) -> ViewServer {
+        let mut child = Command::new(heml)
             .args(args)
             .args(["--port", "0", "--no-open"])
             .stdout(Stdio::piped())
@@ -42,6 +47,11 @@ impl ViewServer {
             }
         };
         ViewServer { child, url }
+    }
+
+    /// The server's process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
     }
 
     /// `ws://…/ws`

@@ -1,6 +1,6 @@
 //! The live simulation of `heml view`: the scene's system and integrator stepped on
 //! their own thread (force assembly on a pinned pool), at real time when the machine
-//! is faster than that, else as fast as it can; frames (≤ [`FRAME_HZ`]) and status
+//! is faster than that, else as fast as it can; frames (≤ [`Settings::frame_hz`]) and status
 //! (≈ [`STATUS_HZ`]) handed to the server through the [`Hub`], never waiting for a
 //! page.
 //!
@@ -27,8 +27,10 @@ use super::hub::{Envelope, Hub};
 use super::protocol::{encode_frame, request_name, FieldKind, MeshMessage, Reply, Request, Status};
 use crate::threads::{thread_pool, Placement};
 
-/// Most frames per second handed to the pages.
-pub const FRAME_HZ: f64 = 60.0;
+/// Most frames per second handed to the pages, by default: above the 30 a moving
+/// organ needs, below the 60 of a display, whose extra frames a browser without a
+/// GPU draws on the simulation's CPUs.
+pub const FRAME_HZ: f64 = 40.0;
 /// Status messages per second.
 pub const STATUS_HZ: f64 = 10.0;
 /// Falling behind real time by more than this (s of simulated time) restarts the
@@ -64,6 +66,22 @@ pub fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[k]
 }
 
+/// How the live simulation runs: its worker threads and the frame rate it hands out.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    /// Worker threads of the force assembly.
+    pub threads: usize,
+    /// Where they run.
+    pub placement: Placement,
+    /// Most frames per second handed to the pages.
+    pub frame_hz: f64,
+    /// Worker threads, placed by the OS, while a page is connected and draws on the
+    /// same machine (`None`: the pages are elsewhere, keep `threads`). A browser
+    /// without a GPU renders on the CPU: a pinned worker it preempts stalls every
+    /// step at the pool's barriers, fewer workers the OS may move do not.
+    pub page_threads: Option<usize>,
+}
+
 /// The running simulation and what the view knows about it.
 struct Live {
     scene: Scene,
@@ -72,6 +90,8 @@ struct Live {
     /// take the scene's step).
     adapt: Option<AdaptiveStep>,
     pool: rayon::ThreadPool,
+    /// The pool while a page is connected ([`Settings::page_threads`]).
+    page_pool: Option<rayon::ThreadPool>,
     fields: SurfaceFields,
     adapter: Adapter,
     hub: Arc<Hub>,
@@ -82,6 +102,8 @@ struct Live {
     /// Wall times of the steps since the last status (ms).
     step_ms: Vec<f64>,
     last_frame: Instant,
+    /// Least wall time between two frames.
+    frame_period: Duration,
     /// Start of the status period and the simulated time then.
     period: (Instant, f64),
     /// Pacing: wall instant and simulated time that correspond.
@@ -94,14 +116,18 @@ struct Live {
 /// a new thread until the command channel closes.
 pub fn spawn(
     scene: Scene,
-    threads: usize,
+    settings: &Settings,
     hub: Arc<Hub>,
     commands: Receiver<Envelope>,
     controls: Box<dyn Controls>,
 ) -> heml::Result<std::thread::JoinHandle<()>> {
     let scene = for_viewing(scene);
     let mut sim = build(&scene)?;
-    let (pool, _) = thread_pool(threads, Placement::Pinned)?;
+    let (pool, _) = thread_pool(settings.threads, settings.placement)?;
+    let page_pool = match settings.page_threads {
+        Some(n) => Some(thread_pool(n, Placement::Os)?.0),
+        None => None,
+    };
     let fields = SurfaceFields::new(&sim.system);
     let now = Instant::now();
     let adapt = adaptive_step(&mut sim);
@@ -110,6 +136,7 @@ pub fn spawn(
         sim,
         adapt,
         pool,
+        page_pool,
         fields,
         adapter: Adapter::new(controls),
         hub,
@@ -119,6 +146,7 @@ pub fn spawn(
         mesh_version: 0,
         step_ms: Vec::new(),
         last_frame: now,
+        frame_period: Duration::from_secs_f64(1.0 / settings.frame_hz),
         period: (now, 0.0),
         anchor: (now, 0.0),
         error: None,
@@ -195,7 +223,7 @@ impl Live {
                 self.pace();
                 self.step();
             }
-            if self.last_frame.elapsed().as_secs_f64() >= 1.0 / FRAME_HZ {
+            if self.last_frame.elapsed() >= self.frame_period {
                 self.publish_frame();
             }
             if self.period.0.elapsed().as_secs_f64() >= 1.0 / STATUS_HZ {
@@ -224,7 +252,11 @@ impl Live {
             Some(adapt) => adapt.next(system).0,
             None => *dt,
         };
-        let result = self.pool.install(|| integrator.step(system, dt));
+        let pool = match &self.page_pool {
+            Some(p) if self.hub.frames.receiver_count() > 0 => p,
+            _ => &self.pool,
+        };
+        let result = pool.install(|| integrator.step(system, dt));
         self.step_ms.push(start.elapsed().as_secs_f64() * 1e3);
         if let Err(e) = result {
             log::error!("view: the simulation stopped: {e}");
@@ -275,6 +307,8 @@ impl Live {
             Request::ToolMove { position, axis } => {
                 self.adapter.tool_move(&mut self.sim.system, position, axis.as_ref())
             }
+            // flow control is the connection's (the server never forwards it)
+            Request::Ack {} => return,
             Request::Cut { blade } => match self.adapter.cut(&mut self.sim.system, blade) {
                 Ok(changed) => {
                     if changed {

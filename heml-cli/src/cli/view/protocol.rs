@@ -107,6 +107,12 @@ pub enum Request {
         /// The blade's three corners (m).
         blade: [[f64; 3]; 3],
     },
+    /// Flow control, answered by the connection itself (never forwarded, no reply):
+    /// the page has received the last frame, send the newest one. A page that acks
+    /// gets one frame in flight at a time, so frames never queue in the sockets while
+    /// it is busy drawing (it gets the newest state, not one from a queue); a client
+    /// that never acks gets every frame as fast as its socket takes them.
+    Ack {},
 }
 
 /// Parses and checks one text message from the page: JSON of a known command, no
@@ -180,7 +186,8 @@ fn check(req: &Request) -> Result<(), String> {
         | Request::Step {}
         | Request::Reset {}
         | Request::Field { .. }
-        | Request::GraspEnd {} => Ok(()),
+        | Request::GraspEnd {}
+        | Request::Ack {} => Ok(()),
     }
 }
 
@@ -360,6 +367,7 @@ pub fn request_name(req: &Request) -> &'static str {
         Request::GraspEnd {} => "grasp_end",
         Request::ToolMove { .. } => "tool_move",
         Request::Cut { .. } => "cut",
+        Request::Ack {} => "ack",
     }
 }
 

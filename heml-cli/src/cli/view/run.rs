@@ -13,6 +13,7 @@ use super::playback::Recording;
 use super::runtime::Runtime;
 use super::{live, playback, server};
 use crate::cli::demo::DEMO_SCENE;
+use crate::threads::Placement;
 
 /// Arguments of `heml view`.
 #[derive(clap::Args, Debug, Clone)]
@@ -33,9 +34,39 @@ pub struct ViewArgs {
     /// Worker threads of the force assembly (pinned to CPUs when there are enough).
     #[arg(long, default_value_t = default_threads())]
     pub threads: usize,
+    /// Let the OS place the worker threads instead of pinning the k-th to the k-th CPU.
+    #[arg(long)]
+    pub no_pin: bool,
+    /// Worker threads, placed by the OS (not pinned), while a page is connected
+    /// when listening on loopback: its browser shares this machine's CPUs, and
+    /// without a GPU it renders on them. 0: as many as `--threads`.
+    #[arg(long, default_value_t = 0)]
+    pub page_threads: usize,
+    /// Most frames per second sent to a page (1-240).
+    #[arg(long, default_value_t = live::FRAME_HZ, value_parser = frame_rate)]
+    pub fps: f64,
     /// Do not open a browser; just print the URL.
     #[arg(long)]
     pub no_open: bool,
+}
+
+/// The pool size while a page is connected, `None` where it is the pool of
+/// `--threads` (pages elsewhere, or that pool already unpinned and as large).
+fn page_threads(args: &ViewArgs) -> Option<usize> {
+    let n = if args.page_threads == 0 {
+        args.threads
+    } else {
+        args.page_threads
+    };
+    (is_loopback(&args.host) && !(args.no_pin && n == args.threads)).then_some(n)
+}
+
+/// `--fps`: a frame rate in 1..=240 per second.
+fn frame_rate(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (1.0..=240.0).contains(&v) => Ok(v),
+        _ => Err(format!("{s:?} is not a frame rate in 1..=240 per second")),
+    }
 }
 
 fn default_threads() -> usize {
@@ -58,17 +89,23 @@ pub fn run(args: ViewArgs) -> Result<()> {
             args.host
         );
     }
+    let settings = live::Settings {
+        threads: args.threads,
+        placement: if args.no_pin { Placement::Os } else { Placement::Pinned },
+        frame_hz: args.fps,
+        page_threads: page_threads(&args),
+    };
     let (hub, commands) = Hub::new();
     let hub = Arc::new(hub);
     // the producer first: a bad scene or recording is an error before anything listens
     let producer = match (&args.input, args.demo) {
         (_, true) => {
             let scene = Scene::from_toml_str_named(DEMO_SCENE, ".", "demo.toml (embedded)")?;
-            live::spawn(scene, args.threads, hub.clone(), commands, controls())?
+            live::spawn(scene, &settings, hub.clone(), commands, controls())?
         }
         (Some(p), false) if p.extension().is_some_and(|x| x == "toml") => {
             let scene = Scene::from_file(p)?;
-            live::spawn(scene, args.threads, hub.clone(), commands, controls())?
+            live::spawn(scene, &settings, hub.clone(), commands, controls())?
         }
         (Some(p), false) => {
             let rec = Recording::read(p)?;

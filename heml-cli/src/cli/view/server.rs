@@ -3,6 +3,10 @@
 //!
 //! Each connection sends the mesh, then forwards whatever is newest in the hub's
 //! channels (frames, status, mesh changes, replies) and parses the page's commands.
+//! A page that acks its frames ([`Request::Ack`](super::protocol::Request::Ack)) has
+//! at most one frame in flight: the next one waits for its ack, and by then it is the
+//! newest, so a page that is busy gets fewer, fresher frames instead of a queue in
+//! the sockets.
 //! Messages over [`MAX_MESSAGE_BYTES`] end that connection (the WebSocket layer
 //! refuses them); bad commands are logged and ignored. Nothing the page sends can
 //! name a file: the routes serve the embedded assets only.
@@ -18,7 +22,7 @@ use axum::Router;
 
 use super::assets;
 use super::hub::{Envelope, Hub, REPLY_CAPACITY};
-use super::protocol::{parse_request, Reply, MAX_MESSAGE_BYTES};
+use super::protocol::{parse_request, Reply, Request, MAX_MESSAGE_BYTES};
 
 /// The application: routes and the shared hub.
 pub fn app(hub: Arc<Hub>) -> Router {
@@ -60,6 +64,8 @@ async fn connection(mut socket: WebSocket, hub: Arc<Hub>) {
     // the current mesh first, then the newest frame (the page draws at once)
     mesh.mark_changed();
     frames.mark_changed();
+    // flow control: set once the page acks a frame, then one frame in flight at a time
+    let (mut acking, mut in_flight) = (false, false);
     loop {
         let out = tokio::select! {
             biased;
@@ -70,6 +76,9 @@ async fn connection(mut socket: WebSocket, hub: Arc<Hub>) {
             incoming = socket.recv() => match incoming {
                 Some(Ok(Message::Text(text))) => {
                     match parse_request(text.as_str()) {
+                        Ok(Request::Ack {}) => {
+                            (acking, in_flight) = (true, false);
+                        }
                         Ok(request) => {
                             let name = super::protocol::request_name(&request);
                             let env = Envelope { request, reply: reply_tx.clone() };
@@ -103,12 +112,13 @@ async fn connection(mut socket: WebSocket, hub: Arc<Hub>) {
                 Ok(()) => Message::Text(status.borrow_and_update().clone()),
                 Err(_) => break,
             },
-            f = frames.changed() => match f {
+            f = frames.changed(), if !(acking && in_flight) => match f {
                 Ok(()) => {
                     let bytes = frames.borrow_and_update().clone();
                     if bytes.is_empty() {
                         continue;
                     }
+                    in_flight = true;
                     Message::Binary(bytes)
                 }
                 Err(_) => break,
