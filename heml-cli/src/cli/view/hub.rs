@@ -7,6 +7,7 @@
 //! without blocking. Replies to a command go back to the connection that sent it
 //! through a small bounded channel, dropped when full.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc;
 
 use axum::body::Bytes;
@@ -43,6 +44,26 @@ pub struct Hub {
     pub mesh: watch::Sender<Utf8Bytes>,
     /// Commands to the producer.
     pub commands: mpsc::Sender<Envelope>,
+    /// Connections that ack their frames: pages that draw them (a client that only
+    /// reads the status, as the tests' and measurements' do, is not counted).
+    pub pages: AtomicUsize,
+}
+
+/// One acking page counted in [`Hub::pages`] while it lives.
+pub struct PageCount<'a>(&'a AtomicUsize);
+
+impl<'a> PageCount<'a> {
+    /// Counts a page in `hub` until dropped.
+    pub fn new(hub: &'a Hub) -> Self {
+        hub.pages.fetch_add(1, Ordering::Relaxed);
+        PageCount(&hub.pages)
+    }
+}
+
+impl Drop for PageCount<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::Relaxed);
+    }
 }
 
 impl Hub {
@@ -54,6 +75,7 @@ impl Hub {
             status: watch::Sender::new(Utf8Bytes::from_static("")),
             mesh: watch::Sender::new(Utf8Bytes::from_static("")),
             commands,
+            pages: AtomicUsize::new(0),
         };
         (hub, rx)
     }

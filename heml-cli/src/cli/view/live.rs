@@ -75,10 +75,11 @@ pub struct Settings {
     pub placement: Placement,
     /// Most frames per second handed to the pages.
     pub frame_hz: f64,
-    /// Worker threads, placed by the OS, while a page is connected and draws on the
-    /// same machine (`None`: the pages are elsewhere, keep `threads`). A browser
-    /// without a GPU renders on the CPU: a pinned worker it preempts stalls every
-    /// step at the pool's barriers, fewer workers the OS may move do not.
+    /// Worker threads, placed by the OS, while a page that draws (acks its frames,
+    /// [`Hub::pages`]) is connected on the same machine (`None`: the pages are
+    /// elsewhere, keep `threads`). A browser without a GPU renders on the CPU: a
+    /// pinned worker it preempts stalls every step at the pool's barriers, workers
+    /// the OS may move do not.
     pub page_threads: Option<usize>,
 }
 
@@ -253,7 +254,7 @@ impl Live {
             None => *dt,
         };
         let pool = match &self.page_pool {
-            Some(p) if self.hub.frames.receiver_count() > 0 => p,
+            Some(p) if self.hub.pages.load(std::sync::atomic::Ordering::Relaxed) > 0 => p,
             _ => &self.pool,
         };
         let result = pool.install(|| integrator.step(system, dt));

@@ -157,6 +157,42 @@ fn open_browser(url: &str) {
 
 #[cfg(test)]
 mod tests {
+    use super::{page_threads, ViewArgs};
+
+    fn args(threads: usize, page: usize, no_pin: bool, host: &str) -> ViewArgs {
+        ViewArgs {
+            input: None,
+            demo: true,
+            port: 0,
+            host: host.into(),
+            threads,
+            no_pin,
+            page_threads: page,
+            fps: 40.0,
+            no_open: true,
+        }
+    }
+
+    #[test]
+    fn a_connected_page_gets_its_own_pool_only_on_loopback() {
+        // default: as many workers as --threads, unpinned
+        assert_eq!(page_threads(&args(2, 0, false, "127.0.0.1")), Some(2));
+        assert_eq!(page_threads(&args(2, 1, false, "localhost")), Some(1));
+        // the pages are on other machines: the pool of --threads
+        assert_eq!(page_threads(&args(2, 0, false, "0.0.0.0")), None);
+        // that pool is already unpinned and as large
+        assert_eq!(page_threads(&args(2, 0, true, "127.0.0.1")), None);
+        assert_eq!(page_threads(&args(2, 1, true, "127.0.0.1")), Some(1));
+    }
+
+    #[test]
+    fn frame_rates_are_checked() {
+        assert_eq!(super::frame_rate("40"), Ok(40.0));
+        for bad in ["0", "241", "NaN", "x", "-5"] {
+            assert!(super::frame_rate(bad).is_err(), "{bad}");
+        }
+    }
+
     #[test]
     fn loopback_hosts_are_recognised() {
         for h in ["127.0.0.1", "::1", "localhost", "127.0.0.2"] {

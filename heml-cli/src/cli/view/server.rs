@@ -21,7 +21,7 @@ use axum::routing::get;
 use axum::Router;
 
 use super::assets;
-use super::hub::{Envelope, Hub, REPLY_CAPACITY};
+use super::hub::{Envelope, Hub, PageCount, REPLY_CAPACITY};
 use super::protocol::{parse_request, Reply, Request, MAX_MESSAGE_BYTES};
 
 /// The application: routes and the shared hub.
@@ -66,6 +66,7 @@ async fn connection(mut socket: WebSocket, hub: Arc<Hub>) {
     frames.mark_changed();
     // flow control: set once the page acks a frame, then one frame in flight at a time
     let (mut acking, mut in_flight) = (false, false);
+    let mut page = None;
     loop {
         let out = tokio::select! {
             biased;
@@ -78,6 +79,7 @@ async fn connection(mut socket: WebSocket, hub: Arc<Hub>) {
                     match parse_request(text.as_str()) {
                         Ok(Request::Ack {}) => {
                             (acking, in_flight) = (true, false);
+                            page.get_or_insert_with(|| PageCount::new(&hub));
                         }
                         Ok(request) => {
                             let name = super::protocol::request_name(&request);
