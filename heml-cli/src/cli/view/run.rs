@@ -39,7 +39,8 @@ pub struct ViewArgs {
     pub no_pin: bool,
     /// Worker threads, placed by the OS (not pinned), while a page is connected
     /// when listening on loopback: its browser shares this machine's CPUs, and
-    /// without a GPU it renders on them. 0: as many as `--threads`.
+    /// without a GPU it renders on them. 0: one fewer than `--threads` (at least 1),
+    /// a core left to the browser.
     #[arg(long, default_value_t = 0)]
     pub page_threads: usize,
     /// Most frames per second sent to a page (1-240).
@@ -54,7 +55,7 @@ pub struct ViewArgs {
 /// `--threads` (pages elsewhere, or that pool already unpinned and as large).
 fn page_threads(args: &ViewArgs) -> Option<usize> {
     let n = if args.page_threads == 0 {
-        args.threads
+        args.threads.saturating_sub(1).max(1)
     } else {
         args.page_threads
     };
@@ -175,14 +176,17 @@ mod tests {
 
     #[test]
     fn a_connected_page_gets_its_own_pool_only_on_loopback() {
-        // default: as many workers as --threads, unpinned
-        assert_eq!(page_threads(&args(2, 0, false, "127.0.0.1")), Some(2));
-        assert_eq!(page_threads(&args(2, 1, false, "localhost")), Some(1));
+        // default: a core left to the browser, the workers unpinned
+        assert_eq!(page_threads(&args(2, 0, false, "127.0.0.1")), Some(1));
+        assert_eq!(page_threads(&args(8, 0, false, "localhost")), Some(7));
+        assert_eq!(page_threads(&args(1, 0, false, "::1")), Some(1));
+        assert_eq!(page_threads(&args(2, 2, false, "127.0.0.1")), Some(2));
         // the pages are on other machines: the pool of --threads
         assert_eq!(page_threads(&args(2, 0, false, "0.0.0.0")), None);
         // that pool is already unpinned and as large
-        assert_eq!(page_threads(&args(2, 0, true, "127.0.0.1")), None);
-        assert_eq!(page_threads(&args(2, 1, true, "127.0.0.1")), Some(1));
+        assert_eq!(page_threads(&args(1, 0, true, "127.0.0.1")), None);
+        assert_eq!(page_threads(&args(2, 2, true, "127.0.0.1")), None);
+        assert_eq!(page_threads(&args(2, 0, true, "127.0.0.1")), Some(1));
     }
 
     #[test]
