@@ -312,27 +312,20 @@ async fn measure_frames_per_second() {
         .await
         .expect("open the page");
     wait_for_frames(&browser, 5).await;
-    let count = |b: &fantoccini::Client| {
+    // the page's counters of frames received and drawn (NaN from a build whose page
+    // does not count them)
+    let counter = |b: &fantoccini::Client, name: &'static str| {
         let b = b.clone();
         async move {
-            b.execute("return window.hemlView.frames", vec![])
-                .await
-                .unwrap()
-                .as_f64()
-                .unwrap()
-        }
-    };
-    let drawn = |b: &fantoccini::Client| {
-        let b = b.clone();
-        async move {
-            // (NaN from a build whose page does not count them)
-            b.execute("return window.hemlView.drawn", vec![])
+            b.execute(&format!("return window.hemlView.{name}"), vec![])
                 .await
                 .unwrap()
                 .as_f64()
                 .unwrap_or(f64::NAN)
         }
     };
+    let count = |b| counter(b, "frames");
+    let drawn = |b| counter(b, "drawn");
     let (f0, d0) = (count(&browser).await, drawn(&browser).await);
     let cpu0 = (
         cpu_seconds(|_, pgrp| pgrp == driver.0.id()),
