@@ -406,8 +406,15 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
                 }
             }
         }
-        let (w, d) = self.law_lanes(&q);
-        // 2·g_e = 2·Vol·Σ_v w_v ∂v/∂l_e
+        let (w, mut d) = self.law_lanes(&q);
+        // 2·g_e = 2·Vol·Σ_v w_v ∂v/∂l_e, with the per-tet factors 2·Vol·w_v formed
+        // once (as the invariant kernel does); w_J stays as it is (volume term)
+        for l in 0..L {
+            let s = 2.0 * r.vol[l];
+            for a in [0, 1, 3, 4, 5, 6] {
+                d[a][l] *= s;
+            }
+        }
         let mut g2 = [[0.0; L]; 6];
         for e in 0..6 {
             for l in 0..L {
@@ -422,7 +429,7 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
                         ge += d[i + 1][l] * g5[k][e][l];
                     }
                 }
-                g2[e][l] = 2.0 * r.vol[l] * ge;
+                g2[e][l] = ge;
             }
         }
         link_forces(p, &g2, f);
