@@ -13,9 +13,9 @@
 //! positive again). The same run is repeated on the method's own liver,
 //! `sofa_liver` (~600 tets, coordinates taken as cm), when the shared meshes are
 //! there (a SKIP row says so otherwise): pushed down, that small body squeezes aside
-//! rather than inverting, so its top third is instead mirrored about its lower
-//! plane (the tets inside it end inside out, J = −1) and pushed into the body — the
-//! seed figure's liver forced into inversion — with the same criteria: min J < 0
+//! rather than inverting, so its top fifth is instead flipped through its lower
+//! plane (heights above it × −0.25: the tets inside it end inside out) — the seed
+//! figure's liver forced into inversion — with the same criteria: min J < 0
 //! reached, then > 0 and the rest shape regained after the release.
 
 use super::plot::{draw, Chart, Mark, Series};
@@ -59,19 +59,20 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
 enum Crush {
     /// The nodes of the top tenth pushed straight down by `depth` × the height.
     Push { depth: f64 },
-    /// The nodes of the top `slab` fraction of the height mirrored about the slab's
-    /// lower plane (and pushed down by `depth` × the height): the tets lying in the
-    /// slab end as mirror images of themselves (J = −1), so the body inverts
-    /// whatever it does around them.
-    Mirror { slab: f64, depth: f64 },
+    /// The nodes of the top `slab` fraction of the height flattened onto the slab's
+    /// lower plane and through it: their heights above it scaled by `factor` < 0, so
+    /// the tets lying in the slab end turned inside out (J = `factor`), whatever
+    /// the body does around them.
+    Flip { slab: f64, factor: f64 },
 }
 
 /// The liver's crush. Pushed down by 2 × its height, the small liver (596 tets)
 /// squeezes aside under its 19 top nodes rather than inverting (min J 0.26
-/// measured); mirroring its top third (24 tets inside it, measured) turns them inside
-/// out and pushes them into the body, the seed figure's "liver forced into
-/// inversion", from which it must recover.
-const LIVER_CRUSH: Crush = Crush::Mirror { slab: 0.33, depth: 0.2 };
+/// measured); flipping its top fifth through its lower plane turns the tets inside
+/// it inside out (J = −0.25), the seed figure's "liver forced into inversion", from
+/// which it must recover. (Mirroring its top third, J = −1, tangled it beyond
+/// recovery: a non-finite value in the release.)
+const LIVER_CRUSH: Crush = Crush::Flip { slab: 0.2, factor: -0.25 };
 
 /// The crush–hold–release run on shared mesh `name` (coordinates × `scale` to m,
 /// the top driven by `crush`;
@@ -123,17 +124,14 @@ fn run_on(opts: &Options, report: &mut CaseReport, name: &str, scale: f64, crush
     ];
     fixed.sort_unstable();
     fixed.dedup();
-    let (slab, depth, mirror) = match crush {
-        Crush::Push { depth } => (0.1, depth, false),
-        Crush::Mirror { slab, depth } => (slab, depth, true),
+    let (slab, depth, factor) = match crush {
+        Crush::Push { depth } => (0.1, depth, 1.0),
+        Crush::Flip { slab, factor } => (slab, 0.0, factor),
     };
     let z_cut = hi.z - slab * height;
     let top: Vec<usize> = by_z.iter().copied().filter(|&i| mesh.nodes()[i].z > z_cut).collect();
-    // u(X): straight down, or the mirror image about z = z_cut, then down
-    let crush_u = |p: &Vec3| {
-        let flip = if mirror { -2.0 * (p.z - z_cut) } else { 0.0 };
-        Vec3::new(0.0, 0.0, flip - depth * height)
-    };
+    // u(X): straight down, or the heights above z = z_cut scaled by `factor`
+    let crush_u = |p: &Vec3| Vec3::new(0.0, 0.0, (factor - 1.0) * (p.z - z_cut) - depth * height);
     let params = Params::from([("E", 3e3), ("nu", 0.45)]);
     let (t_crush, t_hold, t_release) = (1.0, 0.5, if opts.quick { 3.0 } else { 4.0 });
     let mut sys = heml::system(mesh.clone())
@@ -149,7 +147,9 @@ fn run_on(opts: &Options, report: &mut CaseReport, name: &str, scale: f64, crush
     // √12 ≈ 3.5, and the crush squeezes tets to a fraction of their height. A tenth of
     // the rest estimate (the measured critical step × 0.9) keeps the crushed and
     // inverted states stable; a fifth blew up in the crush.
-    let dt = 0.1 * sys.stable_dt();
+    // The flipped liver is released from tets turned inside out (J = −0.25, their
+    // extended energy at its stiffest): a third of that again.
+    let dt = if factor < 0.0 { 0.03 } else { 0.1 } * sys.stable_dt();
     let mut integrator = heml::integrator("velocity_verlet")?;
     let mut lowest_j = f64::INFINITY;
     let mut nan_count = 0usize;
@@ -224,8 +224,8 @@ fn run_on(opts: &Options, report: &mut CaseReport, name: &str, scale: f64, crush
         .count();
     nan_count += non_finite;
     let final_rms = rms_to_rest(&free) / height;
-    let how = if mirror {
-        format!("top {slab} of the height ({} nodes) mirrored about its lower plane and down by {depth} x height {height:.3} m", top.len())
+    let how = if factor < 0.0 {
+        format!("top {slab} of the height {height:.3} m ({} nodes) flipped through its lower plane, heights x {factor}", top.len())
     } else {
         format!("top {} nodes down by {depth} x height {height:.3} m", top.len())
     };
