@@ -40,7 +40,14 @@ fn rms_to_rest(sys: &System) -> f64 {
 }
 
 pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
-    run_on(opts, report, "gen_kidney_2k", 1e-3, Crush::Push { depth: 1.2 }, "inversion")?;
+    run_on(
+        opts,
+        report,
+        "gen_kidney_2k",
+        1e-3,
+        Crush::Push { depth: 1.2 },
+        "inversion",
+    )?;
     // the method's own liver (seed figure), when the shared meshes are there
     match shared_mesh(opts, "sofa_liver")? {
         Some(_) => run_on(opts, report, "sofa_liver", 1e-2, LIVER_CRUSH, "inversion_sofa_liver"),
@@ -72,13 +79,23 @@ enum Crush {
 /// it inside out (J = −0.25), the seed figure's "liver forced into inversion", from
 /// which it must recover. (Mirroring its top third, J = −1, tangled it beyond
 /// recovery: a non-finite value in the release.)
-const LIVER_CRUSH: Crush = Crush::Flip { slab: 0.2, factor: -0.25 };
+const LIVER_CRUSH: Crush = Crush::Flip {
+    slab: 0.2,
+    factor: -0.25,
+};
 
 /// The crush–hold–release run on shared mesh `name` (coordinates × `scale` to m,
 /// the top driven by `crush`;
 /// the kidney falls back to a generated box when absent), rows prefixed by `name`,
 /// plot `plot_name`.
-fn run_on(opts: &Options, report: &mut CaseReport, name: &str, scale: f64, crush: Crush, plot_name: &str) -> Result<()> {
+fn run_on(
+    opts: &Options,
+    report: &mut CaseReport,
+    name: &str,
+    scale: f64,
+    crush: Crush,
+    plot_name: &str,
+) -> Result<()> {
     let first_row = report.rows.len();
     let mesh = match shared_mesh(opts, name)? {
         Some(m) => {
@@ -225,7 +242,10 @@ fn run_on(opts: &Options, report: &mut CaseReport, name: &str, scale: f64, crush
     nan_count += non_finite;
     let final_rms = rms_to_rest(&free) / height;
     let how = if factor < 0.0 {
-        format!("top {slab} of the height {height:.3} m ({} nodes) flipped through its lower plane, heights x {factor}", top.len())
+        format!(
+            "top {slab} of the height {height:.3} m ({} nodes) flipped through its lower plane, heights x {factor}",
+            top.len()
+        )
     } else {
         format!("top {} nodes down by {depth} x height {height:.3} m", top.len())
     };

@@ -139,7 +139,9 @@ impl<K: Formulation> TetField<K> {
         f: &mut [Vec3],
     ) -> Result<f64> {
         match self.assembly {
-            Assembly::Reference => Ok(self.add_forces_reference(x, f)? + self.layout.add_batched(pressure, false, x, f)?),
+            Assembly::Reference => {
+                Ok(self.add_forces_reference(x, f)? + self.layout.add_batched(pressure, false, x, f)?)
+            }
             a => self.layout.add_batched(
                 &Pressured {
                     tets: self.tets(),
