@@ -45,24 +45,22 @@ impl<K: TetKernel> BatchKernel for Tets<'_, K> {
     }
 }
 
-/// Two batch kernels over one layout, summed.
-struct Both<'a, A, B> {
-    first: &'a A,
-    second: &'a B,
+/// A field's tets with the nodal pressures `p` (per global node) on them: each
+/// lane's tet gets p̄ = ¼ Σ of its corners' pressures through
+/// [`TetKernel::batch_pressure`] (the nodal volumetric term's forces −p̄ ∇vol on the
+/// element pass: one gather, one scatter, and for HEML one force loop).
+struct Pressured<'a, K: TetKernel> {
+    tets: Tets<'a, K>,
+    /// Global corner nodes of each field tet, in field order.
+    nodes: &'a [[u32; 4]],
+    p: &'a [f64],
 }
 
-impl<A: BatchKernel, B: BatchKernel> BatchKernel for Both<'_, A, B> {
+impl<K: TetKernel> BatchKernel for Pressured<'_, K> {
     #[inline(always)]
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
-        self.first.batch(b, p, f, e);
-        let (mut g, mut e2) = ([[[0.0; LANES]; 3]; 4], [0.0; LANES]);
-        self.second.batch(b, p, &mut g, &mut e2);
-        for (fa, ga) in f.iter_mut().zip(&g) {
-            for (fc, gc) in fa.iter_mut().zip(ga) {
-                fc.iter_mut().zip(gc).for_each(|(u, v)| *u += v);
-            }
-        }
-        e.iter_mut().zip(&e2).for_each(|(u, v)| *u += v);
+        let pbar = super::nodal_volume::mean_pressures(self.nodes, self.p, b);
+        self.tets.kernel.batch_pressure(&self.tets.rest[b], p, &pbar, f, e)
     }
 }
 
@@ -126,18 +124,29 @@ impl<K: Formulation> TetField<K> {
         self.layout.add_plain(&self.tets(), x, f)
     }
 
-    /// The field's forces plus those of `extra`, a batch kernel over the same layout
-    /// (its batch `b` holds the field's tets `b*LANES..`), added to `f` in one pass of
-    /// the block driver (one gather and scatter for both: the nodal volumetric term's
-    /// pressure forces ride on the element pass); returns the sum of both energies.
-    /// The reference path runs the field's plain kernel, then `extra` batched.
-    pub(crate) fn add_forces_with<E: BatchKernel>(&self, extra: &E, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+    /// The field's forces plus the pressure forces −p̄_t ∇vol_t of the nodal
+    /// pressures `p` (per global node; `nodes` the global corners of each field tet,
+    /// in field order), added to `f` in one pass of the block driver (see
+    /// [`Pressured`]); returns the field's energy. The reference path runs the
+    /// field's plain kernel, then `pressure`, a batch kernel of the pressure forces
+    /// alone.
+    pub(crate) fn add_forces_with_pressure<E: BatchKernel>(
+        &self,
+        nodes: &[[u32; 4]],
+        p: &[f64],
+        pressure: &E,
+        x: &[Vec3],
+        f: &mut [Vec3],
+    ) -> Result<f64> {
         match self.assembly {
-            Assembly::Reference => Ok(self.add_forces_reference(x, f)? + self.layout.add_batched(extra, false, x, f)?),
+            Assembly::Reference => {
+                Ok(self.add_forces_reference(x, f)? + self.layout.add_batched(pressure, false, x, f)?)
+            }
             a => self.layout.add_batched(
-                &Both {
-                    first: &self.tets(),
-                    second: extra,
+                &Pressured {
+                    tets: self.tets(),
+                    nodes,
+                    p,
                 },
                 a == Assembly::Parallel,
                 x,

@@ -160,6 +160,42 @@ impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
 
     #[inline(always)]
     fn batch(&self, r: &HemlBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+        self.batch_with(r, p, None, f, en)
+    }
+
+    /// The pressure p̄ rides on the ∂w/∂J lane: −(w_J + p̄)·∇vol in one loop (a law
+    /// without J has no cross products to share, so it takes the default).
+    #[inline(always)]
+    fn batch_pressure(
+        &self,
+        r: &HemlBatch,
+        p: &LanePoints,
+        pbar: &[f64; LANES],
+        f: &mut LaneForces,
+        en: &mut [f64; LANES],
+    ) {
+        if M::USES_J {
+            self.batch_with(r, p, Some(pbar), f, en)
+        } else {
+            self.batch(r, p, f, en);
+            let (cr, _) = super::lanes::lane_crosses(p);
+            super::lanes::add_volume_forces(&cr, pbar, f);
+        }
+    }
+}
+
+impl<M: InvariantLaw> HemlKernel<M> {
+    /// The batch kernel, with `pbar` (when given, and the law uses J) added to the
+    /// ∂w/∂J lane: the volume term's factor on ∇vol (see [`TetKernel::batch_pressure`]).
+    #[inline(always)]
+    fn batch_with(
+        &self,
+        r: &HemlBatch,
+        p: &LanePoints,
+        pbar: Option<&[f64; LANES]>,
+        f: &mut LaneForces,
+        en: &mut [f64; LANES],
+    ) {
         const L: usize = LANES;
         // J first: the law's longest chain (ln J, J^(−2/3)…) starts from it, and
         // the lengths and invariants below overlap with it (measured: 7–12 %
@@ -204,7 +240,14 @@ impl<M: InvariantLaw> TetKernel for HemlKernel<M> {
         // node forces, summed in the plain kernel's order (links, then volume term)
         super::lanes::link_forces(p, &g2, f);
         if M::USES_J {
-            super::lanes::add_volume_forces(&cr, &wj, f);
+            // the volume term's factor: Vol·∂w/∂J·∇J = w_J·∇vol, so a pressure adds to it
+            let mut s = wj;
+            if let Some(pb) = pbar {
+                for l in 0..L {
+                    s[l] += pb[l];
+                }
+            }
+            super::lanes::add_volume_forces(&cr, &s, f);
         }
         for l in 0..L {
             en[l] = r.vol[l] * w[l];

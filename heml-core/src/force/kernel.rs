@@ -48,6 +48,25 @@ pub trait TetKernel: Send + Sync {
     /// `rest`, whose corners are at `p`.
     fn batch(&self, rest: &Self::Batch, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]);
 
+    /// The batch kernel plus pressure forces: as [`Self::batch`], and the forces
+    /// −p̄_l ∇vol_l of a pressure `pbar[l]` on each lane's tet (the nodal volumetric
+    /// term's, [`super::NodalVolumeField`]). By default from the cross products after
+    /// the batch; a kernel that has them already (HEML, for its ∂w/∂J term) adds p̄
+    /// to its ∂w/∂J lane instead, so one force loop serves both.
+    #[inline(always)]
+    fn batch_pressure(
+        &self,
+        rest: &Self::Batch,
+        p: &LanePoints,
+        pbar: &[f64; LANES],
+        f: &mut LaneForces,
+        e: &mut [f64; LANES],
+    ) {
+        self.batch(rest, p, f, e);
+        let (cr, _) = super::lanes::lane_crosses(p);
+        super::lanes::add_volume_forces(&cr, pbar, f);
+    }
+
     /// Heap bytes the kernel keeps besides the rest batches.
     fn side_bytes(&self) -> usize {
         0

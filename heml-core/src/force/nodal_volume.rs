@@ -33,20 +33,23 @@
 //! element volume change costs energy. s = 0 is the plain nodal-J tet.
 //!
 //! # Evaluation
-//! Two passes of the block driver of [`super::assembly`] and one over nodes, each
-//! deterministic (the same bits for any number of threads): the lumped volumes v_a
-//! (a kernel that scatters vol_t/4 to the corners), the nodal pressures (parallel
-//! over nodes, the energy summed in fixed chunks), then the element part and the
-//! pressure forces −p̄_t ∇vol_t together in one pass (one gather and scatter). The
+//! One sweep over the tets for the lumped volumes v_a (one scalar per node, blocks
+//! and merge as the block driver's: [`super::assembly`]), a parallel pass over the
+//! nodes for the pressures (the energy summed in fixed chunks), then one pass of the
+//! block driver for the element part with the pressure forces −p̄_t ∇vol_t riding
+//! on it: p̄_t is added to the element kernel's ∂w/∂J lane (w_J ∇vol is the same
+//! vector), so one gather, one force loop and one scatter serve both. Each pass is
+//! deterministic, so the forces are the same bits for any number of threads. The
 //! isochoric part runs on the formulation's own field (HEML link kernels, or P1 for
-//! the oracle) with the law [`super::Isochoric`].
+//! the oracle) with the law [`super::Isochoric`], whose dilation energy takes
+//! J^(±1/3) without a division ([`super::fastmath::inv_cbrt`]).
 
 // The lanes are indexed in lock-step on purpose (it is what vectorises).
 #![allow(clippy::needless_range_loop)]
 
 use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
 use super::field::{check_sizes, selection};
-use super::lanes::lane_crosses;
+use super::lanes::{add_volume_forces, lane_crosses};
 use super::volumetric::Dilation;
 use super::{Assembly, ElasticForces, ForceOptions, Formulation, TetField};
 use crate::error::{HemlError, Result};
@@ -94,51 +97,35 @@ pub struct NodalVolume<M> {
     rest_v: Vec<f64>,
 }
 
-/// Scatters vol_t/4 to each corner (x component) of every tet.
-struct VolumeKernel;
-
-/// Corner forces −p̄_t ∇vol_t from the nodal pressures.
+/// Corner forces −p̄_t ∇vol_t from the nodal pressures (the reference path's
+/// second pass and [`NodalVolume::add_forces`]; the element field's pass takes them
+/// through [`super::kernel::TetKernel::batch_pressure`]).
 struct PressureKernel<'a> {
     tets: &'a [[u32; 4]],
     p: &'a [f64],
 }
 
-impl BatchKernel for VolumeKernel {
-    #[inline(always)]
-    fn batch(&self, _b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
-        let (_, det) = lane_crosses(p);
-        for a in 0..4 {
-            for l in 0..LANES {
-                f[a][0][l] = det[l] * (1.0 / 24.0);
-                f[a][1][l] = 0.0;
-                f[a][2][l] = 0.0;
-            }
+/// p̄_t = ¼ Σ_{a∈t} p_a of the tets of batch `b` (field positions `b*LANES..` of
+/// `tets`, their global corners; padding lanes past the end: 0), from the nodal
+/// pressures `p`.
+#[inline(always)]
+pub(crate) fn mean_pressures(tets: &[[u32; 4]], p: &[f64], b: usize) -> [f64; LANES] {
+    let mut s = [0.0; LANES];
+    for l in 0..LANES {
+        if let Some(t) = tets.get(b * LANES + l) {
+            let q = t.map(|i| p[i as usize]);
+            s[l] = (q[0] + q[1] + q[2] + q[3]) * 0.25;
         }
-        *e = [0.0; LANES];
     }
+    s
 }
 
 impl BatchKernel for PressureKernel<'_> {
     #[inline(always)]
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
         let (cr, _) = lane_crosses(p);
-        // −p̄/6 per lane (padding lanes past the end: 0)
-        let mut s = [0.0; LANES];
-        for l in 0..LANES {
-            if let Some(t) = self.tets.get(b * LANES + l) {
-                let q = t.map(|i| self.p[i as usize]);
-                s[l] = -(q[0] + q[1] + q[2] + q[3]) * (1.0 / 24.0);
-            }
-        }
-        for c in 0..3 {
-            for l in 0..LANES {
-                let (c0, c1, c2) = (cr[0][c][l] * s[l], cr[1][c][l] * s[l], cr[2][c][l] * s[l]);
-                f[1][c][l] = c0;
-                f[2][c][l] = c1;
-                f[3][c][l] = c2;
-                f[0][c][l] = -(c0 + c1 + c2);
-            }
-        }
+        *f = [[[0.0; LANES]; 3]; 4];
+        add_volume_forces(&cr, &mean_pressures(self.tets, self.p, b), f);
         *e = [0.0; LANES];
     }
 }
@@ -202,10 +189,10 @@ impl<M: InvariantLaw> NodalVolume<M> {
 
     /// Lumped current volumes v_a at `x` (the driver's sum, deterministic).
     fn lumped(&self, x: &[Vec3], parallel: bool) -> Vec<f64> {
-        let mut buf = vec![Vec3::zeros(); x.len()];
         // sizes are the caller's (checked) or the mesh's own
-        let _ = self.layout.add_batched(&VolumeKernel, parallel, x, &mut buf);
-        buf.into_iter().map(|v| v.x).collect()
+        let mut v = vec![0.0; x.len()];
+        self.layout.lumped_volumes(x, parallel, &mut v);
+        v
     }
 
     /// Nodal volume ratios J_a at `x` (1 for nodes outside the field).
@@ -361,7 +348,7 @@ impl<M: InvariantLaw, K: Formulation> ElasticForces for NodalVolumeField<M, K> {
             tets: &self.nodal.tets,
             p: &p,
         };
-        Ok(e + self.iso.add_forces_with(&k, x, f)?)
+        Ok(e + self.iso.add_forces_with_pressure(&self.nodal.tets, &p, &k, x, f)?)
     }
     /// J and the law's own energy density w = w_iso + U(J_t) of each tet (the element
     /// view; the nodal term redistributes the volumetric part among nodes).

@@ -51,9 +51,17 @@ impl<M: InvariantLaw> Dilation<M> {
     }
 
     /// U and U′ at `j` (no extension), with the law's fast functions when `fast`.
+    /// The fast path takes J^(−1/3) without a division ([`fastmath::inv_cbrt`]) and
+    /// J^(1/3) = J·J^(−2/3) from it: it runs once per tet in the element kernels,
+    /// where a cube root and a reciprocal cost three divisions.
     #[inline(always)]
     fn d1(&self, j: f64, fast: bool) -> (f64, f64) {
-        let c = if fast { fastmath::cbrt(j) } else { j.cbrt() };
+        let (c, inv_c) = if fast {
+            let y = fastmath::inv_cbrt(j);
+            (j * y * y, y)
+        } else {
+            (j.cbrt(), f64::NAN)
+        };
         let c2 = c * c;
         let (i1, i2) = (3.0 * c2, 3.0 * c2 * c2);
         let d = if fast {
@@ -62,7 +70,8 @@ impl<M: InvariantLaw> Dilation<M> {
             self.law.dw(i1, i2, j)
         };
         // ds/dJ = (2 J^(-1/3), 4 J^(1/3), 1)
-        (d.w - self.w0, d.d[0] * 2.0 / c + d.d[1] * 4.0 * c + d.d[2])
+        let di1 = if fast { d.d[0] * 2.0 * inv_c } else { d.d[0] * 2.0 / c };
+        (d.w - self.w0, di1 + d.d[1] * 4.0 * c + d.d[2])
     }
 
     /// U, U′, U″ at `j` (no extension).

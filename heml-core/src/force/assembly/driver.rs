@@ -40,13 +40,15 @@ pub(crate) trait PlainKernel {
 /// buffers (one indirection for the merge), and their energies; kept between calls.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
-    x: Vec<Node4>,
-    f: Vec<Node4>,
+    pub(super) x: Vec<Node4>,
+    pub(super) f: Vec<Node4>,
     energy: Vec<f64>,
+    /// One scalar per slot, for [`Layout::lumped_volumes`].
+    pub(super) lumped: Vec<f64>,
 }
 
 /// Nodes per parallel task of the merge.
-const MERGE_CHUNK: usize = 2048;
+pub(super) const MERGE_CHUNK: usize = 2048;
 
 impl Layout {
     /// Adds the forces of kernel `k` at `x` to `f` and returns the energy, after

@@ -81,7 +81,7 @@ impl Blocks {
     }
 
     /// The local indices of field tet `k` (in its block's numbering).
-    fn local(&self, k: usize) -> [u16; 4] {
+    pub(super) fn local(&self, k: usize) -> [u16; 4] {
         self.local[k]
     }
 

@@ -44,6 +44,7 @@
 pub(crate) mod driver;
 pub(crate) mod lane_io;
 pub(crate) mod layout;
+pub(crate) mod lumped;
 pub(crate) mod simd;
 
 pub(crate) use driver::{BatchKernel, LaneForces, LanePoints, PlainKernel};
