@@ -696,48 +696,20 @@ impl System {
         // step that moves a node by more than the body's size is a blow-up in
         // progress even while every number is still finite (a physical run would
         // need speeds of ~1000 m/s at the usual steps)
-        let scan = match self.state.free_scan.take() {
-            // the free nodes were scanned by the fused update: the constrained ones,
-            // just set by the constraints, are left
-            Some(free) => passes::StateScan::merge(
+        let summary = match self.state.free_scan.take() {
+            // the free nodes were summarised by the fused update: the constrained
+            // ones, just set by the constraints, are left
+            Some(free) => passes::Summary::merge(
                 free,
-                passes::scan_nodes(&self.model.constrained_ids, &self.state.x, &self.state.v),
-            )
-            .done(),
-            None => passes::scan_state(&self.state.x, &self.state.v),
+                passes::summarize_nodes(&self.model.constrained_ids, &self.state.x, &self.state.v),
+            ),
+            None => passes::summarize(&self.state.x, &self.state.v),
         };
-        let bad = scan
-            .bad_x
-            .map(|i| ("position", i, self.state.x[i]))
-            .or_else(|| scan.bad_v.map(|i| ("velocity", i, self.state.v[i])));
-        let (fastest, max_speed) = scan.fastest;
-        let diverging = bad.is_none() && max_speed * dt > self.model.length_scale;
-        if let Some((what, i, value)) = bad {
-            let msg = format!(
-                "step {}: non-finite {what} {:?} at node {} (t = {}); {}",
-                self.state.step + 1,
-                value.as_slice(),
-                self.input_id(i),
-                self.state.t,
-                self.kept_state()
-            );
-            self.rollback();
-            return Err(HemlError::Numerical(msg));
+        if !summary.finite() || summary.max_speed() * dt > self.model.length_scale {
+            // something is wrong: the exact scan names the node
+            return Err(self.reject_state(dt));
         }
-        if diverging {
-            let msg = format!(
-                "step {}: diverging at node {}: it moved {:e} m in one step (speed {max_speed:e} m/s), more than the \
-                 size of the body ({:e} m) (t = {}); {}",
-                self.state.step + 1,
-                self.input_id(fastest),
-                max_speed * dt,
-                self.model.length_scale,
-                self.state.t,
-                self.kept_state()
-            );
-            self.rollback();
-            return Err(HemlError::Numerical(msg));
-        }
+        let max_speed = summary.max_speed();
         if !self.eval.forces_current {
             // rolls back on failure
             self.compute_forces()?;
@@ -760,6 +732,40 @@ impl System {
             newton_iterations: 0,
             cg_iterations: 0,
         })
+    }
+
+    /// The error of a step whose new state [`System::finish_step`] refuses — a
+    /// non-finite position or velocity, or a node that moved by more than the body's
+    /// size — naming the first bad (else the fastest) node; the state is rolled back.
+    fn reject_state(&mut self, dt: f64) -> HemlError {
+        let scan = passes::scan_state(&self.state.x, &self.state.v);
+        let bad = scan
+            .bad_x
+            .map(|i| ("position", i, self.state.x[i]))
+            .or_else(|| scan.bad_v.map(|i| ("velocity", i, self.state.v[i])));
+        let (fastest, max_speed) = scan.fastest;
+        let msg = match bad {
+            Some((what, i, value)) => format!(
+                "step {}: non-finite {what} {:?} at node {} (t = {}); {}",
+                self.state.step + 1,
+                value.as_slice(),
+                self.input_id(i),
+                self.state.t,
+                self.kept_state()
+            ),
+            None => format!(
+                "step {}: diverging at node {}: it moved {:e} m in one step (speed {max_speed:e} m/s), more than the \
+                 size of the body ({:e} m) (t = {}); {}",
+                self.state.step + 1,
+                self.input_id(fastest),
+                max_speed * dt,
+                self.model.length_scale,
+                self.state.t,
+                self.kept_state()
+            ),
+        };
+        self.rollback();
+        HemlError::Numerical(msg)
     }
 
     fn kept_state(&self) -> String {

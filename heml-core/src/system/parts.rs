@@ -68,10 +68,10 @@ pub(crate) struct State {
     /// `finish_step`.
     pub(crate) in_step: Option<(f64, f64)>,
     pub(crate) snapshot: Snapshot,
-    /// The end-of-step scan of the free nodes' new positions and velocities, made
-    /// by the step's fused [`kick_drift`](super::System::kick_drift) (the
+    /// The end-of-step summary of the free nodes' new positions and velocities,
+    /// made by the step's fused [`kick_drift`](super::System::kick_drift) (the
     /// constraints change only the other nodes); `None` after any other change.
-    pub(crate) free_scan: Option<super::passes::StateScan>,
+    pub(crate) free_scan: Option<super::passes::Summary>,
 }
 
 /// The state saved by [`System::begin_step`](super::System::begin_step) and restored

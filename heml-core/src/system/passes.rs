@@ -104,61 +104,137 @@ pub(crate) fn drift_into(out: &mut [Vec3], x: &[Vec3], v: &[Vec3], h: f64) {
     }
 }
 
-/// What [`kick_drift_into`] sees of one node: its id, its new position and velocity
-/// (written), its position, velocity, force, inverse mass and constraint flag.
-type FusedNode<'a> = (
-    usize,
-    (
-        (&'a mut Vec3, &'a mut Vec3),
-        ((&'a Vec3, &'a Vec3), (&'a Vec3, (&'a f64, &'a bool))),
-    ),
-);
-
 /// The kick then the drift of a symplectic Euler step in one pass, into other
 /// buffers: `v_out` = v + h·f·(1/m), `x_out` = x + h·`v_out` per node, the same bits
 /// as [`kick_into`] then [`drift_into`] (each node reads and writes its own data
-/// once instead of twice). Returns the [`scan_state`] of the new state over the
-/// nodes not `constrained` (the end-of-step checks then read only the constrained
-/// nodes again, once the constraints have set them).
+/// once instead of twice). Returns the [`Summary`] of the new state over the nodes
+/// not `constrained` (the end-of-step checks then read only the constrained nodes
+/// again, once the constraints have set them).
 pub(crate) fn kick_drift_into(
     (x_out, v_out): (&mut [Vec3], &mut [Vec3]),
     (x, v): (&[Vec3], &[Vec3]),
     (f, inv_mass): (&[Vec3], &[f64]),
     constrained: &[bool],
     h: f64,
-) -> StateScan {
-    let op = |(i, ((xo, vo), ((x, v), (f, (im, c))))): FusedNode<'_>| {
-        *vo = v + f * (h * im);
-        *xo = x + *vo * h;
-        if *c {
-            StateScan::NONE
-        } else {
-            StateScan::of(i, xo, vo)
-        }
-    };
+) -> Summary {
     debug_assert!(x_out.len() == x.len() && v_out.len() == x.len() && constrained.len() == x.len());
+    // one chunk: a branch-free loop (the constraint flag selects, it does not
+    // branch) with two accumulators, which the compiler keeps in registers
+    let chunk = |((xo, vo), ((x, v), (f, (im, c)))): Chunk<'_>| {
+        let mut s = Summary::NONE;
+        let outs = xo.iter_mut().zip(vo.iter_mut());
+        let ins = x.iter().zip(v).zip(f.iter().zip(im.iter().zip(c)));
+        for ((xo, vo), ((x, v), (f, (im, c)))) in outs.zip(ins) {
+            *vo = v + f * (h * im);
+            *xo = x + *vo * h;
+            s.add(xo, vo, !*c);
+        }
+        s
+    };
     if x.len() >= parallel_pass_threshold() {
         x_out
-            .par_iter_mut()
-            .zip(v_out.par_iter_mut())
+            .par_chunks_mut(CHUNK)
+            .zip(v_out.par_chunks_mut(CHUNK))
             .zip(
-                x.par_iter()
-                    .zip(v)
-                    .zip(f.par_iter().zip(inv_mass.par_iter().zip(constrained))),
+                x.par_chunks(CHUNK).zip(v.par_chunks(CHUNK)).zip(
+                    f.par_chunks(CHUNK)
+                        .zip(inv_mass.par_chunks(CHUNK).zip(constrained.par_chunks(CHUNK))),
+                ),
             )
-            .enumerate()
-            .with_min_len(CHUNK)
-            .map(op)
-            .reduce(|| StateScan::NONE, StateScan::merge)
+            .map(chunk)
+            .reduce(|| Summary::NONE, Summary::merge)
     } else {
-        x_out
-            .iter_mut()
-            .zip(v_out.iter_mut())
-            .zip(x.iter().zip(v).zip(f.iter().zip(inv_mass.iter().zip(constrained))))
-            .enumerate()
-            .map(op)
-            .fold(StateScan::NONE, StateScan::merge)
+        chunk(((x_out, v_out), ((x, v), (f, (inv_mass, constrained)))))
     }
+}
+
+/// What [`kick_drift_into`] sees of a run of nodes: their new positions and
+/// velocities (written), their positions, velocities, forces, inverse masses and
+/// constraint flags.
+type Chunk<'a> = (
+    (&'a mut [Vec3], &'a mut [Vec3]),
+    ((&'a [Vec3], &'a [Vec3]), (&'a [Vec3], (&'a [f64], &'a [bool]))),
+);
+
+/// What the end-of-step checks need to know of a set of nodes when nothing is
+/// wrong — whether every coordinate of x and v is finite, and the largest squared
+/// speed — in a form that vectorises: no index, no branch. Only when it reports a
+/// problem does the step run the exact [`scan_state`] to name the node.
+///
+/// `bad` ORs the coordinates' "exponent all ones" tests (integer operations, which
+/// vectorise, where `is_finite` on three coordinates would branch). The largest speed is the square root of the largest squared
+/// speed, bit for bit (`norm` is `norm_squared().sqrt()`, and a correctly rounded
+/// square root is monotone), so it is the speed [`scan_state`] reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Summary {
+    bad: bool,
+    speed2: f64,
+}
+
+impl Summary {
+    /// The summary of no node.
+    pub(crate) const NONE: Summary = Summary {
+        bad: false,
+        speed2: 0.0,
+    };
+
+    /// Adds node (x, v) when `counted`.
+    #[inline(always)]
+    fn add(&mut self, x: &Vec3, v: &Vec3, counted: bool) {
+        self.bad |= counted & (non_finite(x) | non_finite(v));
+        // a NaN speed (a NaN velocity) leaves the maximum alone: `bad` reports it
+        self.speed2 = self.speed2.max(if counted { v.norm_squared() } else { 0.0 });
+    }
+
+    /// The summary of the nodes of `a` and of `b` (the same in any grouping).
+    pub(crate) fn merge(a: Summary, b: Summary) -> Summary {
+        Summary {
+            bad: a.bad | b.bad,
+            speed2: a.speed2.max(b.speed2),
+        }
+    }
+
+    /// Whether every coordinate summarised is finite.
+    pub(crate) fn finite(&self) -> bool {
+        !self.bad
+    }
+
+    /// The largest speed (0 for no node): the speed of [`scan_state`]'s fastest node.
+    pub(crate) fn max_speed(&self) -> f64 {
+        self.speed2.sqrt()
+    }
+}
+
+/// Whether a coordinate of `p` is infinite or NaN (its exponent bits all ones),
+/// without a branch.
+#[inline(always)]
+fn non_finite(p: &Vec3) -> bool {
+    const EXP: u64 = 0x7ff0_0000_0000_0000;
+    p.iter().fold(false, |b, c| b | (c.to_bits() & EXP == EXP))
+}
+
+/// The [`Summary`] of the whole state (x, v).
+pub(crate) fn summarize(x: &[Vec3], v: &[Vec3]) -> Summary {
+    let chunk = |(x, v): (&[Vec3], &[Vec3])| {
+        let mut s = Summary::NONE;
+        x.iter().zip(v).for_each(|(x, v)| s.add(x, v, true));
+        s
+    };
+    if x.len() >= parallel_pass_threshold() {
+        x.par_chunks(CHUNK)
+            .zip(v.par_chunks(CHUNK))
+            .map(chunk)
+            .reduce(|| Summary::NONE, Summary::merge)
+    } else {
+        chunk((x, v))
+    }
+}
+
+/// The [`Summary`] of the nodes `ids` alone.
+pub(crate) fn summarize_nodes(ids: &[usize], x: &[Vec3], v: &[Vec3]) -> Summary {
+    let mut s = Summary::NONE;
+    ids.iter().for_each(|&i| s.add(&x[i], &v[i], true));
+    s
 }
 
 /// `dst` becomes a copy of `src`.
@@ -173,8 +249,18 @@ pub(crate) fn copy(dst: &mut Vec<Vec3>, src: &[Vec3]) {
     }
 }
 
-/// The first node (lowest id) with a non-finite component.
+/// The first node (lowest id) with a non-finite component: a branch-free pass
+/// that vectorises (see [`Summary`]), then, only when it finds one, a search.
 pub(crate) fn first_non_finite(a: &[Vec3]) -> Option<usize> {
+    let any = |a: &[Vec3]| a.iter().fold(false, |b, p| b | non_finite(p));
+    let found = if a.len() >= parallel_pass_threshold() {
+        a.par_chunks(CHUNK).map(any).reduce(|| false, |a, b| a | b)
+    } else {
+        any(a)
+    };
+    if !found {
+        return None;
+    }
     let bad = |p: &Vec3| !p.iter().all(|c| c.is_finite());
     if a.len() >= parallel_pass_threshold() {
         a.par_iter().with_min_len(CHUNK).position_first(bad)
@@ -263,13 +349,6 @@ pub(crate) fn scan_state(x: &[Vec3], v: &[Vec3]) -> StateScan {
     s.done()
 }
 
-/// The [`scan_state`] of the nodes `ids` alone (not [`StateScan::done`]).
-pub(crate) fn scan_nodes(ids: &[usize], x: &[Vec3], v: &[Vec3]) -> StateScan {
-    ids.iter()
-        .map(|&i| StateScan::of(i, &x[i], &v[i]))
-        .fold(StateScan::NONE, StateScan::merge)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -307,8 +386,9 @@ mod tests {
         let s = run(&x, &v, 0);
         assert_eq!((s.bad_v, s.fastest), (None, (6, 6.0)));
         assert_eq!(s, run(&x, &v, usize::MAX));
-        // the fused update's scan of the free nodes, merged with the constrained
-        // nodes' scan, is the scan of the whole new state, serial and parallel
+        // the fused update's summary of the free nodes, merged with the constrained
+        // nodes' summary, is the summary of the whole new state, serial and
+        // parallel, and agrees with the exact scan
         let f: Vec<Vec3> = (0..n).map(|i| Vec3::new(1.0, -(i as f64), 0.5)).collect();
         let inv_mass: Vec<f64> = (0..n)
             .map(|i| if i % 5 == 0 { 0.0 } else { 1.0 / (1 + i % 3) as f64 })
@@ -319,27 +399,47 @@ mod tests {
             let (mut xo, mut vo) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
             let old = parallel_pass_threshold();
             set_parallel_pass_threshold(threshold);
-            let free = rayon::ThreadPoolBuilder::new()
-                .num_threads(3)
-                .build()
-                .unwrap()
-                .install(|| kick_drift_into((&mut xo, &mut vo), (&x, &v), (&f, &inv_mass), &constrained, 0.1));
-            set_parallel_pass_threshold(old);
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+            let free =
+                pool.install(|| kick_drift_into((&mut xo, &mut vo), (&x, &v), (&f, &inv_mass), &constrained, 0.1));
             let (mut xk, mut vk) = (x.clone(), v.clone());
             kick(&mut vk, &f, &inv_mass, 0.1);
             drift(&mut xk, &vk, 0.1);
             // bit for bit (x holds a NaN and an ∞, which == would not match)
             let bits = |a: &[Vec3]| a.iter().map(|p| p.map(f64::to_bits)).collect::<Vec<_>>();
             assert_eq!((bits(&xo), bits(&vo)), (bits(&xk), bits(&vk)));
+            // the NaN and the ∞ of x are on free nodes
+            assert!(!free.finite());
             // constrained nodes set elsewhere (a fast one among them), as the constraints do
             for &i in &ids {
                 vo[i] = Vec3::new(0.0, 0.0, 1e3 + i as f64);
             }
-            let merged = StateScan::merge(free, scan_nodes(&ids, &xo, &vo)).done();
-            assert_eq!(merged, scan_state(&xo, &vo));
-            assert_eq!(merged.fastest.0, *ids.last().unwrap());
-            assert_eq!(merged.bad_x, Some(3 * CHUNK + 5));
+            let merged = Summary::merge(free, summarize_nodes(&ids, &xo, &vo));
+            let whole = pool.install(|| summarize(&xo, &vo));
+            set_parallel_pass_threshold(old);
+            assert_eq!(merged, whole);
+            let exact = scan_state(&xo, &vo);
+            assert_eq!(merged.max_speed(), exact.fastest.1);
+            assert_eq!(exact.fastest.0, *ids.last().unwrap());
+            assert_eq!(exact.bad_x, Some(3 * CHUNK + 5));
+            // finite positions: the summary says so, and still finds the fastest speed
+            let xf: Vec<Vec3> = xo
+                .iter()
+                .map(|p| p.map(|c| if c.is_finite() { c } else { 0.0 }))
+                .collect();
+            let s = summarize(&xf, &vo);
+            assert!(s.finite());
+            assert_eq!(s.max_speed(), exact.fastest.1);
+            // a constrained node's NaN is not the free nodes' business
+            let mut vn = vo.clone();
+            vn[ids[1]].y = f64::NAN;
+            let (mut xo2, mut vo2) = (xo.clone(), vo.clone());
+            let free = kick_drift_into((&mut xo2, &mut vo2), (&xf, &vn), (&f, &inv_mass), &constrained, 0.1);
+            assert!(free.finite());
+            assert!(!summarize_nodes(&ids, &xo2, &vo2).finite());
         }
+        assert_eq!(first_non_finite(&x), Some(3 * CHUNK + 5));
+        assert_eq!(first_non_finite(&v), None);
         let empty = scan_state(&[], &[]);
         assert_eq!((empty.bad_x, empty.bad_v, empty.fastest), (None, None, (0, 0.0)));
     }
