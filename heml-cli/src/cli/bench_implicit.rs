@@ -238,21 +238,6 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement
                     run.times.len()
                 );
             }
-            if std::env::var_os("HEML_LONG_DUMP").is_some() {
-                for (k, (t, p)) in run.times.iter().zip(&run.phases).enumerate() {
-                    eprintln!(
-                        "DUMP {n} {k} {:.1} {} {:.3} tan {:.1} asm {:.1} fac {:.1} sol {:.1} f {:.1}",
-                        t * 1e3,
-                        p.factorizations,
-                        p.contraction,
-                        p.tangent * 1e3,
-                        p.assembly * 1e3,
-                        p.factor * 1e3,
-                        p.cg * 1e3,
-                        p.forces * 1e3
-                    );
-                }
-            }
             let mut line = format!("{label:<30} {n:>3} {solver:<8} load {}", super::haptic::load_average());
             let done = run.times.len();
             let mut start = 0;
@@ -383,10 +368,6 @@ pub fn run(
             Path::new(path).file_stem().map_or("?".into(), |s| s.to_string_lossy()),
             mesh.n_tets()
         );
-        if std::env::var_os("HEML_LONG_ONLY").is_some() {
-            long_runs(&mesh, &label, &counts, placement)?;
-            continue;
-        }
         for &n in &counts {
             let (pool, _) = thread_pool(n, placement)?;
             let (name, edt, et) = explicit_case(&mesh, &pool)?;
