@@ -5,7 +5,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use heml::prelude::{ForceOptions, Integrator, PronyTerm, Ramp as RustRamp, StaticOptions, StepStats, TimeStepPolicy};
-use heml::system::Energies;
+use heml::system::{Energies, LinearSolver};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -110,6 +110,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &StepStats) -> PyResult<Bound<'py, PyDict
     }
     d.set_item("newton_iterations", s.newton_iterations)?;
     d.set_item("cg_iterations", s.cg_iterations)?;
+    d.set_item("factorizations", s.factorizations)?;
     Ok(d)
 }
 
@@ -254,18 +255,69 @@ impl System {
     /// ~0.1 s to let Ctrl-C through). Returns the last step's statistics as a dict.
     /// A step that produces NaN/∞ raises `HemlError` naming the step and node; the
     /// system keeps its last good state.
-    #[pyo3(signature = (integrator = "velocity_verlet", dt = None, n = 1))]
+    ///
+    /// The keywords after `n` set the implicit integrators' settings (the scene's
+    /// `[solver]` keys; they stay for the following calls with the same integrator,
+    /// and are an error with an explicit one): `linear_solver` (`"cg"`, the default,
+    /// or `"cholesky"`: a sparse factor reused across steps, the statistics'
+    /// `factorizations` count its refreshes), `newton_iterations`,
+    /// `newton_tolerance`, `cg_tolerance`, `cg_max_iterations`.
+    #[pyo3(signature = (
+        integrator = "velocity_verlet", dt = None, n = 1, *, linear_solver = None, newton_iterations = None,
+        newton_tolerance = None, cg_tolerance = None, cg_max_iterations = None
+    ))]
+    #[allow(clippy::too_many_arguments)]
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         integrator: &str,
         dt: Option<f64>,
         n: u64,
+        linear_solver: Option<&str>,
+        newton_iterations: Option<usize>,
+        newton_tolerance: Option<f64>,
+        cg_tolerance: Option<f64>,
+        cg_max_iterations: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let dt = dt.unwrap_or_else(|| self.sys.stable_dt());
         let slot = self.integrator.get_mut().unwrap_or_else(|e| e.into_inner());
         if slot.as_ref().is_none_or(|i| i.name() != integrator) {
             *slot = Some(heml::integrator(integrator).py()?);
+        }
+        let given = linear_solver.is_some()
+            || newton_iterations.is_some()
+            || newton_tolerance.is_some()
+            || cg_tolerance.is_some()
+            || cg_max_iterations.is_some();
+        if given {
+            let settings = slot
+                .as_mut()
+                .expect("set above")
+                .implicit_settings_mut()
+                .ok_or_else(|| {
+                    PyValueError::new_err(format!(
+                        "integrator {integrator:?} is explicit: linear_solver, newton_iterations, newton_tolerance, \
+                         cg_tolerance and cg_max_iterations apply to backward_euler and newmark"
+                    ))
+                })?;
+            let mut s = *settings;
+            if let Some(name) = linear_solver {
+                s.linear_solver = match name {
+                    "cg" => LinearSolver::Cg,
+                    "cholesky" => LinearSolver::Cholesky,
+                    other => {
+                        return Err(PyValueError::new_err(format!(
+                            "linear_solver must be 'cg' or 'cholesky', got {other:?}"
+                        )))
+                    }
+                };
+            }
+            s.newton_iterations = newton_iterations.unwrap_or(s.newton_iterations);
+            s.newton_tolerance = newton_tolerance.unwrap_or(s.newton_tolerance);
+            s.cg_tolerance = cg_tolerance.unwrap_or(s.cg_tolerance);
+            s.cg_max_iterations = cg_max_iterations.unwrap_or(s.cg_max_iterations);
+            s.validate().py()?;
+            *settings = s;
         }
         let stepper = slot.as_mut().expect("set above");
         let sys = &mut self.sys;

@@ -188,3 +188,50 @@ csv = false
         checked.set()
         t.join()
     assert scene.time > 0
+
+
+def sagging_block():
+    """An 8 × 6 × 5 cm soft block (E = 5 kPa, ν = 0.45) clamped at x = 0, under gravity."""
+    mesh = heml.box_mesh([0.08, 0.06, 0.05], [8, 6, 5])
+    return heml.System(
+        mesh, "neo_hookean", {"E": 5e3, "nu": 0.45}, density=1000.0, gravity=[0, 0, -9.81],
+        fixed=mesh.nodes[:, 0] < 1e-9, rayleigh=(15.0, 0.0), energy_every=0,
+    )
+
+
+def test_cholesky_linear_solver_reaches_the_cg_steps_and_reuses_its_factor():
+    """backward_euler with linear_solver="cholesky" ends on the CG run's state when
+    both converge each step (Newton to 1e-9, CG to 1e-12), factoring fewer times than
+    it steps; CG reports no factorisation.
+
+    Bound: each step meets |r| ≤ 1e-9·max(|r0|, |loads|) with both solvers, so the
+    states differ by ~1e-8 of the sag after 20 steps (the Rust test's argument,
+    tests/tests/implicit_cholesky.rs); 1e-6 leaves margin, while a wrong or stale
+    matrix taken as converged leaves O(1e-2)."""
+    converged = dict(newton_iterations=30, newton_tolerance=1e-9, cg_tolerance=1e-12)
+    runs = {}
+    for solver in ("cg", "cholesky"):
+        sys = sagging_block()
+        stats = [sys.step("backward_euler", dt=0.01, linear_solver=solver, **converged)]
+        # the settings stay for the following calls with the same integrator
+        stats += [sys.step("backward_euler", dt=0.01) for _ in range(19)]
+        assert all(s["newton_iterations"] < 30 for s in stats)
+        runs[solver] = (sys.displacements, [s["factorizations"] for s in stats])
+    u_cg, f_cg = runs["cg"]
+    u_chol, f_chol = runs["cholesky"]
+    sag = np.abs(u_cg).max()
+    assert sag > 1e-3, sag
+    assert np.abs(u_chol - u_cg).max() < 1e-6 * sag
+    assert f_cg == [0] * 20
+    assert f_chol[0] >= 1 and 1 <= sum(f_chol) < 20, f_chol
+
+
+def test_implicit_settings_are_refused_for_explicit_integrators_and_bad_values():
+    sys = sagging_block()
+    with pytest.raises(ValueError, match="explicit"):
+        sys.step("velocity_verlet", linear_solver="cholesky")
+    with pytest.raises(ValueError, match="'cg' or 'cholesky'"):
+        sys.step("backward_euler", dt=0.01, linear_solver="lu")
+    with pytest.raises(heml.HemlError, match="newton_tolerance"):
+        sys.step("backward_euler", dt=0.01, newton_tolerance=2.0)
+    assert sys.step_count == 0

@@ -254,3 +254,44 @@ dt = 0.01
         .to_string();
     assert!(e.contains("cholesky") && e.contains("lu"), "{e}");
 }
+
+/// Moving a grasp (or a tool, or changing loads) between steps leaves the matrix
+/// alone, so the factor is kept (a haptic loop moves its grasp every step: it must
+/// not refactor every step); making or opening a grasp changes the matrix's
+/// diagonal and refactors.
+#[test]
+fn cholesky_factor_survives_grasp_moves_and_follows_grasp_changes() {
+    use heml::system::control::Pose;
+    link();
+    let mut sys = block(HexSplit::Six, [8, 6, 5], 0.45).build().unwrap();
+    let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, converged(LinearSolver::Cholesky));
+    let mut step = |sys: &mut System| {
+        let stats = solver.step(sys, 0.01).unwrap();
+        assert_eq!(stats.factorizations, solver.last_phase_times().factorizations);
+        stats.factorizations
+    };
+    for _ in 0..3 {
+        step(&mut sys);
+    }
+    let end: Vec<usize> = (0..sys.mesh().n_nodes())
+        .filter(|&i| sys.mesh().nodes()[i].x > 0.08 - 1e-9)
+        .collect();
+    let id = sys.grasp(&end, Pose::identity(), 5.0, 0.05).unwrap();
+    assert!(step(&mut sys) >= 1, "a new grasp must refactor");
+    // lifted by 0.2 mm a step: the factor stays good enough to be reused
+    let moving: Vec<usize> = (1..=6)
+        .map(|k| {
+            sys.move_grasp(id, Pose::translation(Vec3::new(0.0, 0.0, 2e-4 * k as f64)))
+                .unwrap();
+            step(&mut sys)
+        })
+        .collect();
+    eprintln!("factorisations per step while the grasp moves: {moving:?}");
+    assert!(
+        moving.iter().filter(|&&f| f == 0).count() >= 4,
+        "a moving grasp keeps the factor: {moving:?}"
+    );
+    sys.release_grasp(id).unwrap();
+    assert!(step(&mut sys) >= 1, "an opened grasp must refactor");
+    assert!(sys.warnings().is_empty(), "{:?}", sys.warnings());
+}

@@ -66,6 +66,9 @@ const DT: f64 = 0.01;
 const IMPLICIT_STEPS: usize = 12;
 /// Timed explicit steps per case.
 const EXPLICIT_STEPS: usize = 50;
+/// The long run's phases, in steps: falling from rest, a tool pressing on top, a
+/// grasp at the free end moving (2 s simulated in all).
+const LONG_PHASES: [(&str, usize); 3] = [("fall", 50), ("press", 75), ("grasp", 75)];
 
 /// The liver-like scene on `mesh` (metres).
 fn scene(mesh: &TetMesh) -> heml::Result<System> {
@@ -130,6 +133,138 @@ fn implicit_case(mesh: &TetMesh, settings: ImplicitSettings, pool: &rayon::Threa
             factor_nonzeros: solver.factor_nonzeros(),
         })
     })
+}
+
+/// The long run: [`LONG_PHASES`] backward-Euler steps with `settings` — the organ
+/// falls from rest; then a capsule (radius 4 mm, contact stiffness 200 N/m per
+/// node) presses 4 mm into its highest surface node and sweeps ±3 mm, one press per
+/// 0.5 s (the haptic benchmark's palpation); then it is removed and the nodes
+/// within 5 % of the free end (largest x) are grasped (50 N/m and 0.5 N·s/m per
+/// node) and moved along a 1 cm circle in the x–z plane in 0.75 s. The runtime
+/// changes happen between steps, as a haptic loop makes them.
+fn long_case(
+    mesh: &TetMesh,
+    settings: ImplicitSettings,
+    pool: &rayon::ThreadPool,
+) -> heml::Result<(ImplicitRun, Option<HemlError>)> {
+    use heml::system::contact::{ContactLaw, Palpation};
+    use heml::system::control::Pose;
+    let mut sys = scene(mesh)?;
+    let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, settings);
+    let (lo, hi) = mesh.bounding_box();
+    let end: Vec<usize> = (0..mesh.n_nodes())
+        .filter(|&i| mesh.nodes()[i].x > hi.x - 0.05 * (hi.x - lo.x))
+        .collect();
+    let mut run = ImplicitRun {
+        times: Vec::new(),
+        cgs: Vec::new(),
+        newtons: Vec::new(),
+        phases: Vec::new(),
+        factor_nonzeros: 0,
+    };
+    let out = pool.install(|| -> heml::Result<()> {
+        let mut step = |sys: &mut System, run: &mut ImplicitRun| -> heml::Result<()> {
+            let t = Instant::now();
+            let s = solver.step(sys, DT)?;
+            run.times.push(t.elapsed().as_secs_f64());
+            run.cgs.push(s.cg_iterations as f64);
+            run.newtons.push(s.newton_iterations as f64);
+            run.phases.push(solver.last_phase_times());
+            run.factor_nonzeros = solver.factor_nonzeros();
+            Ok(())
+        };
+        let [(_, fall), (_, press), (_, grasp)] = LONG_PHASES;
+        for _ in 0..fall {
+            step(&mut sys, &mut run)?;
+        }
+        let law = ContactLaw {
+            stiffness: 200.0,
+            damping: 0.002,
+        };
+        let (tool, path) = Palpation::on_top(&mut sys, 0.004, 0.01, law, 0.5)?;
+        for k in 0..press {
+            sys.set_tool_pose(tool, path.at((k + 1) as f64 * DT))?;
+            step(&mut sys, &mut run)?;
+        }
+        sys.remove_tool(tool)?;
+        let id = sys.grasp(&end, Pose::identity(), 50.0, 0.5)?;
+        for k in 0..grasp {
+            let phase = std::f64::consts::TAU * (k + 1) as f64 / grasp as f64;
+            let offset = Vec3::new(0.005 * phase.sin(), 0.0, 0.005 * (1.0 - phase.cos()));
+            sys.move_grasp(id, Pose::translation(offset))?;
+            step(&mut sys, &mut run)?;
+        }
+        Ok(())
+    });
+    Ok((run, out.err()))
+}
+
+/// (p50, p90, max, mean) of `v`.
+fn percentiles(v: &[f64]) -> (f64, f64, f64, f64) {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let at = |q: f64| s[((q * (s.len() - 1) as f64).round() as usize).min(s.len() - 1)];
+    (at(0.5), at(0.9), s[s.len() - 1], s.iter().sum::<f64>() / s.len() as f64)
+}
+
+/// Prints the long run of the default preset with the Cholesky factor on `mesh` at
+/// each thread count of `counts`: per phase and over the whole run, p50, p90, max
+/// and mean wall time per step and the factorisations.
+fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement) -> heml::Result<()> {
+    let total: usize = LONG_PHASES.iter().map(|p| p.1).sum();
+    outln!();
+    outln!(
+        "long run, default preset: {} ({total} steps of {} ms; ms per step p50 / p90 / max / mean, \
+         factorisations)",
+        LONG_PHASES.map(|(name, n)| format!("{name} {n}")).join(", "),
+        DT * 1e3
+    );
+    for &n in counts {
+        let (pool, _) = thread_pool(n, placement)?;
+        for linear_solver in [LinearSolver::Cholesky, LinearSolver::Cg] {
+            let settings = ImplicitSettings {
+                linear_solver,
+                ..ImplicitSettings::default()
+            };
+            let solver = if linear_solver == LinearSolver::Cg {
+                "cg"
+            } else {
+                "cholesky"
+            };
+            let (run, failed) = long_case(mesh, settings, &pool)?;
+            if let Some(e) = &failed {
+                outln!(
+                    "{label:<30} {n:>3} {solver:<8} failed after {} steps: {e}",
+                    run.times.len()
+                );
+            }
+            let mut line = format!("{label:<30} {n:>3} {solver:<8} load {}", super::haptic::load_average());
+            let done = run.times.len();
+            let mut start = 0;
+            for (name, len) in LONG_PHASES.iter().copied().chain([("all", total)]) {
+                let range = if name == "all" {
+                    0..done
+                } else {
+                    start.min(done)..(start + len).min(done)
+                };
+                start += len;
+                if range.is_empty() {
+                    continue;
+                }
+                let (p50, p90, max, mean) = percentiles(&run.times[range.clone()]);
+                let f: usize = run.phases[range].iter().map(|p| p.factorizations).sum();
+                line += &format!(
+                    " | {name}: {:.1}/{:.1}/{:.0}/{:.1} ({f})",
+                    p50 * 1e3,
+                    p90 * 1e3,
+                    max * 1e3,
+                    mean * 1e3
+                );
+            }
+            outln!("{line}");
+        }
+    }
+    Ok(())
 }
 
 /// The settings of the benchmark rows: (label, settings). `default` and
@@ -289,6 +424,7 @@ pub fn run(
                 );
             }
         }
+        long_runs(&mesh, &label, &counts, placement)?;
     }
     outln!("(wall-clock medians on a shared machine: other processes' load widens the ranges)");
     Ok(())

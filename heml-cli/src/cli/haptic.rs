@@ -232,7 +232,7 @@ pub fn run(
 }
 
 /// The 1-minute load average (`/proc/loadavg`), or "unknown".
-fn load_average() -> String {
+pub(super) fn load_average() -> String {
     std::fs::read_to_string("/proc/loadavg")
         .ok()
         .and_then(|s| s.split_whitespace().next().map(str::to_string))

@@ -56,4 +56,8 @@ pub struct StepStats {
     /// Conjugate-gradient iterations (operator products) of an implicit step, summed
     /// over its Newton iterations (0 for explicit integrators).
     pub cg_iterations: usize,
+    /// Sparse Cholesky factorisations of an implicit step with
+    /// `linear_solver = "cholesky"` (0 when it reused the factor, and for CG and
+    /// explicit integrators).
+    pub factorizations: usize,
 }

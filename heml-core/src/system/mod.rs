@@ -731,6 +731,7 @@ impl System {
             energies,
             newton_iterations: 0,
             cg_iterations: 0,
+            factorizations: 0,
         })
     }
 

@@ -175,6 +175,7 @@ class StepStats(TypedDict):
     energies: dict[str, float] | None
     newton_iterations: int
     cg_iterations: int
+    factorizations: int
 
 class System:
     """A simulated body (the Rust SystemBuilder's options as keywords)."""
@@ -202,8 +203,20 @@ class System:
         pin_unreferenced: bool = False,
     ) -> None:
         """Builds and checks the system."""
-    def step(self, integrator: str = "velocity_verlet", dt: float | None = None, n: int = 1) -> StepStats:
-        """n steps of dt with the named integrator, GIL released."""
+    def step(
+        self,
+        integrator: str = "velocity_verlet",
+        dt: float | None = None,
+        n: int = 1,
+        *,
+        linear_solver: Literal["cg", "cholesky"] | None = None,
+        newton_iterations: int | None = None,
+        newton_tolerance: float | None = None,
+        cg_tolerance: float | None = None,
+        cg_max_iterations: int | None = None,
+    ) -> StepStats:
+        """n steps of dt with the named integrator, GIL released; the keywords set the
+        implicit integrators' settings (kept for later calls)."""
     def solve_static(self, tol: float = 1e-6, abs_tol: float = 0.0, max_iterations: int = 500_000) -> dict[str, Any]:
         """Static equilibrium, GIL released."""
     def compute_forces(self) -> None:

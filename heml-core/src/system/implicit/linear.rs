@@ -36,15 +36,24 @@ pub(in crate::system) struct TangentSolve {
     /// Conjugate gradients or a sparse Cholesky factor.
     pub linear_solver: LinearSolver,
     /// Cholesky: solve with the held factor, without updating the tangents or
-    /// assembling, when it was made with the same coefficients at the same model
-    /// revision (chord Newton); otherwise (or when false) refactor first.
+    /// assembling, when it was made for the same matrix terms ([`FactorKey`]: chord
+    /// Newton); otherwise (or when false) refactor first.
     pub reuse_factor: bool,
     /// Cholesky: the most nonzeros the factor may hold.
     pub max_factor_nonzeros: usize,
 }
 
-/// What a held factor was made for: c_k, c_m, c_v (bits) and the model revision.
-type FactorKey = (u64, u64, u64, u64);
+/// What a held factor was made for: c_k, c_m, c_v and the grasps' diagonal terms
+/// ((k + c c_v) per node, `None` without grasps). Runtime changes that leave the
+/// matrix alone (a grasp or tool moved, loads, gravity) keep the factor; a grasp
+/// made or opened, or other coefficients, refactor. Tool contacts are not part of
+/// it: they come and go with the state, as the tangent does, and the contraction
+/// rule judges the factor's staleness from them alike.
+#[derive(Debug, Clone, PartialEq)]
+struct FactorKey {
+    coefficients: [u64; 3],
+    grasps: Option<Vec<f64>>,
+}
 
 /// What a tangent solve keeps between calls: the assembled matrix (its pattern is
 /// built once per set of operators) and the wall-clock time of its phases.
@@ -59,6 +68,9 @@ pub(in crate::system) struct SolveCache {
     /// Cholesky: the next solve must refactor (set by the chord-Newton rules of the
     /// implicit step, cleared by the solve).
     pub refactor: bool,
+    /// Cholesky: the residual contraction of the last iteration on a fresh factor
+    /// (the reference the staleness of a reused one is judged against).
+    pub fresh_contraction: f64,
     /// Phase times accumulated since the owner last reset them.
     pub times: PhaseTimes,
 }
@@ -190,7 +202,7 @@ impl TangentSolve {
     }
 
     /// The Cholesky path of [`Self::solve`]: reuses the held factor when allowed and
-    /// made for the same coefficients and model revision, else updates the tangents,
+    /// made for the same matrix terms ([`FactorKey`]), else updates the tangents,
     /// assembles, (analyses the pattern once and) factors; then two triangular
     /// solves. Couplings beyond a tet (nodal volumes) enter the factor through their
     /// diagonal blocks only, so with them the factor is an approximation (positive
@@ -203,16 +215,14 @@ impl TangentSolve {
         dofs: &DofMap,
         rhs: &mut [f64],
     ) -> Result<CgReport> {
-        let key = (
-            self.ck.to_bits(),
-            self.cm.to_bits(),
-            self.cv.to_bits(),
-            sys.model.revision,
-        );
+        let key = FactorKey {
+            coefficients: [self.ck.to_bits(), self.cm.to_bits(), self.cv.to_bits()],
+            grasps: sys.model.grasps.diagonal(sys.state.x.len(), self.cv),
+        };
         let fresh = cache
             .direct
             .as_ref()
-            .is_some_and(|(c, k)| c.is_factored() && *k == Some(key));
+            .is_some_and(|(c, k)| c.is_factored() && k.as_ref() == Some(&key));
         if !(self.reuse_factor && fresh) {
             self.assemble(sys, tangents, cache, dofs)?;
             let t0 = Instant::now();

@@ -25,9 +25,11 @@
 //! matrix (`cholesky.rs`, faer; symbolic analysis once per pattern, fill capped by
 //! [`ImplicitSettings::max_factor_nonzeros`]) that the same Newton loop reuses across
 //! iterations and steps (chord Newton): an iteration on a reused factor skips the
-//! tangent update and the assembly; the factor is refreshed when an iteration
-//! contracts the residual by less than [`ImplicitSettings::refactor_contraction`],
-//! when a step runs out of iterations on it, and after a model change.
+//! tangent update and the assembly; the factor is refreshed when an iteration on
+//! it contracts the residual much less than one on a fresh factor did
+//! ([`ImplicitSettings::refactor_contraction`]), when a step runs out of
+//! iterations on it, and after a change of the matrix (not after a grasp or tool
+//! moved or a load changed).
 
 pub mod cg;
 mod cholesky;

@@ -98,15 +98,41 @@ impl ImplicitStep<'_> {
             .collect()
     }
 
-    /// Cholesky: after an iteration on a reused factor, a residual that shrank by
-    /// less than [`ImplicitSettings::refactor_contraction`] makes the next solve
-    /// refactor (the factor is too stale to converge fast).
-    pub fn check_contraction(&mut self) {
-        if let Some((before, true)) = self.last_solve {
-            if norm(&self.r) > self.settings.refactor_contraction * before {
+    /// Records the contraction c = |r after| / |r before| of the last linear solve
+    /// and, with the Cholesky factor, judges the factor by it: an iteration on a
+    /// fresh factor sets the reference c_fresh (what the nonlinearity leaves), an
+    /// iteration on a reused factor with c > θ + (1 − θ)·c_fresh, θ =
+    /// [`ImplicitSettings::refactor_contraction`], makes the next solve refactor.
+    /// The staleness is so measured against what a fresh factor achieved: with an
+    /// exact fresh step (c_fresh = 0) the bound is θ; where even a fresh factor
+    /// contracts little (a strongly nonlinear phase, with one iteration per step)
+    /// the bound rises towards 1, as refactoring would buy little there.
+    /// Returns whether it asked for a refactorisation.
+    pub fn check_contraction(&mut self) -> bool {
+        let Some((before, reused)) = self.last_solve.take() else {
+            return false;
+        };
+        let contraction = if before > 0.0 { norm(&self.r) / before } else { 0.0 };
+        self.cache.times.contraction = contraction;
+        if !reused {
+            self.cache.fresh_contraction = contraction.min(1.0);
+        } else {
+            let theta = self.settings.refactor_contraction;
+            if contraction > theta + (1.0 - theta) * self.cache.fresh_contraction {
                 self.cache.refactor = true;
+                return true;
             }
         }
+        false
+    }
+
+    /// Forgets the step's Newton history (the start residual, the last solve, the
+    /// first correction, the reuse), to run its iterations again from the predictor.
+    pub fn restart(&mut self) {
+        self.r0 = None;
+        self.last_solve = None;
+        self.reused = false;
+        self.first_dx = None;
     }
 
     /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.

@@ -65,10 +65,12 @@ pub enum LinearSolver {
     /// matrix, factored once and reused across Newton iterations and steps (chord,
     /// or modified, Newton): a stale factor still gives a descent direction (it is
     /// positive definite), only the contraction per iteration drops. The factor is
-    /// refreshed when an iteration contracts the residual by less than
-    /// [`ImplicitSettings::refactor_contraction`], when a step with more than one
-    /// allowed iteration ends at the cap unconverged, and after any change of the
-    /// model (fixed nodes, cuts, materials, loads), the step size or the scheme.
+    /// refreshed when an iteration on it contracts the residual much less than the
+    /// last iteration on a fresh factor did (the rule of
+    /// [`ImplicitSettings::refactor_contraction`]), when a step with more than one
+    /// allowed iteration ends at the cap unconverged, after a failed step, and after
+    /// any change of the matrix: fixed nodes, cuts, a grasp made or opened, the step
+    /// size or the scheme (not a grasp or tool moved, nor loads).
     /// The converged step is the same as with CG; what is saved is the tangent
     /// update and assembly of every iteration that reuses the factor.
     Cholesky,
@@ -105,9 +107,14 @@ pub struct ImplicitSettings {
     pub warm_start: bool,
     /// The linear solver of the Newton steps (default conjugate gradients).
     pub linear_solver: LinearSolver,
-    /// [`LinearSolver::Cholesky`]: an iteration on a reused factor whose residual
-    /// norm shrinks by less than this factor (new / old above it) makes the next
-    /// solve refactor, in (0, 1) (default 0.5).
+    /// [`LinearSolver::Cholesky`]: θ of the refactor rule, in (0, 1) (default 0.5).
+    /// With c = |r after| / |r before| the contraction of an iteration and c_fresh
+    /// that of the last iteration on a fresh factor, an iteration on a reused factor
+    /// with c > θ + (1 − θ)·c_fresh makes the next solve refactor: the staleness is
+    /// judged against what a fresh factor achieved (θ itself when it solved
+    /// exactly; towards 1 where even a fresh factor contracts little, as in a
+    /// strongly nonlinear phase with one iteration per step, where a refactor would
+    /// buy little).
     pub refactor_contraction: f64,
     /// [`LinearSolver::Cholesky`]: the most nonzeros the factor may hold (8 bytes
     /// each), checked after the symbolic analysis and before any allocation of the
