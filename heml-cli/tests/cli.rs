@@ -246,12 +246,21 @@ fn bench_implicit_reports_rows_and_names_bad_input() {
             pc,
         ]);
         assert!(ok, "{err}");
-        let rows: Vec<&str> = out
+        let (long, rows): (Vec<&str>, Vec<&str>) = out
             .lines()
             .filter(|l| l.starts_with("block_mm (192, ×0.001 m)"))
-            .collect();
+            .partition(|l| l.contains(" | fall: "));
         // 1 and 2 threads × default (cg, cholesky), interactive (cg), converged (cg, cholesky)
         assert_eq!(rows.len(), 10, "1 and 2 threads × five solver rows:\n{out}");
+        // the long run: 1 and 2 threads × (cholesky, cg), each with its three phases
+        // and the whole run's p50 / p90 / max / mean and factorisations
+        assert_eq!(long.len(), 4, "1 and 2 threads × two long-run rows:\n{out}");
+        for row in &long {
+            assert!(
+                ["| press: ", "| grasp: ", "| all: "].iter().all(|p| row.contains(p)),
+                "{pc}: {row}"
+            );
+        }
         // the default preset's CG converges to 1e-6: the residual column shows it
         for row in rows.iter().filter(|r| r.contains(" default ") && r.contains(" cg ")) {
             let res = row.split('(').nth(2).and_then(|t| t.split(')').next()).unwrap();
