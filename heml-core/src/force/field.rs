@@ -2,7 +2,7 @@
 //! layout with the formulation's rest data in batches, and the three evaluation
 //! paths ([`Assembly`]) written once for the HEML, link and P1 formulations.
 
-use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, PlainKernel, LANES};
+use super::assembly::{BatchKernel, LaneForces, LanePoints, LaneScalars, Layout, PlainKernel, LANES};
 use super::kernel::TetKernel;
 use super::{Assembly, ElasticForces, ForceOptions};
 use crate::error::{HemlError, Result};
@@ -45,22 +45,23 @@ impl<K: TetKernel> BatchKernel for Tets<'_, K> {
     }
 }
 
-/// A field's tets with the nodal pressures `p` (per global node) on them: each
-/// lane's tet gets p̄ = ¼ Σ of its corners' pressures through
-/// [`TetKernel::batch_pressure`] (the nodal volumetric term's forces −p̄ ∇vol on the
-/// element pass: one gather, one scatter, and for HEML one force loop).
-struct Pressured<'a, K: TetKernel> {
-    tets: Tets<'a, K>,
-    /// Global corner nodes of each field tet, in field order.
-    nodes: &'a [[u32; 4]],
-    p: &'a [f64],
-}
+/// A field's tets with the nodal pressures on them, which the driver gathers with
+/// the positions ([`Layout::add_batched_w`]): each lane's tet gets p̄ = ¼ Σ of its
+/// corners' pressures through [`TetKernel::batch_pressure`] (the nodal volumetric
+/// term's forces −p̄ ∇vol on the element pass: one gather, one scatter, and for HEML
+/// one force loop).
+struct Pressured<'a, K: TetKernel>(Tets<'a, K>);
 
 impl<K: TetKernel> BatchKernel for Pressured<'_, K> {
+    const USES_W: bool = true;
     #[inline(always)]
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
-        let pbar = super::nodal_volume::mean_pressures(self.nodes, self.p, b);
-        self.tets.kernel.batch_pressure(&self.tets.rest[b], p, &pbar, f, e)
+        self.0.batch(b, p, f, e)
+    }
+    #[inline(always)]
+    fn batch_w(&self, b: usize, p: &LanePoints, w: &LaneScalars, f: &mut LaneForces, e: &mut [f64; LANES]) {
+        let pbar = super::nodal_volume::mean_pressures(w);
+        self.0.kernel.batch_pressure(&self.0.rest[b], p, &pbar, f, e)
     }
 }
 
@@ -125,14 +126,12 @@ impl<K: Formulation> TetField<K> {
     }
 
     /// The field's forces plus the pressure forces −p̄_t ∇vol_t of the nodal
-    /// pressures `p` (per global node; `nodes` the global corners of each field tet,
-    /// in field order), added to `f` in one pass of the block driver (see
-    /// [`Pressured`]); returns the field's energy. The reference path runs the
+    /// pressures `p` (per global node), added to `f` in one pass of the block driver
+    /// (see [`Pressured`]); returns the field's energy. The reference path runs the
     /// field's plain kernel, then `pressure`, a batch kernel of the pressure forces
-    /// alone.
+    /// alone (given `p` the same way).
     pub(crate) fn add_forces_with_pressure<E: BatchKernel>(
         &self,
-        nodes: &[[u32; 4]],
         p: &[f64],
         pressure: &E,
         x: &[Vec3],
@@ -140,18 +139,11 @@ impl<K: Formulation> TetField<K> {
     ) -> Result<f64> {
         match self.assembly {
             Assembly::Reference => {
-                Ok(self.add_forces_reference(x, f)? + self.layout.add_batched(pressure, false, x, f)?)
+                Ok(self.add_forces_reference(x, f)? + self.layout.add_batched_w(pressure, false, x, p, f)?)
             }
-            a => self.layout.add_batched(
-                &Pressured {
-                    tets: self.tets(),
-                    nodes,
-                    p,
-                },
-                a == Assembly::Parallel,
-                x,
-                f,
-            ),
+            a => self
+                .layout
+                .add_batched_w(&Pressured(self.tets()), a == Assembly::Parallel, x, p, f),
         }
     }
 

@@ -34,10 +34,13 @@
 //!
 //! # Evaluation
 //! One sweep over the tets for the lumped volumes v_a (one scalar per node, blocks
-//! and merge as the block driver's: [`super::assembly`]), a parallel pass over the
-//! nodes for the pressures (the energy summed in fixed chunks), then one pass of the
-//! block driver for the element part with the pressure forces −p̄_t ∇vol_t riding
-//! on it: p̄_t is added to the element kernel's ∂w/∂J lane (w_J ∇vol is the same
+//! and merge as the block driver's, its AVX2 gather too: [`super::assembly`]), a
+//! parallel pass over the nodes for the pressures (four nodes per vector, the
+//! energy summed in fixed chunks), then one pass of the block driver for the
+//! element part with the pressure forces −p̄_t ∇vol_t riding on it: each node's
+//! pressure rides in the padding slot of the block's position buffer, so the
+//! position gather hands the kernel its corners' pressures too (no second gather),
+//! and p̄_t is added to the element kernel's ∂w/∂J lane (w_J ∇vol is the same
 //! vector), so one gather, one force loop and one scatter serve both. Each pass is
 //! deterministic, so the forces are the same bits for any number of threads. The
 //! isochoric part runs on the formulation's own field (HEML link kernels, or P1 for
@@ -47,7 +50,8 @@
 // The lanes are indexed in lock-step on purpose (it is what vectorises).
 #![allow(clippy::needless_range_loop)]
 
-use super::assembly::{BatchKernel, LaneForces, LanePoints, Layout, LANES};
+use super::assembly::simd::Isa;
+use super::assembly::{BatchKernel, LaneForces, LanePoints, LaneScalars, Layout, LANES};
 use super::field::{check_sizes, selection};
 use super::lanes::{add_volume_forces, lane_crosses};
 use super::volumetric::Dilation;
@@ -69,6 +73,9 @@ pub const DEFAULT_STABILIZATION: f64 = 0.1;
 /// Nodes per parallel task of the nodal pass (fixed, so the energy's partial sums do
 /// not depend on the thread count).
 const NODE_CHUNK: usize = 4096;
+
+/// Nodes per group of the nodal pass (one AVX2 register of `f64`).
+const NODE_LANES: usize = 4;
 
 /// The fraction β of the element volumetric energy kept for a law with dilation
 /// energy `vol` and stabilisation factor `s` (see the module doc).
@@ -97,35 +104,35 @@ pub struct NodalVolume<M> {
     rest_v: Vec<f64>,
 }
 
-/// Corner forces −p̄_t ∇vol_t from the nodal pressures (the reference path's
-/// second pass and [`NodalVolume::add_forces`]; the element field's pass takes them
-/// through [`super::kernel::TetKernel::batch_pressure`]).
-struct PressureKernel<'a> {
-    tets: &'a [[u32; 4]],
-    p: &'a [f64],
-}
+/// Corner forces −p̄_t ∇vol_t from the nodal pressures, which the driver gathers
+/// with the positions (the reference path's second pass and
+/// [`NodalVolume::add_forces`]; the element field's pass takes them through
+/// [`super::kernel::TetKernel::batch_pressure`]).
+struct PressureKernel;
 
-/// p̄_t = ¼ Σ_{a∈t} p_a of the tets of batch `b` (field positions `b*LANES..` of
-/// `tets`, their global corners; padding lanes past the end: 0), from the nodal
-/// pressures `p`.
+/// p̄_t = ¼ Σ_{a∈t} p_a of each lane's tet from its corners' pressures `w`
+/// (`[corner][lane]`, as the driver gathers them).
 #[inline(always)]
-pub(crate) fn mean_pressures(tets: &[[u32; 4]], p: &[f64], b: usize) -> [f64; LANES] {
+pub(crate) fn mean_pressures(w: &LaneScalars) -> [f64; LANES] {
     let mut s = [0.0; LANES];
     for l in 0..LANES {
-        if let Some(t) = tets.get(b * LANES + l) {
-            let q = t.map(|i| p[i as usize]);
-            s[l] = (q[0] + q[1] + q[2] + q[3]) * 0.25;
-        }
+        s[l] = (w[0][l] + w[1][l] + w[2][l] + w[3][l]) * 0.25;
     }
     s
 }
 
-impl BatchKernel for PressureKernel<'_> {
+impl BatchKernel for PressureKernel {
+    const USES_W: bool = true;
+    fn batch(&self, _b: usize, _p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
+        // only called without node scalars: no pressure, no force
+        *f = [[[0.0; LANES]; 3]; 4];
+        *e = [0.0; LANES];
+    }
     #[inline(always)]
-    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
+    fn batch_w(&self, _b: usize, p: &LanePoints, w: &LaneScalars, f: &mut LaneForces, e: &mut [f64; LANES]) {
         let (cr, _) = lane_crosses(p);
         *f = [[[0.0; LANES]; 3]; 4];
-        add_volume_forces(&cr, &mean_pressures(self.tets, self.p, b), f);
+        add_volume_forces(&cr, &mean_pressures(w), f);
         *e = [0.0; LANES];
     }
 }
@@ -208,20 +215,16 @@ impl<M: InvariantLaw> NodalVolume<M> {
     /// The energy (1 − β) Σ V_a U(J_a) and the nodal pressures (1 − β) U′(J_a) at `x`.
     pub(crate) fn pressures(&self, x: &[Vec3], parallel: bool) -> (f64, Vec<f64>) {
         let mut p = self.lumped(x, parallel);
-        let (vol, opts, c, rest_v) = (&self.vol, &self.opts, self.c, &self.rest_v);
+        let isa = Isa::current();
         let chunk = |(k, pc): (usize, &mut [f64])| -> f64 {
-            let mut e = 0.0;
-            for (o, pa) in pc.iter_mut().enumerate() {
-                let va = rest_v[k * NODE_CHUNK + o];
-                if va > 0.0 {
-                    let (u, u1) = vol.value_slope(*pa / va, opts, true);
-                    e += va * u;
-                    *pa = c * u1;
-                } else {
-                    *pa = 0.0;
-                }
+            let rest_v = &self.rest_v[k * NODE_CHUNK..][..pc.len()];
+            match isa {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: the token proves the CPU has avx2 and fma, the features
+                // `pressure_chunk_avx2` enables.
+                Isa::Avx512(_) | Isa::Avx2(_) => unsafe { self.pressure_chunk_avx2(pc, rest_v) },
+                _ => self.pressure_chunk(pc, rest_v),
             }
-            c * e
         };
         let parts: Vec<f64> = if parallel {
             p.par_chunks_mut(NODE_CHUNK).enumerate().map(chunk).collect()
@@ -231,15 +234,68 @@ impl<M: InvariantLaw> NodalVolume<M> {
         (parts.iter().sum(), p)
     }
 
+    /// [`Self::pressure_chunk`] compiled with AVX2 and FMA (4 nodes per register,
+    /// the cube root's rounding inline).
+    ///
+    /// # Safety
+    /// The CPU has avx2 and fma.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn pressure_chunk_avx2(&self, p: &mut [f64], rest_v: &[f64]) -> f64 {
+        self.pressure_chunk(p, rest_v)
+    }
+
+    /// Turns the lumped volumes `p` of a chunk of nodes (rest volumes `rest_v`) into
+    /// their pressures (1 − β) U′(J_a) and returns their energy (1 − β) Σ V_a U(J_a).
+    /// [`NODE_LANES`] nodes at a time: when none is outside the field or below J0
+    /// (the common case), one branch-free loop over them that vectorises; else node
+    /// by node. The energy is summed in `NODE_LANES` partial sums, in a fixed order.
+    #[inline(always)]
+    fn pressure_chunk(&self, p: &mut [f64], rest_v: &[f64]) -> f64 {
+        let (vol, opts, c) = (&self.vol, &self.opts, self.c);
+        let one = |pa: &mut f64, va: f64| -> f64 {
+            if va > 0.0 {
+                let (u, u1) = vol.value_slope(*pa / va, opts, true);
+                *pa = c * u1;
+                va * u
+            } else {
+                *pa = 0.0;
+                0.0
+            }
+        };
+        let mut e = [0.0; NODE_LANES];
+        let (pg, pt) = p.as_chunks_mut::<NODE_LANES>();
+        let (vg, vt) = rest_v.as_chunks::<NODE_LANES>();
+        for (pq, vq) in pg.iter_mut().zip(vg) {
+            let mut j = [0.0; NODE_LANES];
+            let mut plain = true;
+            for l in 0..NODE_LANES {
+                j[l] = pq[l] / vq[l];
+                plain &= vq[l] > 0.0 && !opts.extend(M::INVERSION_FIX, j[l]);
+            }
+            if plain {
+                for l in 0..NODE_LANES {
+                    let (u, u1) = vol.value_slope_plain(j[l]);
+                    e[l] += vq[l] * u;
+                    pq[l] = c * u1;
+                }
+            } else {
+                for l in 0..NODE_LANES {
+                    e[l] += one(&mut pq[l], vq[l]);
+                }
+            }
+        }
+        for (pa, &va) in pt.iter_mut().zip(vt) {
+            e[0] += one(pa, va);
+        }
+        c * ((e[0] + e[1]) + (e[2] + e[3]))
+    }
+
     /// Adds the nodal term's forces at `x` to `f` and returns its energy.
     pub fn add_forces(&self, x: &[Vec3], f: &mut [Vec3], parallel: bool) -> Result<f64> {
         check_sizes(self.rest.len(), x, Some(f))?;
         let (e, p) = self.pressures(x, parallel);
-        let k = PressureKernel {
-            tets: &self.tets,
-            p: &p,
-        };
-        self.layout.add_batched(&k, parallel, x, f)?;
+        self.layout.add_batched_w(&PressureKernel, parallel, x, &p, f)?;
         Ok(e)
     }
 
@@ -344,11 +400,7 @@ impl<M: InvariantLaw, K: Formulation> ElasticForces for NodalVolumeField<M, K> {
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes(), x, Some(f))?;
         let (e, p) = self.nodal.pressures(x, self.assembly == Assembly::Parallel);
-        let k = PressureKernel {
-            tets: &self.nodal.tets,
-            p: &p,
-        };
-        Ok(e + self.iso.add_forces_with_pressure(&self.nodal.tets, &p, &k, x, f)?)
+        Ok(e + self.iso.add_forces_with_pressure(&p, &PressureKernel, x, f)?)
     }
     /// J and the law's own energy density w = w_iso + U(J_t) of each tet (the element
     /// view; the nodal term redistributes the volumetric part among nodes).

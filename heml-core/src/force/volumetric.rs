@@ -93,6 +93,14 @@ impl<M: InvariantLaw> Dilation<M> {
         (d.w - self.w0, d.d[0] * s1[0] + d.d[1] * s1[1] + d.d[2], u2)
     }
 
+    /// U and U′ at `j` with the law's fast functions and no extension: for callers
+    /// that checked `j` is at or above J0 (the nodal pass, a few nodes at a time, so
+    /// that the loop over them vectorises).
+    #[inline(always)]
+    pub(crate) fn value_slope_plain(&self, j: f64) -> (f64, f64) {
+        self.d1(j, true)
+    }
+
     /// U and U′ at `j`, extended below J0 as the law is (see the module doc).
     #[inline(always)]
     pub fn value_slope(&self, j: f64, opts: &ForceOptions, fast: bool) -> (f64, f64) {

@@ -7,7 +7,7 @@
 
 #[cfg(target_arch = "x86_64")]
 use super::lane_io::Avx2;
-use super::lane_io::{scatter_lane, LaneIo, Node4, Portable};
+use super::lane_io::{scatter_lane, LaneIo, LaneScalars, Node4, Portable};
 use super::layout::{BlockBuffers, Layout, LocalBatch, LANES};
 use super::simd::Isa;
 use crate::error::Result;
@@ -27,6 +27,19 @@ pub(crate) trait BatchKernel: Sync {
     /// `b*LANES..`), whose corner positions are `p`. Lanes past the end of the field
     /// hold padding and may produce anything (they are never used).
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]);
+
+    /// Whether the driver calls [`Self::batch_w`] (with one scalar per node,
+    /// [`Layout::add_batched_w`]) instead of [`Self::batch`].
+    const USES_W: bool = false;
+
+    /// As [`Self::batch`], with `w[a][l]` the node scalar of corner `a` of lane `l`,
+    /// gathered with the positions (the padding slot of the block's node buffer):
+    /// the nodal pressures of the anti-locking term, at no second gather.
+    #[inline(always)]
+    fn batch_w(&self, b: usize, p: &LanePoints, w: &LaneScalars, f: &mut LaneForces, e: &mut [f64; LANES]) {
+        let _ = w;
+        self.batch(b, p, f, e)
+    }
 }
 
 /// The plain per-tet kernel of a field, for the reference path.
@@ -57,7 +70,29 @@ impl Layout {
     /// bits either way.
     pub(crate) fn add_batched<K: BatchKernel>(&self, k: &K, parallel: bool, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes, x, Some(f))?;
-        Ok(self.evaluate(k, x, f, parallel))
+        Ok(self.evaluate(k, x, None, f, parallel))
+    }
+
+    /// As [`Self::add_batched`] for a kernel that reads one scalar per node (`w`, one
+    /// per global node: [`BatchKernel::batch_w`]), which rides in the padding slot of
+    /// the block's position buffer.
+    pub(crate) fn add_batched_w<K: BatchKernel>(
+        &self,
+        k: &K,
+        parallel: bool,
+        x: &[Vec3],
+        w: &[f64],
+        f: &mut [Vec3],
+    ) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        if w.len() != self.n_nodes {
+            return Err(crate::error::HemlError::Invalid(format!(
+                "{} node scalars for {} nodes",
+                w.len(),
+                self.n_nodes
+            )));
+        }
+        Ok(self.evaluate(k, x, Some(w), f, parallel))
     }
 
     /// Adds the forces of the plain kernel `k` to `f`, one tet at a time in field
@@ -76,7 +111,7 @@ impl Layout {
         Ok(energy)
     }
 
-    fn evaluate<K: BatchKernel>(&self, k: &K, x: &[Vec3], f: &mut [Vec3], parallel: bool) -> f64 {
+    fn evaluate<K: BatchKernel>(&self, k: &K, x: &[Vec3], w: Option<&[f64]>, f: &mut [Vec3], parallel: bool) -> f64 {
         let isa = Isa::current();
         let blocks = self.blocks.list();
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
@@ -96,8 +131,17 @@ impl Layout {
         let n_tets = self.n_tets();
         let one = |(b, mut bufs, e): Task| {
             let blk = &blocks[b];
-            for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
-                *xi = Node4::from_vec(&x[g as usize]);
+            match w {
+                Some(w) => {
+                    for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
+                        *xi = Node4::with_w(&x[g as usize], w[g as usize]);
+                    }
+                }
+                None => {
+                    for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
+                        *xi = Node4::from_vec(&x[g as usize]);
+                    }
+                }
             }
             bufs.f_mut().fill(Node4::default());
             let dead = &self.dead[blk.batch_start..blk.batch_end];
@@ -210,11 +254,18 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
     let mut p = [[[0.0; LANES]; 3]; 4];
     let mut fl = [[[0.0; LANES]; 3]; 4];
     let mut el = [0.0; LANES];
+    let mut wl = [[0.0; LANES]; 4];
     for (bo, idx) in tets.iter().enumerate() {
         let b = batch0 + bo;
-        // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
-        unsafe { io.gather(idx, x, &mut p) };
-        k.batch(b, &p, &mut fl, &mut el);
+        if K::USES_W {
+            // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
+            unsafe { io.gather_w(idx, x, &mut p, &mut wl) };
+            k.batch_w(b, &p, &wl, &mut fl, &mut el);
+        } else {
+            // SAFETY: as above
+            unsafe { io.gather(idx, x, &mut p) };
+            k.batch(b, &p, &mut fl, &mut el);
+        }
         if let Some(w) = weights {
             let w = &w[bo];
             for fa in fl.iter_mut() {

@@ -9,6 +9,9 @@ use super::driver::{LaneForces, LanePoints};
 use super::layout::{LocalBatch, LANES};
 use crate::Vec3;
 
+/// One scalar per corner of each lane, `[corner][lane]`.
+pub(crate) type LaneScalars = [[f64; LANES]; 4];
+
 /// A node position or force padded to four `f64` (32-byte aligned), so that one
 /// aligned vector load or store moves a whole node in the SIMD gather and scatter.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -19,6 +22,11 @@ impl Node4 {
     /// The node `v`, padded with a zero.
     pub(crate) fn from_vec(v: &Vec3) -> Node4 {
         Node4([v.x, v.y, v.z, 0.0])
+    }
+    /// The node `v` with `w` in its padding slot: one scalar per node that the
+    /// gather hands to the kernel with the positions ([`LaneIo::gather_w`]).
+    pub(crate) fn with_w(v: &Vec3, w: f64) -> Node4 {
+        Node4([v.x, v.y, v.z, w])
     }
     /// The node without its padding.
     pub(crate) fn to_vec(self) -> Vec3 {
@@ -39,6 +47,12 @@ pub(crate) trait LaneIo: Copy {
     /// # Safety
     /// Every index of `idx` is below `x.len()`.
     unsafe fn gather(self, idx: &LocalBatch, x: &[Node4], p: &mut LanePoints);
+    /// As [`Self::gather`], and `w[a][l] = x[idx[l][a]]`'s padding slot (see
+    /// [`Node4::with_w`]): the AVX2 transpose has it in a register already.
+    ///
+    /// # Safety
+    /// Every index of `idx` is below `x.len()`.
+    unsafe fn gather_w(self, idx: &LocalBatch, x: &[Node4], p: &mut LanePoints, w: &mut LaneScalars);
     /// `f[idx[l][a]][c] += fl[a][c][l]` for every lane, corner by corner then lane
     /// by lane.
     ///
@@ -61,6 +75,18 @@ impl LaneIo for Portable {
                 for c in 0..3 {
                     p[a][c][l] = q[c];
                 }
+            }
+        }
+    }
+    #[inline(always)]
+    unsafe fn gather_w(self, idx: &LocalBatch, x: &[Node4], p: &mut LanePoints, w: &mut LaneScalars) {
+        for l in 0..LANES {
+            for a in 0..4 {
+                let q = &x[idx[l][a] as usize].0;
+                for c in 0..3 {
+                    p[a][c][l] = q[c];
+                }
+                w[a][l] = q[3];
             }
         }
     }
@@ -98,7 +124,7 @@ mod avx2 {
     use super::super::driver::{LaneForces, LanePoints};
     use super::super::layout::{LocalBatch, LANES};
     use super::super::simd::Avx2Token;
-    use super::{LaneIo, Node4};
+    use super::{LaneIo, LaneScalars, Node4};
     use std::arch::x86_64::*;
 
     /// The AVX2 lane I/O; holding the token proves the CPU has AVX2.
@@ -111,7 +137,12 @@ mod avx2 {
             // SAFETY: `self.0` is an `Avx2Token`, made only when run-time detection
             // saw AVX2 on this CPU; the indices are below `x.len()` (the caller's
             // contract, met by the parts of a `BlockBuffers`).
-            unsafe { gather(idx, x, p) }
+            unsafe { gather::<false>(idx, x, p, &mut [[0.0; LANES]; 4]) }
+        }
+        #[inline(always)]
+        unsafe fn gather_w(self, idx: &LocalBatch, x: &[Node4], p: &mut LanePoints, w: &mut LaneScalars) {
+            // SAFETY: as for `gather`.
+            unsafe { gather::<true>(idx, x, p, w) }
         }
         #[inline(always)]
         unsafe fn scatter(self, idx: &LocalBatch, fl: &LaneForces, f: &mut [Node4]) {
@@ -120,10 +151,12 @@ mod avx2 {
         }
     }
 
+    /// The positions, and the padding slots into `w` when `W`.
+    ///
     /// # Safety
     /// The CPU has AVX2 and every index of `idx` is below `x.len()`.
     #[inline(always)]
-    unsafe fn gather(idx: &LocalBatch, x: &[Node4], p: &mut LanePoints) {
+    unsafe fn gather<const W: bool>(idx: &LocalBatch, x: &[Node4], p: &mut LanePoints, w: &mut LaneScalars) {
         let base = x.as_ptr() as *const f64;
         for a in 0..4 {
             for h in 0..LANES / 4 {
@@ -133,9 +166,12 @@ mod avx2 {
                 let r2 = _mm256_load_pd(base.add(4 * i[2][a] as usize));
                 let r3 = _mm256_load_pd(base.add(4 * i[3][a] as usize));
                 let t0 = _mm256_unpacklo_pd(r0, r1); // x0 x1 z0 z1
-                let t1 = _mm256_unpackhi_pd(r0, r1); // y0 y1 .. ..
+                let t1 = _mm256_unpackhi_pd(r0, r1); // y0 y1 w0 w1
                 let t2 = _mm256_unpacklo_pd(r2, r3); // x2 x3 z2 z3
-                let t3 = _mm256_unpackhi_pd(r2, r3); // y2 y3 .. ..
+                let t3 = _mm256_unpackhi_pd(r2, r3); // y2 y3 w2 w3
+                if W {
+                    _mm256_storeu_pd(w[a][4 * h..].as_mut_ptr(), _mm256_permute2f128_pd(t1, t3, 0x31));
+                }
                 let out = &mut p[a];
                 _mm256_storeu_pd(out[0][4 * h..].as_mut_ptr(), _mm256_permute2f128_pd(t0, t2, 0x20));
                 _mm256_storeu_pd(out[1][4 * h..].as_mut_ptr(), _mm256_permute2f128_pd(t1, t3, 0x20));

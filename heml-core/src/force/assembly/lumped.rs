@@ -9,9 +9,15 @@
 //! merge, and gives the same bits for any thread count (the blocks' order and
 //! contents do not depend on it).
 
+// The lanes are indexed in lock-step on purpose (it is what vectorises).
+#![allow(clippy::needless_range_loop)]
+
 use super::driver::MERGE_CHUNK;
+#[cfg(target_arch = "x86_64")]
+use super::lane_io::Avx2;
 use super::lane_io::{LaneIo, Node4, Portable};
-use super::layout::{Layout, LANES};
+use super::layout::{Layout, LocalBatch, LANES};
+use super::simd::Isa;
 use crate::force::lanes::lane_crosses;
 use crate::Vec3;
 use rayon::prelude::*;
@@ -40,7 +46,7 @@ impl Layout {
             tasks.push((b, self.blocks.buffers(b, &mut xs, &mut fs), mine));
             rest = tail;
         }
-        let n_tets = self.n_tets();
+        let isa = Isa::current();
         let one = |(b, mut bufs, a): Task| {
             let blk = &blocks[b];
             for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
@@ -48,22 +54,19 @@ impl Layout {
             }
             a.fill(0.0);
             let (batches, xl, _) = bufs.into_parts();
-            let mut p = [[[0.0; LANES]; 3]; 4];
-            for (bo, idx) in batches.iter().enumerate() {
-                let bt = blk.batch_start + bo;
-                // SAFETY: `idx` is a batch of the block's buffers, every index below
-                // `xl.len()` (checked when the layout was built)
-                unsafe { Portable.gather(idx, xl, &mut p) };
-                // det(v1, v2, v3) = 6 vol, as the kernels'
-                let (_, det) = lane_crosses(&p);
-                let count = n_tets.saturating_sub(bt * LANES).min(LANES);
-                let mask = self.dead[bt];
-                for l in (0..count).filter(|l| mask & (1 << l) == 0) {
-                    let q = self.weight(bt * LANES + l) * (det[l] * (1.0 / 24.0));
-                    for &c in &idx[l] {
-                        a[c as usize] += q;
-                    }
-                }
+            assert_eq!(a.len(), xl.len(), "lumped volumes: one accumulator per local node");
+            match isa {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: the token proves the CPU has avx2 and fma, the features
+                // `block_avx2` enables; `batches` and `xl` are the parts of one
+                // `BlockBuffers` and `a` is as long as `xl` (asserted), so every
+                // index is below both lengths.
+                Isa::Avx512(t) => unsafe { block_avx2(Avx2(t.avx2()), self, blk.batch_start, batches, xl, a) },
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: as above.
+                Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), self, blk.batch_start, batches, xl, a) },
+                // SAFETY: as above (and the portable gather checks them anyway).
+                _ => unsafe { block_body(Portable, self, blk.batch_start, batches, xl, a) },
             }
         };
         if parallel {
@@ -83,6 +86,65 @@ impl Layout {
             v.par_chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
         } else {
             v.chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
+        }
+    }
+}
+
+/// The lumped volumes of one block's tets (batches from `batch0`, local indices
+/// `batches`, local positions `xl`) added to its accumulators `a`, with the driver
+/// compiled for AVX2 and FMA (its SIMD gather; the lane loops 4 wide).
+///
+/// # Safety
+/// The CPU has avx2 and fma, and the preconditions of [`block_body`] hold.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn block_avx2(io: Avx2, layout: &Layout, batch0: usize, batches: &[LocalBatch], xl: &[Node4], a: &mut [f64]) {
+    // SAFETY: the caller's preconditions.
+    unsafe { block_body(io, layout, batch0, batches, xl, a) }
+}
+
+/// The lumped volumes of one block's tets: per batch, the gather, the
+/// determinants det(v1, v2, v3) = 6 vol (as the kernels'), and w_t·vol_t/4 added
+/// to each corner's accumulator, lane by lane (dead and padding lanes skipped).
+///
+/// # Safety
+/// Every index of `batches` is below `xl.len()` and `a.len()`.
+#[inline(always)]
+unsafe fn block_body<IO: LaneIo>(
+    io: IO,
+    layout: &Layout,
+    batch0: usize,
+    batches: &[LocalBatch],
+    xl: &[Node4],
+    a: &mut [f64],
+) {
+    let n_tets = layout.n_tets();
+    let mut p = [[[0.0; LANES]; 3]; 4];
+    for (bo, idx) in batches.iter().enumerate() {
+        let bt = batch0 + bo;
+        // SAFETY: `idx` is a batch of the block, every index below `xl.len()`
+        unsafe { io.gather(idx, xl, &mut p) };
+        let (_, det) = lane_crosses(&p);
+        let mut q = [0.0; LANES];
+        for l in 0..LANES {
+            q[l] = det[l] * (1.0 / 24.0);
+        }
+        let count = n_tets.saturating_sub(bt * LANES).min(LANES);
+        let mask = layout.dead[bt];
+        if count == LANES && mask == 0 && layout.weights.is_none() {
+            for l in 0..LANES {
+                for &c in &idx[l] {
+                    // SAFETY: every index of the batch is below `a.len()`
+                    unsafe { *a.get_unchecked_mut(c as usize) += q[l] };
+                }
+            }
+        } else {
+            for l in (0..count).filter(|l| mask & (1 << l) == 0) {
+                let ql = layout.weight(bt * LANES + l) * q[l];
+                for &c in &idx[l] {
+                    a[c as usize] += ql;
+                }
+            }
         }
     }
 }

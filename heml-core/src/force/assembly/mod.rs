@@ -48,6 +48,7 @@ pub(crate) mod lumped;
 pub(crate) mod simd;
 
 pub(crate) use driver::{BatchKernel, LaneForces, LanePoints, PlainKernel};
+pub(crate) use lane_io::LaneScalars;
 pub(crate) use layout::Layout;
 pub use layout::LANES;
 pub use simd::SimdLevel;
