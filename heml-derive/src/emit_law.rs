@@ -89,6 +89,7 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
         params: names.params,
         receiver: None,
         fast: Some(core),
+        fma: false,
     };
     let roots = d.value_and_grad();
     let (a, b) = (args(&roots), straight_line::block(g, &fast, &roots));

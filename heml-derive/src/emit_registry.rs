@@ -84,6 +84,7 @@ fn small_strain_mapping(
         params: &fields,
         receiver: Some(&this),
         fast: None,
+        fma: false,
     };
     let roots: Vec<Id> = lowered.values.iter().map(|&(_, id)| id).collect();
     let block = straight_line::block(&lowered.graph, &names, &roots);

@@ -129,6 +129,7 @@ fn fns(core: &TokenStream, k: &FibreKernels, names: &Names, d: &FibreDerivatives
         params: names.params,
         receiver: None,
         fast: Some(core),
+        fma: true,
     };
     let roots = d.value_and_grad();
     let (args, un) = unpack(g, &roots, ext);
