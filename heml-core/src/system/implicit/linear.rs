@@ -14,6 +14,7 @@ use crate::error::Result;
 use crate::force::TangentOperator;
 use crate::system::statics::dofs::DofMap;
 use crate::system::System;
+use crate::Vec3;
 use nalgebra::Matrix3;
 use std::time::Instant;
 
@@ -43,16 +44,66 @@ pub(in crate::system) struct TangentSolve {
     pub max_factor_nonzeros: usize,
 }
 
-/// What a held factor was made for: c_k, c_m, c_v and the grasps' diagonal terms
-/// ((k + c c_v) per node, `None` without grasps). Runtime changes that leave the
-/// matrix alone (a grasp or tool moved, loads, gravity) keep the factor; a grasp
-/// made or opened, or other coefficients, refactor. Tool contacts are not part of
-/// it: they come and go with the state, as the tangent does, and the contraction
-/// rule judges the factor's staleness from them alike.
+/// What a held factor was made for: c_k, c_m, c_v, the grasps' diagonal terms
+/// ((k + c c_v) per node, `None` without grasps) and the active tool contacts.
+/// Runtime changes that leave the matrix alone (a grasp or tool moved without
+/// changing the contact set, loads, gravity) keep the factor; a grasp made or
+/// opened, other coefficients, or a contact made or released refactor.
+///
+/// Why the contacts are in it: a contact spring k·n nᵀ is far stiffer than a
+/// surface node's share of the rest of the matrix (k = 200 N/m against m/h² ≈ 0.3
+/// N/m and an elastic stiffness of ~10 N/m on gen_kidney_20k at 10 ms). A factor
+/// without the spring of a node that has since come into contact treats it
+/// explicitly (a chord iteration is the forward step of the missing term), at
+/// k·h²/m ≫ 1: the node is shot out of the tool and the motion diverges (the
+/// long run's press phase diverged within 18 steps). The contraction rule could
+/// not see it, as a fresh factor contracts little during contact anyway, which
+/// loosens its bound to ~0.95.
 #[derive(Debug, Clone, PartialEq)]
 struct FactorKey {
     coefficients: [u64; 3],
     grasps: Option<Vec<f64>>,
+    /// (node, k + c·c_v, normal) of each active contact, in the tool set's order.
+    contacts: Vec<(usize, f64, Vec3)>,
+}
+
+/// A held factor stays valid while each contact normal is within this cosine of
+/// the one it was factored with (5.7°): the spring's change |n nᵀ − n₀ n₀ᵀ| = sin θ
+/// ≤ 0.1 of the contact stiffness, a perturbation the contraction rule judges
+/// (a capsule sliding over the tissue turns its normals continuously, so equal
+/// normals would refactor at every step of a contact).
+const CONTACT_NORMAL_COSINE: f64 = 0.995;
+
+impl FactorKey {
+    /// The key of the system's current matrix terms for a solve with `cv`.
+    fn of(sys: &System, ck: f64, cm: f64, cv: f64) -> Self {
+        FactorKey {
+            coefficients: [ck.to_bits(), cm.to_bits(), cv.to_bits()],
+            grasps: sys.model.grasps.diagonal(sys.state.x.len(), cv),
+            contacts: sys
+                .model
+                .tools
+                .contacts()
+                .iter()
+                .filter(|c| c.stiffness + c.damping * cv > 0.0)
+                .map(|c| (c.node, c.stiffness + c.damping * cv, c.normal))
+                .collect(),
+        }
+    }
+
+    /// Whether a factor made for `self` serves a matrix with the terms of `now`:
+    /// the same coefficients, grasps and contacts, the normals within
+    /// [`CONTACT_NORMAL_COSINE`].
+    fn serves(&self, now: &FactorKey) -> bool {
+        self.coefficients == now.coefficients
+            && self.grasps == now.grasps
+            && self.contacts.len() == now.contacts.len()
+            && self
+                .contacts
+                .iter()
+                .zip(&now.contacts)
+                .all(|(a, b)| a.0 == b.0 && a.1 == b.1 && a.2.dot(&b.2) >= CONTACT_NORMAL_COSINE)
+    }
 }
 
 /// What a tangent solve keeps between calls: the assembled matrix (its pattern is
@@ -73,6 +124,36 @@ pub(in crate::system) struct SolveCache {
     pub fresh_contraction: f64,
     /// Phase times accumulated since the owner last reset them.
     pub times: PhaseTimes,
+    /// The residual's round-off scale at the last assembly ([`roundoff_floor`]; 0
+    /// before the first): a residual below it is converged, whatever its ratio to
+    /// the step's first residual.
+    pub roundoff: f64,
+}
+
+/// Units of round-off in [`roundoff_floor`]: the residual of gen_kidney_20k at rest
+/// (no load) was measured at 0.02–0.11 units, so 1024 leaves a wide margin (meshes
+/// with more tets per node, other laws) while the floor stays 2·10⁻¹³ of the force
+/// that would move every node by its own coordinates: a residual below it asks for
+/// a correction of ~1000 ulps of the positions, and 10⁻⁵ of the Newton tolerance
+/// of that kidney under gravity.
+const ROUNDOFF_ULPS: f64 = 1024.0;
+
+/// The scale of the residual's round-off at positions `x`: ROUNDOFF_ULPS·ε·‖(‖A_ii‖
+/// |x_i|)_i‖ over the free nodes, A_ii the diagonal blocks of the assembled system
+/// matrix. Each residual term is a sum of products of that size (the elastic
+/// forces of the tets around a node are differences of positions of size |x| times
+/// stiffnesses summing to K_ii, the inertia m c_a (x − x0 − h v0) likewise with
+/// m c_a), so a body at rest, whose residual is that round-off, is converged: a
+/// Newton solve there measures noise (a contraction noise/noise ≈ 1 that the chord
+/// rule takes for a stale factor) and buys nothing.
+fn roundoff_floor(matrix: &BlockMatrix, x: &[Vec3]) -> f64 {
+    let blocks = matrix.blocks();
+    let sum: f64 = (0..matrix.n_nodes())
+        .filter(|&i| (0..3).any(|a| matrix.mask(3 * i + a) > 0.0))
+        .filter_map(|i| matrix.row_blocks(i).find(|&(j, _)| j == i))
+        .map(|(i, b)| (blocks[b].norm() * x[i].norm()).powi(2))
+        .sum();
+    ROUNDOFF_ULPS * f64::EPSILON * sum.sqrt()
 }
 
 impl SolveCache {
@@ -196,6 +277,7 @@ impl TangentSolve {
         matrix.fill(tangents, self.ck, self.cm, &sys.model.mass, extra.as_deref(), |i, a| {
             dofs.get(i, a).is_some()
         });
+        cache.roundoff = roundoff_floor(matrix, &sys.state.x);
         cache.times.tangent += (t1 - t0).as_secs_f64();
         cache.times.assembly += t1.elapsed().as_secs_f64();
         Ok(nl_diag)
@@ -215,14 +297,11 @@ impl TangentSolve {
         dofs: &DofMap,
         rhs: &mut [f64],
     ) -> Result<CgReport> {
-        let key = FactorKey {
-            coefficients: [self.ck.to_bits(), self.cm.to_bits(), self.cv.to_bits()],
-            grasps: sys.model.grasps.diagonal(sys.state.x.len(), self.cv),
-        };
+        let key = FactorKey::of(sys, self.ck, self.cm, self.cv);
         let fresh = cache
             .direct
             .as_ref()
-            .is_some_and(|(c, k)| c.is_factored() && k.as_ref() == Some(&key));
+            .is_some_and(|(c, k)| c.is_factored() && k.as_ref().is_some_and(|k| k.serves(&key)));
         if !(self.reuse_factor && fresh) {
             self.assemble(sys, tangents, cache, dofs)?;
             let t0 = Instant::now();

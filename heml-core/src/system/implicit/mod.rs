@@ -28,8 +28,10 @@
 //! tangent update and the assembly; the factor is refreshed when an iteration on
 //! it contracts the residual much less than one on a fresh factor did
 //! ([`ImplicitSettings::refactor_contraction`]), when a step runs out of
-//! iterations on it, and after a change of the matrix (not after a grasp or tool
-//! moved or a load changed).
+//! iterations on it, and after a change of the matrix, tool contacts made or
+//! released included (not after a grasp or tool moved without changing the
+//! contacts, or a load changed). A residual at round-off (a body at rest) is
+//! converged: such a step takes no linear solve.
 
 pub mod cg;
 mod cholesky;

@@ -24,6 +24,15 @@ use crate::system::statics::newton::NewtonProblem;
 use crate::system::System;
 use crate::Vec3;
 
+/// θ of the refactor rule for a chord iteration whose leftover imbalance is carried
+/// into the next step (the last of a step ending at the iteration cap: with one
+/// iteration per step, every one). Measured on the benchmark's long run on
+/// gen_kidney_20k (`heml bench --implicit`, one iteration per step): with 0.5 chord
+/// steps contracting by 0.3–0.5 (a fresh factor reached 0.06) piled up their
+/// leftovers in the grasp phase until the motion diverged; with 0.2 the run
+/// follows the CG run through all 200 steps.
+pub(super) const CARRIED_CONTRACTION: f64 = 0.2;
+
 /// How the Newton iterations of a step ended.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct NewtonOutcome {
@@ -107,8 +116,11 @@ impl ImplicitStep<'_> {
     /// exact fresh step (c_fresh = 0) the bound is θ; where even a fresh factor
     /// contracts little (a strongly nonlinear phase, with one iteration per step)
     /// the bound rises towards 1, as refactoring would buy little there.
+    /// `carried`: the iteration was the step's last and the step ends at the
+    /// iteration cap, so its leftover imbalance is carried into the next step; θ
+    /// is then at most [`CARRIED_CONTRACTION`].
     /// Returns whether it asked for a refactorisation.
-    pub fn check_contraction(&mut self) -> bool {
+    pub fn check_contraction(&mut self, carried: bool) -> bool {
         let Some((before, reused)) = self.last_solve.take() else {
             return false;
         };
@@ -117,7 +129,11 @@ impl ImplicitStep<'_> {
         if !reused {
             self.cache.fresh_contraction = contraction.min(1.0);
         } else {
-            let theta = self.settings.refactor_contraction;
+            let theta = if carried {
+                self.settings.refactor_contraction.min(CARRIED_CONTRACTION)
+            } else {
+                self.settings.refactor_contraction
+            };
             if contraction > theta + (1.0 - theta) * self.cache.fresh_contraction {
                 self.cache.refactor = true;
                 return true;
@@ -165,8 +181,9 @@ impl NewtonProblem for ImplicitStep<'_> {
     fn converged(&self, _: &System, it: usize, _: f64) -> Option<NewtonOutcome> {
         let r = norm(&self.r);
         let r0 = self.r0.unwrap_or(r);
-        let done =
-            r <= self.settings.newton_tolerance * r0.max(self.load_norm) || it >= self.settings.newton_iterations;
+        // at round-off (a body at rest) there is nothing left to solve
+        let tolerance = (self.settings.newton_tolerance * r0.max(self.load_norm)).max(self.cache.roundoff);
+        let done = r <= tolerance || it >= self.settings.newton_iterations;
         done.then_some(NewtonOutcome { iterations: it })
     }
 
@@ -179,7 +196,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         if first {
             self.r0 = Some(norm(&self.r));
         }
-        self.check_contraction();
+        self.check_contraction(false);
         let (cm, ck) = self.coefficients(sys);
         let s = self.settings;
         let solve = TangentSolve {

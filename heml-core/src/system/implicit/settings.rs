@@ -69,8 +69,9 @@ pub enum LinearSolver {
     /// last iteration on a fresh factor did (the rule of
     /// [`ImplicitSettings::refactor_contraction`]), when a step with more than one
     /// allowed iteration ends at the cap unconverged, after a failed step, and after
-    /// any change of the matrix: fixed nodes, cuts, a grasp made or opened, the step
-    /// size or the scheme (not a grasp or tool moved, nor loads).
+    /// any change of the matrix: fixed nodes, cuts, a grasp made or opened, a tool
+    /// contact made or released (or its normal turned by more than 5.7°), the step
+    /// size or the scheme (not a grasp or tool moved without that, nor loads).
     /// The converged step is the same as with CG; what is saved is the tangent
     /// update and assembly of every iteration that reuses the factor.
     Cholesky,
@@ -88,7 +89,8 @@ pub struct ImplicitSettings {
     pub newton_iterations: usize,
     /// Newton stops early when the residual norm is at most this fraction of the
     /// larger of its value at the start of the step and the norm of the external
-    /// loads (default 1e-6).
+    /// loads (default 1e-6), or at the residual's round-off (a body at rest without
+    /// loads: then the step takes no linear solve at all).
     pub newton_tolerance: f64,
     /// Conjugate gradients stop when ‖b − A x‖ ≤ `cg_tolerance`·‖b‖ (default 1e-6).
     pub cg_tolerance: f64,
@@ -114,7 +116,12 @@ pub struct ImplicitSettings {
     /// judged against what a fresh factor achieved (θ itself when it solved
     /// exactly; towards 1 where even a fresh factor contracts little, as in a
     /// strongly nonlinear phase with one iteration per step, where a refactor would
-    /// buy little).
+    /// buy little). The last iteration of a step that ends at the iteration cap
+    /// (with one iteration per step, every step) carries its leftover imbalance
+    /// into the next step, so it is held to min(θ, 0.2): at 0.5 the benchmark's
+    /// long run on gen_kidney_20k (`heml bench --implicit`) diverged in its grasp
+    /// phase (chord steps contracting by 0.3–0.5 where a fresh factor reached
+    /// 0.06), at 0.2 it follows the CG run through all 200 steps.
     pub refactor_contraction: f64,
     /// [`LinearSolver::Cholesky`]: the most nonzeros the factor may hold (8 bytes
     /// each), checked after the symbolic analysis and before any allocation of the

@@ -249,7 +249,8 @@ impl ImplicitSolver {
         let mut outcome = newton(sys, dofs, &mut problem)?;
         // chord Newton: the last iteration's contraction, and a step that ran out of
         // iterations on a reused factor (more than one allowed), refactor next time
-        let stale = problem.check_contraction();
+        let carried = outcome.is_none_or(|o| o.iterations >= settings.newton_iterations);
+        let stale = problem.check_contraction(carried);
         // a step on a reused factor whose line search stalled, or (one iteration per
         // step) whose contraction failed the refactor rule, is redone from the
         // predictor on a fresh factor: a factor gone that stale (a fast sag, a
@@ -265,7 +266,7 @@ impl ImplicitSolver {
             problem.restart();
             problem.cache.refactor = true;
             outcome = newton(sys, dofs, &mut problem)?;
-            problem.check_contraction();
+            problem.check_contraction(outcome.is_none_or(|o| o.iterations >= settings.newton_iterations));
         }
         if outcome.is_none() && problem.reused && settings.newton_iterations > 1 {
             problem.cache.refactor = true;
