@@ -285,7 +285,11 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
 /// real-time factor with the page open and after it closed. To compare settings side
 /// by side: `HEML_VIEW_ARGS="--threads 1 --no-pin --fps 30"` (arguments of `heml
 /// view`, default `--threads 2`), `HEML_VIEW_QUERY="?aa=1"` (appended to the page's
-/// URL) and `HEML_VIEW_BIN=/path/to/heml` (another build).
+/// URL) and `HEML_VIEW_BIN=/path/to/heml` (another build). `HEML_VIEW_GRASP=1` keeps a
+/// hand on the tissue while the page is open: a grasp taken where a ray along −x
+/// through the scene's origin meets the surface (the front of the kidney scenes),
+/// its target moved 20 times a second around a 5 mm circle in the y–z plane, 3 mm out
+/// of the surface — the load a user's drag puts on the simulation.
 #[tokio::test(flavor = "current_thread")]
 #[ignore = "a measurement for the README, run by hand"]
 async fn measure_frames_per_second() {
@@ -331,8 +335,27 @@ async fn measure_frames_per_second() {
         cpu_seconds(|_, pgrp| pgrp == driver.0.id()),
         cpu_seconds(|pid, _| pid == server.pid()),
     );
+    let grasp = std::env::var_os("HEML_VIEW_GRASP").is_some_and(|v| v == "1");
+    if grasp {
+        ws.send(serde_json::json!({"type": "grasp_start",
+            "ray": {"origin": [1.0, 0.0, 0.0], "direction": [-1.0, 0.0, 0.0]}}))
+            .await;
+        let n = ws.replies.len();
+        ws.until(Duration::from_secs(5), |c| c.replies.len() > n).await;
+        println!(
+            "grasp_start: {}",
+            ws.replies.last().map(|r| r.to_string()).unwrap_or_default()
+        );
+    }
     let t0 = Instant::now();
-    let open = mean_rtf(&mut ws, 10).await;
+    let open = if grasp {
+        mean_rtf_grasping(&mut ws, 10).await
+    } else {
+        mean_rtf(&mut ws, 10).await
+    };
+    if grasp {
+        ws.send(serde_json::json!({"type": "grasp_end"})).await;
+    }
     let wall = t0.elapsed().as_secs_f64();
     let fps = (count(&browser).await - f0) / wall;
     let drawn_fps = (drawn(&browser).await - d0) / wall;
@@ -347,10 +370,11 @@ async fn measure_frames_per_second() {
     let closed_after = mean_rtf(&mut ws, 10).await;
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "{} [{extra}{query}]: {fps:.1} frames/s received ({drawn_fps:.1} drawn), {bytes} bytes/frame, \
+        "{}{} [{extra}{query}]: {fps:.1} frames/s received ({drawn_fps:.1} drawn), {bytes} bytes/frame, \
          CPU {:.2} cores browser, {:.2} heml, real-time factor {open:.3} with the page open, \
          {closed_before:.3} / {closed_after:.3} closed (before / after), step p50 {} ms, dt {} s, min J {}; load {}",
         scene.to_string_lossy(),
+        if grasp { " (grasp moving)" } else { "" },
         cores.0,
         cores.1,
         ws.status["step_ms_p50"],
@@ -386,6 +410,42 @@ fn cpu_seconds(pick: impl Fn(u32, u32) -> bool) -> f64 {
         }
     }
     ticks as f64 / 100.0
+}
+
+/// [`mean_rtf`] with a hand on the tissue: the grasp's target (see
+/// `measure_frames_per_second`) moved every 50 ms of wall time.
+async fn mean_rtf_grasping(ws: &mut Client, secs: u64) -> f64 {
+    let mut samples = Vec::new();
+    let start = Instant::now();
+    let end = start + Duration::from_secs(secs);
+    let mut last_status = ws.status["frame"].clone();
+    // smallest min J, largest grasp force (N), largest step p50 and p99 (ms)
+    let mut seen = (f64::INFINITY, 0.0f64, 0.0f64, 0.0f64);
+    while Instant::now() < end {
+        let phase = start.elapsed().as_secs_f64() * std::f64::consts::TAU / 2.0;
+        let target = [0.019, 0.005 * phase.cos(), 0.005 * phase.sin()];
+        ws.send(serde_json::json!({"type": "grasp_move", "target": target}))
+            .await;
+        ws.until(Duration::from_millis(50), |_| false).await;
+        if ws.status["frame"] != last_status {
+            last_status = ws.status["frame"].clone();
+            samples.push(ws.status["real_time_factor"].as_f64().unwrap_or(f64::NAN));
+            let num = |k: &str| ws.status[k].as_f64().unwrap_or(f64::NAN);
+            let force = ws.status["tool_force"].as_array().map_or(f64::NAN, |f| {
+                f.iter().filter_map(|c| c.as_f64()).map(|c| c * c).sum::<f64>().sqrt()
+            });
+            seen.0 = seen.0.min(num("min_j"));
+            seen.1 = seen.1.max(force);
+            seen.2 = seen.2.max(num("step_ms_p50"));
+            seen.3 = seen.3.max(num("step_ms_p99"));
+        }
+    }
+    println!(
+        "while grasping: smallest min J {:.4}, largest grasp force {:.3e} N, largest step p50 {:.2} ms \
+         and p99 {:.2} ms over the 1 s status periods",
+        seen.0, seen.1, seen.2, seen.3
+    );
+    samples.iter().sum::<f64>() / samples.len() as f64
 }
 
 /// Mean real-time factor of the status messages over `secs` seconds.

@@ -228,3 +228,57 @@ csv = false
     let (ok, _, err) = bin::heml(&["view", dir.join("empty").to_str().unwrap(), "--no-open"]);
     assert!(!ok && err.contains("no .pvd file"), "{err}");
 }
+
+/// A scene whose step is long (backward Euler at dt = 20 ms) and cheap (a small
+/// block) runs at real time, not ahead of it: the server naps while the simulation
+/// leads the clock and does not step until it is due (it used to nap 2 ms and step
+/// anyway, 7x real time on the 20k kidney).
+#[tokio::test(flavor = "current_thread")]
+async fn a_long_cheap_step_runs_at_real_time() {
+    let dir = bin::temp_dir("view", "pacing");
+    let scene = dir.join("implicit_block.toml");
+    std::fs::write(
+        &scene,
+        r#"[mesh]
+generate = { kind = "box", size = [0.08, 0.06, 0.05], cells = [8, 6, 5], split = "six" }
+
+[[material]]
+law = "neo_hookean"
+params = { E = 8.0e3, nu = 0.45 }
+density = 1000.0
+
+[[fix]]
+plane = { point = [0.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] }
+
+[loads]
+gravity = [0.0, 0.0, -9.81]
+
+[damping]
+mass = 5.0
+
+[solver]
+integrator = "backward_euler"
+dt = 0.02
+duration = 1.0
+"#,
+    )
+    .unwrap();
+    let server = ViewServer::start(&["view", scene.to_str().unwrap(), "--threads", "1"]);
+    let mut c = Client::connect(&server).await;
+    assert!(c.until(WAIT, |c| c.status.is_object() && c.time() > 0.0).await);
+    let (t0, wall0) = (c.time(), std::time::Instant::now());
+    c.drain(Duration::from_secs(3)).await;
+    let (t1, wall) = (c.time(), wall0.elapsed().as_secs_f64());
+    // the simulation advanced (it is not stalled) and by no more than the wall time
+    // plus 0.2 s: one status period (0.1 s) of staleness on each reading and a step
+    // of 0.02 s taken just before it was due; at the old pacing a 1 440-tet implicit
+    // step (~1 ms) ran ~10x real time, 30 s of simulated time here
+    assert!(t1 > t0, "the simulation did not advance: {t0} → {t1}");
+    assert!(
+        t1 - t0 <= wall + 0.2,
+        "ran ahead of real time: {:.3} s simulated in {wall:.3} s",
+        t1 - t0
+    );
+    drop(server);
+    let _ = std::fs::remove_dir_all(&dir);
+}
