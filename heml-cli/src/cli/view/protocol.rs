@@ -274,9 +274,9 @@ pub struct Status {
     pub paused: bool,
     /// Simulated seconds per wall-clock second over the last status period.
     pub real_time_factor: f64,
-    /// Median wall time of a step over the last second (ms).
+    /// Median wall time of a step over the last status period (ms; 1 / `STATUS_HZ` = 0.1 s).
     pub step_ms_p50: f64,
-    /// 99th percentile of the step wall time over the last second (ms).
+    /// 99th percentile of the step wall time over the last status period (ms).
     pub step_ms_p99: f64,
     /// Integrator name.
     pub integrator: String,

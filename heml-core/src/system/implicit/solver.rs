@@ -2,7 +2,7 @@
 //! operators, numbering of the unknowns, Newmark's acceleration) and its step.
 
 use super::linear::SolveCache;
-use super::problem::ImplicitStep;
+use super::problem::{ImplicitStep, NewtonOutcome};
 use super::settings::{ImplicitScheme, ImplicitSettings};
 use super::timings::PhaseTimes;
 use crate::error::{HemlError, Result};
@@ -249,8 +249,9 @@ impl ImplicitSolver {
         let mut outcome = newton(sys, dofs, &mut problem)?;
         // chord Newton: the last iteration's contraction, and a step that ran out of
         // iterations on a reused factor (more than one allowed), refactor next time
-        let carried = outcome.is_none_or(|o| o.iterations >= settings.newton_iterations);
-        let stale = problem.check_contraction(carried);
+        // the step's last iteration carries its leftover when the step ran out of iterations
+        let carried = |o: &Option<NewtonOutcome>| o.is_none_or(|o| o.iterations >= settings.newton_iterations);
+        let stale = problem.check_contraction(carried(&outcome));
         // a step on a reused factor whose line search stalled, or (one iteration per
         // step) whose contraction failed the refactor rule, is redone from the
         // predictor on a fresh factor: a factor gone that stale (a fast sag, a
@@ -266,7 +267,7 @@ impl ImplicitSolver {
             problem.restart();
             problem.cache.refactor = true;
             outcome = newton(sys, dofs, &mut problem)?;
-            problem.check_contraction(outcome.is_none_or(|o| o.iterations >= settings.newton_iterations));
+            problem.check_contraction(carried(&outcome));
         }
         if outcome.is_none() && problem.reused && settings.newton_iterations > 1 {
             problem.cache.refactor = true;
