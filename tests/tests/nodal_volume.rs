@@ -407,41 +407,68 @@ fn nodal_cost_ratio() {
     }
 }
 
-/// Where the nodal formulation's time goes (printed): the element part with the
-/// split law, and the nodal passes alone.
+/// Where the nodal formulation's time goes (printed, ns per tet, median of 15
+/// rounds taken round-robin so that every part sees the same load): the element
+/// field, its split law alone, the lumped-volume sweep, the sweep plus the nodal
+/// pass, the nodal term's own passes, the whole nodal field, and the same work as
+/// separate calls (pressures, then the split-law element pass).
 #[test]
 #[ignore = "timing, for the README"]
 fn nodal_cost_breakdown() {
-    use heml::force::{HemlField, Isochoric, NodalVolume};
+    use heml::force::nodal_volume::element_fraction;
+    use heml::force::{Dilation, HemlField, Isochoric, NodalVolume, NodalVolumeField};
     let mesh = heml::mesh::generate::box_of_about(100_000).unwrap();
     let x = heml_validation::fixtures::smooth_deformation(&mesh);
-    let law = heml::materials::NeoHookean {
-        mu: 1006.7,
-        lambda: 49329.0,
-    };
+    let (mu, lambda) = heml::params::lame(3e3, 0.49);
+    let law = heml::materials::NeoHookean { mu, lambda };
+    let c = 1.0 - element_fraction(&Dilation::new(law), heml::force::nodal_volume::DEFAULT_STABILIZATION);
     let opts = ForceOptions::default();
     let plain = HemlField::on_tets(law, &mesh, None, opts).unwrap();
-    let iso = HemlField::on_tets(Isochoric::new(law, 0.99), &mesh, None, opts).unwrap();
-    let nodal = NodalVolume::new(law, 0.99, &mesh, None, opts).unwrap();
-    let mut best = [f64::INFINITY; 3];
+    let iso = HemlField::on_tets(Isochoric::new(law, c), &mesh, None, opts).unwrap();
+    let nodal = NodalVolume::new(law, c, &mesh, None, opts).unwrap();
+    let field = NodalVolumeField::new(
+        HemlField::on_tets(Isochoric::new(law, c), &mesh, None, opts).unwrap(),
+        NodalVolume::new(law, c, &mesh, None, opts).unwrap(),
+    )
+    .unwrap();
     let mut f = vec![Vec3::zeros(); x.len()];
-    for _ in 0..40 {
-        let t = std::time::Instant::now();
-        plain.add_forces(&x, &mut f).unwrap();
-        best[0] = best[0].min(t.elapsed().as_secs_f64());
-        let t = std::time::Instant::now();
-        iso.add_forces(&x, &mut f).unwrap();
-        best[1] = best[1].min(t.elapsed().as_secs_f64());
-        let t = std::time::Instant::now();
-        nodal.add_forces(&x, &mut f, true).unwrap();
-        best[2] = best[2].min(t.elapsed().as_secs_f64());
+    let parts = [
+        "element field",
+        "split law (element part alone)",
+        "lumped sweep (nodal_j)",
+        "nodal term alone (sweep, nodal pass, pressure forces)",
+        "nodal field",
+        "sweep + split-law element pass, separately",
+    ];
+    let inner = 10;
+    let mut t = vec![Vec::new(); parts.len()];
+    for _ in 0..15 {
+        for (k, times) in t.iter_mut().enumerate() {
+            let s = std::time::Instant::now();
+            for _ in 0..inner {
+                match k {
+                    0 => std::hint::black_box(plain.add_forces(&x, &mut f).unwrap()),
+                    1 => std::hint::black_box(iso.add_forces(&x, &mut f).unwrap()),
+                    2 => std::hint::black_box(nodal.nodal_j(&x).unwrap()[0]),
+                    3 => std::hint::black_box(nodal.add_forces(&x, &mut f, true).unwrap()),
+                    4 => std::hint::black_box(field.add_forces(&x, &mut f).unwrap()),
+                    _ => {
+                        std::hint::black_box(nodal.nodal_j(&x).unwrap()[0]);
+                        std::hint::black_box(iso.add_forces(&x, &mut f).unwrap())
+                    }
+                };
+            }
+            times.push(s.elapsed().as_secs_f64() / (inner * mesh.n_tets()) as f64 * 1e9);
+        }
     }
-    eprintln!(
-        "neo_hookean: element {:.2} ms, isochoric element part {:.2} ms, nodal passes {:.2} ms",
-        best[0] * 1e3,
-        best[1] * 1e3,
-        best[2] * 1e3
-    );
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let m: Vec<f64> = t.iter_mut().map(median).collect();
+    for (name, v) in parts.iter().zip(&m) {
+        eprintln!("{name:<56} {v:7.2} ns/tet  {:.2}x element", v / m[0]);
+    }
 }
 
 /// Backward Euler on the nodal formulation (its tangent through the assembled matrix

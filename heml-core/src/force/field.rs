@@ -125,25 +125,35 @@ impl<K: Formulation> TetField<K> {
         self.layout.add_plain(&self.tets(), x, f)
     }
 
-    /// The field's forces plus the pressure forces −p̄_t ∇vol_t of the nodal
-    /// pressures `p` (per global node), added to `f` in one pass of the block driver
-    /// (see [`Pressured`]); returns the field's energy. The reference path runs the
-    /// field's plain kernel, then `pressure`, a batch kernel of the pressure forces
-    /// alone (given `p` the same way).
+    /// The field's forces plus the pressure forces −p̄_t ∇vol_t of nodal pressures,
+    /// added to `f`; returns the field's energy plus the nodal one. `nodal` turns the
+    /// lumped volumes at `x` (per global node, [`Layout::lumped_volumes`] over this
+    /// field's own layout: the nodal term covers the same tets in the same order)
+    /// into the pressures in place and returns the nodal energy. The batched paths
+    /// run the sweep and one pass of the block driver (see [`Pressured`]) on one
+    /// gather of the positions ([`Layout::add_batched_lumped`]); the reference path
+    /// runs the field's plain kernel, then `pressure`, a batch kernel of the
+    /// pressure forces alone (given the pressures the same way).
     pub(crate) fn add_forces_with_pressure<E: BatchKernel>(
         &self,
-        p: &[f64],
+        nodal: impl FnOnce(&mut [f64], bool) -> f64,
         pressure: &E,
         x: &[Vec3],
         f: &mut [Vec3],
     ) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
         match self.assembly {
             Assembly::Reference => {
-                Ok(self.add_forces_reference(x, f)? + self.layout.add_batched_w(pressure, false, x, p, f)?)
+                let mut p = vec![0.0; self.n_nodes];
+                self.layout.lumped_volumes(x, false, &mut p);
+                let e = nodal(&mut p, false);
+                Ok(e + self.add_forces_reference(x, f)? + self.layout.add_batched_w(pressure, false, x, &p, f)?)
             }
-            a => self
-                .layout
-                .add_batched_w(&Pressured(self.tets()), a == Assembly::Parallel, x, p, f),
+            a => {
+                let parallel = a == Assembly::Parallel;
+                self.layout
+                    .add_batched_lumped(&Pressured(self.tets()), parallel, x, |p| nodal(p, parallel), f)
+            }
         }
     }
 

@@ -37,9 +37,12 @@
 //! and merge as the block driver's, its AVX2 gather too: [`super::assembly`]), a
 //! parallel pass over the nodes for the pressures (four nodes per vector, the
 //! energy summed in fixed chunks), then one pass of the block driver for the
-//! element part with the pressure forces −p̄_t ∇vol_t riding on it: each node's
-//! pressure rides in the padding slot of the block's position buffer, so the
-//! position gather hands the kernel its corners' pressures too (no second gather),
+//! element part with the pressure forces −p̄_t ∇vol_t riding on it. The sweep runs
+//! on the element field's own layout (the same tets in the same order, so the same
+//! sums), whose block buffers then already hold the positions: the element pass
+//! only writes each node's pressure into the padding slot beside them, so the
+//! position gather hands the kernel its corners' pressures too (one gather of the
+//! positions for both passes, no second gather of the pressures),
 //! and p̄_t is added to the element kernel's ∂w/∂J lane (w_J ∇vol is the same
 //! vector), so one gather, one force loop and one scatter serve both. Each pass is
 //! deterministic, so the forces are the same bits for any number of threads. The
@@ -215,6 +218,14 @@ impl<M: InvariantLaw> NodalVolume<M> {
     /// The energy (1 − β) Σ V_a U(J_a) and the nodal pressures (1 − β) U′(J_a) at `x`.
     pub(crate) fn pressures(&self, x: &[Vec3], parallel: bool) -> (f64, Vec<f64>) {
         let mut p = self.lumped(x, parallel);
+        (self.nodal_pass(&mut p, parallel), p)
+    }
+
+    /// The nodal pass: turns the lumped volumes `p` (one per node) into the
+    /// pressures (1 − β) U′(J_a) in place and returns the energy (1 − β) Σ V_a U(J_a),
+    /// in chunks of [`NODE_CHUNK`] nodes on rayon when `parallel` (the same bits
+    /// either way).
+    pub(crate) fn nodal_pass(&self, p: &mut [f64], parallel: bool) -> f64 {
         let isa = Isa::current();
         let chunk = |(k, pc): (usize, &mut [f64])| -> f64 {
             let rest_v = &self.rest_v[k * NODE_CHUNK..][..pc.len()];
@@ -231,7 +242,7 @@ impl<M: InvariantLaw> NodalVolume<M> {
         } else {
             p.chunks_mut(NODE_CHUNK).enumerate().map(chunk).collect()
         };
-        (parts.iter().sum(), p)
+        parts.iter().sum()
     }
 
     /// [`Self::pressure_chunk`] compiled with AVX2 and FMA (4 nodes per register,
@@ -395,12 +406,13 @@ impl<M: InvariantLaw, K: Formulation> ElasticForces for NodalVolumeField<M, K> {
         let e = self.iso.energy(x)?;
         Ok(e + self.nodal.pressures(x, self.assembly == Assembly::Parallel).0)
     }
-    /// The lumped volumes and nodal pressures first, then the element part and the
-    /// pressure forces −p̄_t ∇vol_t in one pass of the block driver.
+    /// The lumped volumes (over the element field's layout, the same tets in the
+    /// same order) and nodal pressures first, then the element part and the
+    /// pressure forces −p̄_t ∇vol_t in one pass of the block driver, on the sweep's
+    /// gather of the positions.
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes(), x, Some(f))?;
-        let (e, p) = self.nodal.pressures(x, self.assembly == Assembly::Parallel);
-        Ok(e + self.iso.add_forces_with_pressure(&p, &PressureKernel, x, f)?)
+        self.iso
+            .add_forces_with_pressure(|p, parallel| self.nodal.nodal_pass(p, parallel), &PressureKernel, x, f)
     }
     /// J and the law's own energy density w = w_iso + U(J_t) of each tet (the element
     /// view; the nodal term redistributes the volumetric part among nodes).

@@ -60,6 +60,37 @@ pub(crate) struct Scratch {
     pub(super) lumped: Vec<f64>,
 }
 
+impl Scratch {
+    /// Sizes the buffers for `n_slots` local nodes in `n_blocks` blocks, and the
+    /// lumped accumulators when `lumped`, keeping those already of the right size
+    /// (so that a sweep's positions survive into the pass that follows it:
+    /// [`Layout::add_batched_lumped`]).
+    pub(super) fn ensure(&mut self, n_slots: usize, n_blocks: usize, lumped: bool) {
+        if self.x.len() != n_slots || self.f.len() != n_slots {
+            self.x = vec![Node4::default(); n_slots];
+            self.f = self.x.clone();
+        }
+        if self.energy.len() != n_blocks {
+            self.energy = vec![0.0; n_blocks];
+        }
+        if lumped && self.lumped.len() != n_slots {
+            self.lumped = vec![0.0; n_slots];
+        }
+    }
+}
+
+/// How a pass fills the blocks' local node buffers.
+#[derive(Clone, Copy)]
+enum Gather<'a> {
+    /// The positions.
+    Positions,
+    /// The positions, and one scalar per node in the padding slots.
+    WithW(&'a [f64]),
+    /// One scalar per node in the padding slots only: the positions are there
+    /// already (the lumped sweep of the same call put them there).
+    WOnly(&'a [f64]),
+}
+
 /// Nodes per parallel task of the merge.
 pub(super) const MERGE_CHUNK: usize = 2048;
 
@@ -70,7 +101,8 @@ impl Layout {
     /// bits either way.
     pub(crate) fn add_batched<K: BatchKernel>(&self, k: &K, parallel: bool, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes, x, Some(f))?;
-        Ok(self.evaluate(k, x, None, f, parallel))
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        Ok(self.evaluate(&mut guard, k, x, Gather::Positions, f, parallel))
     }
 
     /// As [`Self::add_batched`] for a kernel that reads one scalar per node (`w`, one
@@ -92,7 +124,30 @@ impl Layout {
                 self.n_nodes
             )));
         }
-        Ok(self.evaluate(k, x, Some(w), f, parallel))
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        Ok(self.evaluate(&mut guard, k, x, Gather::WithW(w), f, parallel))
+    }
+
+    /// The lumped volumes at `x` ([`Self::lumped_volumes`]), turned in place into one
+    /// scalar per node by `to_w` (which returns an energy), then the pass of `k`
+    /// with those scalars ([`Self::add_batched_w`]); returns both energies. One
+    /// gather of the positions serves both passes: the sweep leaves them in the
+    /// blocks' buffers and the pass only writes the scalars beside them, under one
+    /// lock of the scratch (so no other call can move them in between).
+    pub(crate) fn add_batched_lumped<K: BatchKernel>(
+        &self,
+        k: &K,
+        parallel: bool,
+        x: &[Vec3],
+        to_w: impl FnOnce(&mut [f64]) -> f64,
+        f: &mut [Vec3],
+    ) -> Result<f64> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let mut w = vec![0.0; self.n_nodes];
+        self.lumped_in(&mut guard, x, parallel, &mut w);
+        let e = to_w(&mut w);
+        Ok(e + self.evaluate(&mut guard, k, x, Gather::WOnly(&w), f, parallel))
     }
 
     /// Adds the forces of the plain kernel `k` to `f`, one tet at a time in field
@@ -111,16 +166,18 @@ impl Layout {
         Ok(energy)
     }
 
-    fn evaluate<K: BatchKernel>(&self, k: &K, x: &[Vec3], w: Option<&[f64]>, f: &mut [Vec3], parallel: bool) -> f64 {
+    fn evaluate<K: BatchKernel>(
+        &self,
+        s: &mut Scratch,
+        k: &K,
+        x: &[Vec3],
+        gather: Gather,
+        f: &mut [Vec3],
+        parallel: bool,
+    ) -> f64 {
         let isa = Isa::current();
         let blocks = self.blocks.list();
-        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let s = &mut *guard;
-        if s.f.len() != self.n_slots || s.energy.len() != blocks.len() {
-            s.x = vec![Node4::default(); self.n_slots];
-            s.f = s.x.clone();
-            s.energy = vec![0.0; blocks.len()];
-        }
+        s.ensure(self.n_slots, blocks.len(), false);
         // each block's own part of the flat buffers
         type Task<'a> = (usize, BlockBuffers<'a>, &'a mut f64);
         let mut tasks: Vec<Task> = Vec::with_capacity(blocks.len());
@@ -131,13 +188,18 @@ impl Layout {
         let n_tets = self.n_tets();
         let one = |(b, mut bufs, e): Task| {
             let blk = &blocks[b];
-            match w {
-                Some(w) => {
+            match gather {
+                Gather::WithW(w) => {
                     for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
                         *xi = Node4::with_w(&x[g as usize], w[g as usize]);
                     }
                 }
-                None => {
+                Gather::WOnly(w) => {
+                    for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
+                        xi.set_w(w[g as usize]);
+                    }
+                }
+                Gather::Positions => {
                     for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
                         *xi = Node4::from_vec(&x[g as usize]);
                     }

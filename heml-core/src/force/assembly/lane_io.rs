@@ -28,6 +28,10 @@ impl Node4 {
     pub(crate) fn with_w(v: &Vec3, w: f64) -> Node4 {
         Node4([v.x, v.y, v.z, w])
     }
+    /// Puts `w` in the padding slot, the position unchanged.
+    pub(crate) fn set_w(&mut self, w: f64) {
+        self.0[3] = w;
+    }
     /// The node without its padding.
     pub(crate) fn to_vec(self) -> Vec3 {
         Vec3::new(self.0[0], self.0[1], self.0[2])

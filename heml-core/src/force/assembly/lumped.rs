@@ -12,7 +12,7 @@
 // The lanes are indexed in lock-step on purpose (it is what vectorises).
 #![allow(clippy::needless_range_loop)]
 
-use super::driver::MERGE_CHUNK;
+use super::driver::{Scratch, MERGE_CHUNK};
 #[cfg(target_arch = "x86_64")]
 use super::lane_io::Avx2;
 use super::lane_io::{LaneIo, Node4, Portable};
@@ -27,15 +27,16 @@ impl Layout {
     /// no live tet touches); the blocks on rayon when `parallel`. `x` and `v` hold
     /// one entry per node of the layout (the callers check `x`; `v` is theirs).
     pub(crate) fn lumped_volumes(&self, x: &[Vec3], parallel: bool, v: &mut [f64]) {
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        self.lumped_in(&mut guard, x, parallel, v);
+    }
+
+    /// [`Self::lumped_volumes`] in the scratch `s` (locked by the caller), whose
+    /// blocks' position buffers keep `x` afterwards (with zero padding slots).
+    pub(super) fn lumped_in(&self, s: &mut Scratch, x: &[Vec3], parallel: bool, v: &mut [f64]) {
         debug_assert!(x.len() == self.n_nodes && v.len() == self.n_nodes);
         let blocks = self.blocks.list();
-        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let s = &mut *guard;
-        if s.x.len() != self.n_slots || s.lumped.len() != self.n_slots {
-            s.x = vec![Node4::default(); self.n_slots];
-            s.f = s.x.clone();
-            s.lumped = vec![0.0; self.n_slots];
-        }
+        s.ensure(self.n_slots, blocks.len(), true);
         // each block's own part of the slots (blocks lie one after the other): its
         // local positions (the driver's buffers) and one accumulator per node
         type Task<'a> = (usize, super::layout::BlockBuffers<'a>, &'a mut [f64]);
