@@ -25,8 +25,9 @@
 //! ([`super::fastmath::exp_fma`]) use fused multiply-adds (`f64::mul_add`: one
 //! instruction in the FMA-enabled block drivers the kernel is inlined into, and
 //! the same bits on every instruction set); measured ~10 % faster for HGO. The
-//! batch prefetches the rest data of the batch two ahead ([`prefetch_rest`]):
-//! HGO's kernel had stalled a fifth of its time on that first load.
+//! driver prefetches the rest data of the batch two ahead
+//! ([`super::assembly::prefetch`]): HGO's kernel had stalled a fifth of its time
+//! on that first load.
 
 // The kernels index fixed-size arrays in lock-step on purpose.
 #![allow(clippy::needless_range_loop)]
@@ -324,33 +325,6 @@ fn per_lane(
     }
 }
 
-/// How many batches ahead [`prefetch_rest`] asks for: the fibre batch (416
-/// bytes, 13 numbers per tet) takes about as long as a cache miss, so two batches
-/// give the lines time to arrive.
-const PREFETCH_AHEAD: usize = 2;
-
-/// Asks the cache for the rest batch [`PREFETCH_AHEAD`] batches after `r`: the
-/// driver runs a field's batches in order over one array, and the hardware
-/// prefetcher did not keep up with 13 numbers per tet (profile: a fifth of HGO's
-/// kernel time waited on the first load of a batch's rest data; measured 2.5× →
-/// 1.9× neo-Hookean's cost). A hint only: an address past the array's end is
-/// never read.
-#[inline(always)]
-fn prefetch_rest(r: &FibreBatch) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let next = (r as *const FibreBatch).wrapping_add(PREFETCH_AHEAD) as *const i8;
-        for line in 0..std::mem::size_of::<FibreBatch>().div_ceil(64) {
-            // SAFETY: a prefetch reads no memory the program can observe and never
-            // faults, whatever the address (`wrapping_add` forms it without UB)
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(next.wrapping_add(64 * line)) }
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = r;
-}
-
 /// The directions of the families of tet `t` (the first repeated for one family).
 fn tet_dirs(fibres: &Fibres, t: usize) -> [Vec3; 2] {
     [fibres.dir(t, 0), fibres.dir(t, 1)]
@@ -399,7 +373,6 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
     #[inline(always)]
     fn batch(&self, r: &FibreBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
         const L: usize = LANES;
-        prefetch_rest(r);
         // J first, as in the invariant kernel: the law's longest chain starts from it
         let (j, cr) = if M::USES_J {
             volume_lanes(p, &r.vol)

@@ -2,6 +2,7 @@
 //! layout with the formulation's rest data in batches, and the three evaluation
 //! paths ([`Assembly`]) written once for the HEML, link and P1 formulations.
 
+use super::assembly::prefetch::prefetch;
 use super::assembly::{BatchKernel, LaneForces, LanePoints, LaneScalars, Layout, PlainKernel, LANES};
 use super::kernel::TetKernel;
 use super::{Assembly, ElasticForces, ForceOptions};
@@ -41,6 +42,7 @@ struct Tets<'a, K: TetKernel> {
 impl<K: TetKernel> BatchKernel for Tets<'_, K> {
     #[inline(always)]
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
+        prefetch(self.rest, b);
         self.kernel.batch(&self.rest[b], p, f, e)
     }
 }
@@ -61,6 +63,7 @@ impl<K: TetKernel> BatchKernel for Pressured<'_, K> {
     #[inline(always)]
     fn batch_w(&self, b: usize, p: &LanePoints, w: &LaneScalars, f: &mut LaneForces, e: &mut [f64; LANES]) {
         let pbar = super::nodal_volume::mean_pressures(w);
+        prefetch(self.0.rest, b);
         self.0.kernel.batch_pressure(&self.0.rest[b], p, &pbar, f, e)
     }
 }

@@ -1,6 +1,7 @@
 //! Batched, parallel, deterministic assembly shared by the optimised paths of every
 //! force field (HEML, link and P1): the layout (`layout`), the instruction set and
-//! its proof (`simd`), the lane I/O (`lane_io`) and the block driver (`driver`).
+//! its proof (`simd`), the lane I/O (`lane_io`), the block driver (`driver`) and
+//! the rest data's cache hint (`prefetch`).
 //!
 //! # Layout
 //! A field's tets are put in Morton order of their centroids (see
@@ -45,6 +46,7 @@ pub(crate) mod driver;
 pub(crate) mod lane_io;
 pub(crate) mod layout;
 pub(crate) mod lumped;
+pub(crate) mod prefetch;
 pub(crate) mod simd;
 
 pub(crate) use driver::{BatchKernel, LaneForces, LanePoints, PlainKernel};
