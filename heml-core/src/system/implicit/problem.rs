@@ -182,7 +182,7 @@ impl ImplicitStep<'_> {
                 // both logarithms negative: m ≥ 1 more iterations
                 let more = ((goal / r).ln() / contraction.ln()).ceil();
                 let budget = self.cache.refactor_seconds / self.cache.chord_seconds + 1.0;
-                more <= budget && self.chord_iterations + (more as usize) <= MAX_CHORD_ITERATIONS
+                more <= budget && self.chord_iterations.saturating_add(more as usize) <= MAX_CHORD_ITERATIONS
             });
         if !keep {
             self.cache.refactor = true;
