@@ -340,18 +340,21 @@ pub fn run(
     );
     outln!(
         "implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]); linear solver: cg \
-         (preconditioner {preconditioner:?}) or cholesky (sparse LLᵀ reused while an iteration contracts the \
-         residual by 0.2 + 0.8 c_fresh, `fact.` = factorisations over the {IMPLICIT_STEPS} steps, fill = factor nonzeros); \
-         explicit: {EXPLICIT_STEPS} steps"
+         (preconditioner {preconditioner:?}) or cholesky (sparse LLᵀ kept while chord iterations on it reach \
+         0.2 + 0.8 c_fresh of the step's residual cheaper than a refactorisation; `Newton` counts them, \
+         `fact.` = factorisations over the {IMPLICIT_STEPS} steps, fill = factor nonzeros); explicit: \
+         {EXPLICIT_STEPS} steps; ratio = implicit ÷ explicit sim s per wall s by the median step (by the \
+         mean step)"
     );
     outln!();
     outln!(
-        "{:<30} {:>3} {:<11} {:<8} {:>24} {:>6} {:>22} {:>11} {:>30} {:>9} {:>26} {:>8}",
+        "{:<30} {:>3} {:<11} {:<8} {:>24} {:>6} {:>6} {:>22} {:>11} {:>30} {:>9} {:>26} {:>8}",
         "mesh (tets)",
         "thr",
         "settings",
         "solver",
         "ms/step",
+        "mean",
         "Newton",
         "CG it./step (residual)",
         "fact. (fill)",
@@ -389,8 +392,9 @@ pub fn run(
                 let phase = |f: fn(&PhaseTimes) -> f64| 1e3 * median(f);
                 let factorizations: usize = run.phases.iter().map(|p| p.factorizations).sum();
                 let rate = DT / m;
+                let mean = run.times.iter().sum::<f64>() / run.times.len() as f64;
                 outln!(
-                    "{:<30} {:>3} {:<11} {:<8} {:>7.2} [{:>6.2}–{:>6.2}] {:>6.1} {:>4} [{}–{}] ({:.0e}) {:>11} {:>5.1}/{:>5.1}/{:>4.1}/{:>5.1}/{:>5.1} {:>9.3} {:>6}: {:.2e} s, {:.3} [{:.3}–{:.3}], {:.4} {:>7.2}×",
+                    "{:<30} {:>3} {:<11} {:<8} {:>7.2} [{:>6.2}–{:>6.2}] {:>6.2} {:>6.1} {:>4} [{}–{}] ({:.0e}) {:>11} {:>5.1}/{:>5.1}/{:>4.1}/{:>5.1}/{:>5.1} {:>9.3} {:>6}: {:.2e} s, {:.3} [{:.3}–{:.3}], {:.4} {:>7.2}× ({:.2}×)",
                     label,
                     n,
                     sname,
@@ -398,6 +402,7 @@ pub fn run(
                     m * 1e3,
                     lo * 1e3,
                     hi * 1e3,
+                    mean * 1e3,
                     run.newtons.iter().sum::<f64>() / run.newtons.len() as f64,
                     cg,
                     cg_lo,
@@ -420,7 +425,8 @@ pub fn run(
                     emin * 1e3,
                     emax * 1e3,
                     explicit_rate,
-                    rate / explicit_rate
+                    rate / explicit_rate,
+                    DT / mean / explicit_rate
                 );
             }
         }

@@ -24,15 +24,23 @@
 //! [`LinearSolver::Cholesky`] replaces CG by a sparse Cholesky factor of the same
 //! matrix (`cholesky.rs`, faer; symbolic analysis once per pattern, fill capped by
 //! [`ImplicitSettings::max_factor_nonzeros`]) that the same Newton loop reuses across
-//! iterations and steps (chord Newton): an iteration on a reused factor skips the
-//! tangent update and the assembly; the factor is refreshed when an iteration on
-//! it contracts the residual much less than one on a fresh factor did
-//! ([`ImplicitSettings::refactor_contraction`]), when a step runs out of
-//! iterations on it, and after a change of the matrix, tool contacts made or
-//! released included (not after a grasp or tool moved without changing the
-//! contacts, or a load changed). A residual at round-off (a body at rest) is
-//! converged: such a step takes no linear solve.
+//! iterations and steps (chord Newton): an iteration on a kept factor skips the
+//! tangent update, the assembly and the factorisation, and is Anderson-mixed with
+//! the step's earlier iterates on that factor (`anderson.rs`: a multisecant
+//! quasi-Newton step on the same equations, recovering the modes the stale factor
+//! misses). Such chord iterations go on until the residual reaches what one
+//! fresh Newton iteration would leave (loosened by
+//! [`ImplicitSettings::refactor_contraction`]; the Newton tolerance when a step
+//! allows more than one); the factor is refreshed within the
+//! step when their observed contraction (0.9 or worse, or a predicted count of
+//! iterations to that goal costing more than a refactorisation, both timed at run
+//! time) says a refactorisation is cheaper, when a line search on it stalls, and
+//! after a change of the matrix, tool contacts made or released included (not
+//! after a grasp or tool moved without changing the contacts, or a load changed).
+//! A residual at round-off (a body at rest) is converged: such a step takes no
+//! linear solve.
 
+mod anderson;
 pub mod cg;
 mod cholesky;
 pub(super) mod linear;

@@ -15,6 +15,7 @@
 //! potentials + ½ c_a |d − â/c_a|²_M + α/(2 c_v)·|v⁺|²_M, whose gradient is −r with
 //! mass damping (with stiffness damping, a decreasing residual norm is accepted too).
 
+use super::anderson::Anderson;
 use super::linear::{SolveCache, TangentSolve};
 use super::settings::{CgFailure, ImplicitSettings, LinearSolver};
 use crate::error::{HemlError, Result};
@@ -24,14 +25,21 @@ use crate::system::statics::newton::NewtonProblem;
 use crate::system::System;
 use crate::Vec3;
 
-/// θ of the refactor rule for a chord iteration whose leftover imbalance is carried
-/// into the next step (the last of a step ending at the iteration cap: with one
-/// iteration per step, every one). Measured on the benchmark's long run on
-/// gen_kidney_20k (`heml bench --implicit`, one iteration per step): with 0.5 chord
-/// steps contracting by 0.3–0.5 (a fresh factor reached 0.06) piled up their
-/// leftovers in the grasp phase until the motion diverged; with 0.2 the run
-/// follows the CG run through all 200 steps.
-pub(super) const CARRIED_CONTRACTION: f64 = 0.2;
+/// A chord iteration (on a kept factor) contracting the residual by this factor or
+/// worse refactors whatever the cost prediction says: the factor has lost the
+/// matrix (a contact or a fast motion), and the prediction of a slow geometric
+/// contraction is not worth trusting.
+pub(super) const MAX_CHORD_CONTRACTION: f64 = 0.9;
+
+/// Chord iterations a step may add beyond its Newton iterations at most (the cost
+/// rule normally stops far earlier: it allows about as many as one
+/// refactorisation costs, measured ~15–20 on the benchmark's meshes).
+pub(super) const MAX_CHORD_ITERATIONS: usize = 50;
+
+/// Weight of the newest measurement in the running estimates of the time of a
+/// chord iteration and of a refactorisation (exponential smoothing: one slow
+/// iteration on a loaded machine shifts the budget by a third of its excess).
+const TIME_SMOOTHING: f64 = 1.0 / 3.0;
 
 /// How the Newton iterations of a step ended.
 #[derive(Debug, Clone, Copy)]
@@ -70,11 +78,20 @@ pub(super) struct ImplicitStep<'a> {
     pub cg_iterations: usize,
     /// Messages of linear solves that missed their tolerance.
     pub warnings: Vec<String>,
-    /// Cholesky: the residual norm before the last linear solve and whether that
-    /// solve reused a factor (a chord iteration), to measure its contraction.
-    pub last_solve: Option<(f64, bool)>,
+    /// Cholesky: the residual norm before the last linear solve, whether that
+    /// solve reused a factor (a chord iteration) and when it started, to measure
+    /// its contraction and its cost.
+    pub last_solve: Option<(f64, bool, std::time::Instant)>,
     /// Cholesky: whether a solve of this step reused a factor.
     pub reused: bool,
+    /// Iterations of this step on a fresh factor (every iteration with CG): the
+    /// step's Newton iterations proper, capped by `newton_iterations`.
+    pub fresh_iterations: usize,
+    /// Iterations of this step on a kept factor (chord iterations).
+    pub chord_iterations: usize,
+    /// The step's iterates on the current factor, for the Anderson mixing of the
+    /// chord iterations.
+    pub anderson: Anderson,
 }
 
 impl ImplicitStep<'_> {
@@ -107,39 +124,70 @@ impl ImplicitStep<'_> {
             .collect()
     }
 
+    /// The residual norm a step's iterations on a kept factor must reach (0 with
+    /// CG, whose every iteration is a Newton iteration). With one Newton iteration
+    /// per step: what it would leave, |r0|·(θ + (1 − θ)·c_fresh) with θ =
+    /// [`ImplicitSettings::refactor_contraction`] and c_fresh the contraction of
+    /// the last iteration on a fresh factor. With more, the Newton tolerance: a
+    /// power of that per-iteration contraction would not be what Newton's
+    /// quadratic convergence reaches (0.96³⁰ ≈ 0.3 of |r0| in a contact phase,
+    /// where the converged steps must reach 1e-9). Never below the tolerance.
+    fn chord_goal(&self) -> f64 {
+        if self.settings.linear_solver != LinearSolver::Cholesky {
+            return 0.0;
+        }
+        let Some(r0) = self.r0 else { return 0.0 };
+        let tolerance = self.tolerance();
+        if self.settings.newton_iterations > 1 {
+            return tolerance;
+        }
+        let theta = self.settings.refactor_contraction;
+        (r0 * (theta + (1.0 - theta) * self.cache.fresh_contraction)).max(tolerance)
+    }
+
+    /// The Newton tolerance of the step: `newton_tolerance`·max(|r0|, |loads|), at
+    /// least the residual's round-off (a body at rest has nothing left to solve).
+    fn tolerance(&self) -> f64 {
+        let r0 = self.r0.unwrap_or_else(|| norm(&self.r));
+        (self.settings.newton_tolerance * r0.max(self.load_norm)).max(self.cache.roundoff)
+    }
+
     /// Records the contraction c = |r after| / |r before| of the last linear solve
-    /// and, with the Cholesky factor, judges the factor by it: an iteration on a
-    /// fresh factor sets the reference c_fresh (what the nonlinearity leaves), an
-    /// iteration on a reused factor with c > θ + (1 − θ)·c_fresh, θ =
-    /// [`ImplicitSettings::refactor_contraction`], makes the next solve refactor.
-    /// The staleness is so measured against what a fresh factor achieved: with an
-    /// exact fresh step (c_fresh = 0) the bound is θ; where even a fresh factor
-    /// contracts little (a strongly nonlinear phase, with one iteration per step)
-    /// the bound rises towards 1, as refactoring would buy little there.
-    /// `carried`: the iteration was the step's last and the step ends at the
-    /// iteration cap, so its leftover imbalance is carried into the next step; θ
-    /// is then at most [`CARRIED_CONTRACTION`].
+    /// and, with the Cholesky factor, decides whether the next iteration keeps the
+    /// factor (the cost rule of [`ImplicitSettings::refactor_contraction`]). An
+    /// iteration on a fresh factor sets the reference c_fresh (what the
+    /// nonlinearity leaves). After an iteration on a kept factor (a chord
+    /// iteration) the step goes on with the factor when the residual reached the
+    /// step's goal ([`Self::chord_goal`]), or when its contraction c < 0.9
+    /// ([`MAX_CHORD_CONTRACTION`]) predicts reaching the goal in m = ⌈ln(goal/|r|)
+    /// / ln c⌉ more chord iterations costing at most a refactorisation and the
+    /// fresh iteration after it: m·t_chord ≤ t_refactor + t_chord, the times
+    /// measured at run time (smoothed). Otherwise the next solve refactors.
     /// Returns whether it asked for a refactorisation.
-    pub fn check_contraction(&mut self, carried: bool) -> bool {
-        let Some((before, reused)) = self.last_solve.take() else {
+    pub fn check_contraction(&mut self) -> bool {
+        let Some((before, reused, started)) = self.last_solve.take() else {
             return false;
         };
-        let contraction = if before > 0.0 { norm(&self.r) / before } else { 0.0 };
+        let r = norm(&self.r);
+        let contraction = if before > 0.0 { r / before } else { 0.0 };
         self.cache.times.contraction = contraction;
         if !reused {
             self.cache.fresh_contraction = contraction.min(1.0);
-        } else {
-            let theta = if carried {
-                self.settings.refactor_contraction.min(CARRIED_CONTRACTION)
-            } else {
-                self.settings.refactor_contraction
-            };
-            if contraction > theta + (1.0 - theta) * self.cache.fresh_contraction {
-                self.cache.refactor = true;
-                return true;
-            }
+            return false;
         }
-        false
+        self.cache.chord_seconds = smoothed(self.cache.chord_seconds, started.elapsed().as_secs_f64());
+        let goal = self.chord_goal();
+        let keep = r <= goal
+            || (contraction < MAX_CHORD_CONTRACTION && {
+                // both logarithms negative: m ≥ 1 more iterations
+                let more = ((goal / r).ln() / contraction.ln()).ceil();
+                let budget = self.cache.refactor_seconds / self.cache.chord_seconds + 1.0;
+                more <= budget && self.chord_iterations.saturating_add(more as usize) <= MAX_CHORD_ITERATIONS
+            });
+        if !keep {
+            self.cache.refactor = true;
+        }
+        !keep
     }
 
     /// Forgets the step's Newton history (the start residual, the last solve, the
@@ -149,6 +197,9 @@ impl ImplicitStep<'_> {
         self.last_solve = None;
         self.reused = false;
         self.first_dx = None;
+        self.fresh_iterations = 0;
+        self.chord_iterations = 0;
+        self.anderson.clear();
     }
 
     /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.
@@ -157,6 +208,16 @@ impl ImplicitStep<'_> {
             self.ca + sys.model.damping.alpha * self.cv,
             1.0 + sys.model.damping.beta * self.cv,
         )
+    }
+}
+
+/// The running estimate `old` updated with the measurement `new` (`new` itself for
+/// the first one).
+pub(super) fn smoothed(old: f64, new: f64) -> f64 {
+    if old > 0.0 {
+        old + TIME_SMOOTHING * (new - old)
+    } else {
+        new
     }
 }
 
@@ -180,15 +241,20 @@ impl NewtonProblem for ImplicitStep<'_> {
 
     fn converged(&self, _: &System, it: usize, _: f64) -> Option<NewtonOutcome> {
         let r = norm(&self.r);
-        let r0 = self.r0.unwrap_or(r);
-        // at round-off (a body at rest) there is nothing left to solve
-        let tolerance = (self.settings.newton_tolerance * r0.max(self.load_norm)).max(self.cache.roundoff);
-        let done = r <= tolerance || it >= self.settings.newton_iterations;
+        // chord iterations end the step at the residual its Newton iterations would
+        // leave; Newton iterations proper (on a fresh factor, or CG) at their cap
+        let done = r <= self.tolerance()
+            || (self.chord_iterations > 0 && r <= self.chord_goal())
+            || self.fresh_iterations >= self.settings.newton_iterations
+            || it >= self.max_iterations();
         done.then_some(NewtonOutcome { iterations: it })
     }
 
     fn max_iterations(&self) -> usize {
-        self.settings.newton_iterations
+        match self.settings.linear_solver {
+            LinearSolver::Cg => self.settings.newton_iterations,
+            LinearSolver::Cholesky => self.settings.newton_iterations + MAX_CHORD_ITERATIONS,
+        }
     }
 
     fn solve_linear(&mut self, sys: &System, dofs: &DofMap, rhs: &mut [f64]) -> Result<bool> {
@@ -196,7 +262,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         if first {
             self.r0 = Some(norm(&self.r));
         }
-        self.check_contraction(false);
+        self.check_contraction();
         let (cm, ck) = self.coefficients(sys);
         let s = self.settings;
         let solve = TangentSolve {
@@ -212,11 +278,26 @@ impl NewtonProblem for ImplicitStep<'_> {
         };
         let guess = self.guess.take().filter(|g| first && g.len() == rhs.len());
         let factorizations = self.cache.factorizations;
+        let started = std::time::Instant::now();
+        let direct = s.linear_solver == LinearSolver::Cholesky;
+        let residual = direct.then(|| rhs.to_vec());
         let report = solve.solve(sys, self.tangents, self.cache, dofs, rhs, guess.as_deref())?;
-        let reused = s.linear_solver == LinearSolver::Cholesky && self.cache.factorizations == factorizations;
+        let reused = direct && self.cache.factorizations == factorizations;
+        if let Some(r) = residual {
+            // chord iterations mixed with the step's earlier iterates on this factor
+            if !reused {
+                self.anderson.clear();
+            }
+            self.anderson.mix(dofs.gather(&sys.state.x), rhs, &r);
+        }
         self.cache.refactor = false;
         self.reused |= reused;
-        self.last_solve = Some((norm(&self.r), reused));
+        if reused {
+            self.chord_iterations += 1;
+        } else {
+            self.fresh_iterations += 1;
+        }
+        self.last_solve = Some((norm(&self.r), reused, started));
         if first {
             self.first_dx = Some(rhs.to_vec());
         }

@@ -2,7 +2,7 @@
 //! operators, numbering of the unknowns, Newmark's acceleration) and its step.
 
 use super::linear::SolveCache;
-use super::problem::{ImplicitStep, NewtonOutcome};
+use super::problem::ImplicitStep;
 use super::settings::{ImplicitScheme, ImplicitSettings};
 use super::timings::PhaseTimes;
 use crate::error::{HemlError, Result};
@@ -245,19 +245,19 @@ impl ImplicitSolver {
             warnings: Vec::new(),
             last_solve: None,
             reused: false,
+            fresh_iterations: 0,
+            chord_iterations: 0,
+            anderson: Default::default(),
         };
         let mut outcome = newton(sys, dofs, &mut problem)?;
-        // chord Newton: the last iteration's contraction, and a step that ran out of
-        // iterations on a reused factor (more than one allowed), refactor next time
-        // the step's last iteration carries its leftover when the step ran out of iterations
-        let carried = |o: &Option<NewtonOutcome>| o.is_none_or(|o| o.iterations >= settings.newton_iterations);
-        let stale = problem.check_contraction(carried(&outcome));
-        // a step on a reused factor whose line search stalled, or (one iteration per
-        // step) whose contraction failed the refactor rule, is redone from the
+        // the last iteration's contraction (and cost): a step that ended on a kept
+        // factor short of its goal (at the iteration cap) refactors next time
+        problem.check_contraction();
+        // a step on a kept factor whose line search stalled is redone from the
         // predictor on a fresh factor: a factor gone that stale (a fast sag, a
         // contact) must not decide the step — left to the next one, the imbalance
-        // piles up and on gen_kidney_20k's sag the motion diverged within 22 steps
-        if problem.reused && (outcome.is_none() || (stale && settings.newton_iterations == 1)) {
+        // piles up (on gen_kidney_20k's sag the motion diverged within 22 steps)
+        if problem.reused && outcome.is_none() {
             for i in 0..n {
                 if sys.model.inv_mass[i] > 0.0 {
                     sys.state.x[i] = x0[i] + v0[i] * h + a0[i] * (2.0 / ca);
@@ -267,10 +267,7 @@ impl ImplicitSolver {
             problem.restart();
             problem.cache.refactor = true;
             outcome = newton(sys, dofs, &mut problem)?;
-            problem.check_contraction(carried(&outcome));
-        }
-        if outcome.is_none() && problem.reused && settings.newton_iterations > 1 {
-            problem.cache.refactor = true;
+            problem.check_contraction();
         }
         problem.set_velocities(sys);
         let mut warnings = std::mem::take(&mut problem.warnings);

@@ -1,0 +1,125 @@
+//! Anderson acceleration of the chord iterations on a kept Cholesky factor.
+//!
+//! A chord iteration is the fixed-point iteration x ← x + g(x), g = P⁻¹ r(x) with P
+//! the kept (stale) factor: it contracts the residual only as well as P still
+//! approximates the tangent, and on the ν = 0.49 liver's sag it was measured to
+//! stall (contractions 0.67, 0.69, 0.78, 0.98 in a row) on the few modes the stale
+//! factor misses. Anderson mixing (type II, Walker & Ni 2011) takes instead the
+//! combination of the step's last iterates whose corrections g cancel best in the
+//! least-squares sense: x_{k+1} = x_k + g_k − (ΔX + ΔG) γ, γ = argmin |g_k − ΔG γ|,
+//! with ΔX, ΔG the differences of the current iterate and correction to the
+//! earlier ones. It is a multisecant quasi-Newton method on the same equations
+//! r(x) = 0 (its fixed point is the chord iteration's: the exact step), costs a few
+//! vector operations per iteration (no tangent), and recovers the missed modes from
+//! the residuals already evaluated. The history is the step's iterations on one
+//! factor; a correction that is not a descent direction of the line search's merit
+//! (gᵀ r ≤ 0) falls back to the plain chord correction.
+
+use nalgebra::{DMatrix, DVector};
+
+/// Earlier iterates kept for the mixing (5: the least-squares problem stays
+/// well-conditioned and the chord iterations of a step are rarely more).
+const MEMORY: usize = 5;
+
+/// The iterates and corrections of the current step on the current factor.
+#[derive(Debug, Default)]
+pub(super) struct Anderson {
+    /// (x_i, g_i) by degree of freedom, oldest first.
+    history: Vec<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Anderson {
+    /// Forgets the history (a new step, or a new factor: g is then another map).
+    pub fn clear(&mut self) {
+        self.history.clear();
+    }
+
+    /// Records iterate `x` and its correction `g` = P⁻¹ r(x), and replaces `g` by
+    /// the mixed correction when the history allows one that is a descent
+    /// direction (dot with the residual `r` positive) and finite.
+    pub fn mix(&mut self, x: Vec<f64>, g: &mut [f64], r: &[f64]) {
+        let raw = g.to_vec();
+        if !self.history.is_empty() {
+            if let Some(dx) = self.mixed(&x, &raw) {
+                let descent: f64 = dx.iter().zip(r).map(|(a, b)| a * b).sum();
+                if descent > 0.0 && dx.iter().all(|v| v.is_finite()) {
+                    g.copy_from_slice(&dx);
+                }
+            }
+        }
+        if self.history.len() == MEMORY {
+            self.history.remove(0);
+        }
+        self.history.push((x, raw));
+    }
+
+    /// g − (ΔX + ΔG) γ with γ the least-squares solution of ΔG γ ≈ g (normal
+    /// equations, regularised by 10⁻¹⁰ of their largest diagonal entry); `None`
+    /// when they cannot be solved.
+    fn mixed(&self, x: &[f64], g: &[f64]) -> Option<Vec<f64>> {
+        let m = self.history.len();
+        let dg: Vec<Vec<f64>> = self
+            .history
+            .iter()
+            .map(|(_, gi)| g.iter().zip(gi).map(|(a, b)| a - b).collect())
+            .collect();
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+        let mut gram = DMatrix::from_fn(m, m, |i, j| dot(&dg[i], &dg[j]));
+        let scale = (0..m).map(|i| gram[(i, i)]).fold(0.0, f64::max);
+        if !(scale > 0.0 && scale.is_finite()) {
+            return None;
+        }
+        for i in 0..m {
+            gram[(i, i)] += 1e-10 * scale;
+        }
+        let rhs = DVector::from_fn(m, |i, _| dot(&dg[i], g));
+        let gamma = gram.cholesky()?.solve(&rhs);
+        let mut out = g.to_vec();
+        for (k, (xi, _)) in self.history.iter().enumerate() {
+            let c = gamma[k];
+            for (o, ((xa, xb), d)) in out.iter_mut().zip(x.iter().zip(xi).zip(&dg[k])) {
+                *o -= c * ((xa - xb) + d);
+            }
+        }
+        Some(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// On a linear fixed-point map g(x) = P⁻¹(b − A x) with a poor P (a diagonal
+    /// that misses the coupling), Anderson mixing with enough memory solves the
+    /// 3-unknown system in at most 4 iterations (GMRES-equivalence for linear
+    /// problems: the exact solution is in the span after n + 1 iterates), where
+    /// the plain iteration still errs by ~0.5 %.
+    #[test]
+    fn anderson_solves_a_linear_fixed_point_problem_where_richardson_crawls() {
+        let a = [[4.0, 1.5, 0.0], [1.5, 3.0, 1.2], [0.0, 1.2, 2.0]];
+        let b = [1.0, 2.0, 3.0];
+        let p = [4.0, 3.0, 2.0];
+        let residual = |x: &[f64]| -> Vec<f64> {
+            (0..3)
+                .map(|i| b[i] - (0..3).map(|j| a[i][j] * x[j]).sum::<f64>())
+                .collect()
+        };
+        let correction = |r: &[f64]| -> Vec<f64> { (0..3).map(|i| r[i] / p[i]).collect() };
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let r0 = norm(&b);
+        let (mut plain, mut mixed) = (vec![0.0; 3], vec![0.0; 3]);
+        let mut anderson = Anderson::default();
+        for _ in 0..5 {
+            let g = correction(&residual(&plain));
+            plain.iter_mut().zip(&g).for_each(|(x, d)| *x += d);
+            let r = residual(&mixed);
+            let mut g = correction(&r);
+            anderson.mix(mixed.clone(), &mut g, &r);
+            mixed.iter_mut().zip(&g).for_each(|(x, d)| *x += d);
+        }
+        let (e_plain, e_mixed) = (norm(&residual(&plain)) / r0, norm(&residual(&mixed)) / r0);
+        // exact up to the normal equations' round-off (condition ~1e8 at worst: 1e-8)
+        assert!(e_mixed < 1e-8, "anderson: relative residual {e_mixed:e}");
+        assert!(e_plain > 1e-3, "the plain iteration should still crawl: {e_plain:e}");
+    }
+}
