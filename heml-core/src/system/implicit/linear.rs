@@ -122,13 +122,6 @@ pub(in crate::system) struct SolveCache {
     /// Cholesky: the residual contraction of the last iteration on a fresh factor
     /// (the reference the iterations on a kept one are held to).
     pub fresh_contraction: f64,
-    /// Cholesky: the running estimate of the wall time of a refactorisation (the
-    /// tangent update, the assembly and the numeric factorisation; not the
-    /// symbolic analysis, done once), seconds.
-    pub refactor_seconds: f64,
-    /// Cholesky: the running estimate of the wall time of a chord iteration (the
-    /// triangular solves and the line search's evaluations), seconds.
-    pub chord_seconds: f64,
     /// Phase times accumulated since the owner last reset them.
     pub times: PhaseTimes,
     /// The residual's round-off scale at the last assembly ([`roundoff_floor`]; 0
@@ -310,7 +303,6 @@ impl TangentSolve {
             .as_ref()
             .is_some_and(|(c, k)| c.is_factored() && k.as_ref().is_some_and(|k| k.serves(&key)));
         if !(self.reuse_factor && fresh) {
-            let started = Instant::now();
             self.assemble(sys, tangents, cache, dofs)?;
             let t0 = Instant::now();
             let matrix = cache.matrix.as_ref().expect("assembled");
@@ -318,15 +310,12 @@ impl TangentSolve {
                 Some(d) => d,
                 None => (Cholesky::new(matrix, dofs, self.max_factor_nonzeros)?, None),
             };
-            let t1 = Instant::now();
             let (direct, made_for) = cache.direct.insert((direct, made_for));
             *made_for = None;
             direct.factor(matrix)?;
             *made_for = Some(key);
             cache.factorizations += 1;
             cache.times.factor += t0.elapsed().as_secs_f64();
-            let refactor = (t0 - started) + t1.elapsed();
-            cache.refactor_seconds = super::problem::smoothed(cache.refactor_seconds, refactor.as_secs_f64());
         }
         let t0 = Instant::now();
         let (direct, _) = cache.direct.as_mut().expect("factored");

@@ -33,8 +33,8 @@
 //! [`ImplicitSettings::refactor_contraction`]; the Newton tolerance when a step
 //! allows more than one); the factor is refreshed within the
 //! step when their observed contraction (0.9 or worse, or a predicted count of
-//! iterations to that goal costing more than a refactorisation, both timed at run
-//! time) says a refactorisation is cheaper, when a line search on it stalls, and
+//! iterations to that goal costing more than a refactorisation, a fixed ratio so
+//! that runs replay) says a refactorisation is cheaper, when a line search on it stalls, and
 //! after a change of the matrix, tool contacts made or released included (not
 //! after a grasp or tool moved without changing the contacts, or a load changed).
 //! A residual at round-off (a body at rest) is converged: such a step takes no

@@ -32,14 +32,17 @@ use crate::Vec3;
 pub(super) const MAX_CHORD_CONTRACTION: f64 = 0.9;
 
 /// Chord iterations a step may add beyond its Newton iterations at most (the cost
-/// rule normally stops far earlier: it allows about as many as one
-/// refactorisation costs, measured ~15–20 on the benchmark's meshes).
+/// rule normally stops far earlier, at [`REFACTOR_COST_IN_CHORDS`]).
 pub(super) const MAX_CHORD_ITERATIONS: usize = 50;
 
-/// Weight of the newest measurement in the running estimates of the time of a
-/// chord iteration and of a refactorisation (exponential smoothing: one slow
-/// iteration on a loaded machine shifts the budget by a third of its excess).
-const TIME_SMOOTHING: f64 = 1.0 / 3.0;
+/// What a refactorisation (tangent update, assembly, numeric factorisation) costs,
+/// in chord iterations (forces, line search, two triangular solves, the Anderson
+/// mixing): measured ~25 on the liver (1.7 ms against 0.07 ms) and ~15 on
+/// gen_kidney_20k (`heml bench --implicit`, session 12). A constant rather than
+/// times measured during the run, so that which steps refactor — and so the
+/// trajectory, at the level of a step's chord goal — is the same on every run and
+/// machine: a scene replays to the same bits.
+pub(super) const REFACTOR_COST_IN_CHORDS: f64 = 20.0;
 
 /// How the Newton iterations of a step ended.
 #[derive(Debug, Clone, Copy)]
@@ -78,10 +81,9 @@ pub(super) struct ImplicitStep<'a> {
     pub cg_iterations: usize,
     /// Messages of linear solves that missed their tolerance.
     pub warnings: Vec<String>,
-    /// Cholesky: the residual norm before the last linear solve, whether that
-    /// solve reused a factor (a chord iteration) and when it started, to measure
-    /// its contraction and its cost.
-    pub last_solve: Option<(f64, bool, std::time::Instant)>,
+    /// Cholesky: the residual norm before the last linear solve and whether that
+    /// solve reused a factor (a chord iteration), to measure its contraction.
+    pub last_solve: Option<(f64, bool)>,
     /// Cholesky: whether a solve of this step reused a factor.
     pub reused: bool,
     /// Iterations of this step on a fresh factor (every iteration with CG): the
@@ -161,11 +163,11 @@ impl ImplicitStep<'_> {
     /// step's goal ([`Self::chord_goal`]), or when its contraction c < 0.9
     /// ([`MAX_CHORD_CONTRACTION`]) predicts reaching the goal in m = ⌈ln(goal/|r|)
     /// / ln c⌉ more chord iterations costing at most a refactorisation and the
-    /// fresh iteration after it: m·t_chord ≤ t_refactor + t_chord, the times
-    /// measured at run time (smoothed). Otherwise the next solve refactors.
+    /// fresh iteration after it: m ≤ [`REFACTOR_COST_IN_CHORDS`] + 1 (a fixed
+    /// cost ratio, so that runs replay). Otherwise the next solve refactors.
     /// Returns whether it asked for a refactorisation.
     pub fn check_contraction(&mut self) -> bool {
-        let Some((before, reused, started)) = self.last_solve.take() else {
+        let Some((before, reused)) = self.last_solve.take() else {
             return false;
         };
         let r = norm(&self.r);
@@ -175,14 +177,13 @@ impl ImplicitStep<'_> {
             self.cache.fresh_contraction = contraction.min(1.0);
             return false;
         }
-        self.cache.chord_seconds = smoothed(self.cache.chord_seconds, started.elapsed().as_secs_f64());
         let goal = self.chord_goal();
         let keep = r <= goal
             || (contraction < MAX_CHORD_CONTRACTION && {
                 // both logarithms negative: m ≥ 1 more iterations
                 let more = ((goal / r).ln() / contraction.ln()).ceil();
-                let budget = self.cache.refactor_seconds / self.cache.chord_seconds + 1.0;
-                more <= budget && self.chord_iterations.saturating_add(more as usize) <= MAX_CHORD_ITERATIONS
+                more <= REFACTOR_COST_IN_CHORDS + 1.0
+                    && self.chord_iterations.saturating_add(more as usize) <= MAX_CHORD_ITERATIONS
             });
         if !keep {
             self.cache.refactor = true;
@@ -208,16 +209,6 @@ impl ImplicitStep<'_> {
             self.ca + sys.model.damping.alpha * self.cv,
             1.0 + sys.model.damping.beta * self.cv,
         )
-    }
-}
-
-/// The running estimate `old` updated with the measurement `new` (`new` itself for
-/// the first one).
-pub(super) fn smoothed(old: f64, new: f64) -> f64 {
-    if old > 0.0 {
-        old + TIME_SMOOTHING * (new - old)
-    } else {
-        new
     }
 }
 
@@ -278,7 +269,6 @@ impl NewtonProblem for ImplicitStep<'_> {
         };
         let guess = self.guess.take().filter(|g| first && g.len() == rhs.len());
         let factorizations = self.cache.factorizations;
-        let started = std::time::Instant::now();
         let direct = s.linear_solver == LinearSolver::Cholesky;
         let residual = direct.then(|| rhs.to_vec());
         let report = solve.solve(sys, self.tangents, self.cache, dofs, rhs, guess.as_deref())?;
@@ -297,7 +287,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         } else {
             self.fresh_iterations += 1;
         }
-        self.last_solve = Some((norm(&self.r), reused, started));
+        self.last_solve = Some((norm(&self.r), reused));
         if first {
             self.first_dx = Some(rhs.to_vec());
         }
