@@ -165,17 +165,16 @@ impl ImplicitStep<'_> {
     /// / ln c⌉ more chord iterations costing at most a refactorisation and the
     /// fresh iteration after it: m ≤ [`REFACTOR_COST_IN_CHORDS`] + 1 (a fixed
     /// cost ratio, so that runs replay). Otherwise the next solve refactors.
-    /// Returns whether it asked for a refactorisation.
-    pub fn check_contraction(&mut self) -> bool {
+    pub fn check_contraction(&mut self) {
         let Some((before, reused)) = self.last_solve.take() else {
-            return false;
+            return;
         };
         let r = norm(&self.r);
         let contraction = if before > 0.0 { r / before } else { 0.0 };
         self.cache.times.contraction = contraction;
         if !reused {
             self.cache.fresh_contraction = contraction.min(1.0);
-            return false;
+            return;
         }
         let goal = self.chord_goal();
         let keep = r <= goal
@@ -188,7 +187,6 @@ impl ImplicitStep<'_> {
         if !keep {
             self.cache.refactor = true;
         }
-        !keep
     }
 
     /// Forgets the step's Newton history (the start residual, the last solve, the
