@@ -341,7 +341,7 @@ pub fn run(
     outln!(
         "implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]); linear solver: cg \
          (preconditioner {preconditioner:?}) or cholesky (sparse LLᵀ kept while chord iterations on it reach \
-         0.2 + 0.8 c_fresh of the step's residual cheaper than a refactorisation; `Newton` counts them, \
+         0.2 + 0.8 c_fresh, at most 0.25, of the step's residual cheaper than a refactorisation; `Newton` counts them, \
          `fact.` = factorisations over the {IMPLICIT_STEPS} steps, fill = factor nonzeros); explicit: \
          {EXPLICIT_STEPS} steps; ratio = implicit ÷ explicit sim s per wall s by the median step (by the \
          mean step)"

@@ -44,6 +44,26 @@ pub(super) const MAX_CHORD_ITERATIONS: usize = 50;
 /// machine: a scene replays to the same bits.
 pub(super) const REFACTOR_COST_IN_CHORDS: f64 = 20.0;
 
+/// The most of its initial residual a step may leave with the Cholesky factor
+/// (or θ = `refactor_contraction` when larger): the chord goal is never looser,
+/// and a Newton iteration on a fresh factor that leaves more is followed by chord
+/// iterations on that factor until the residual is below it. Why: with one Newton
+/// iteration per step the leftover imbalance is carried into the next step, and
+/// under a tool's contacts (stiff springs made and released within a step) it
+/// grows: in gen_kidney_100k's press (`heml bench --implicit`'s long run, session
+/// 13) fresh iterations left 0.29–0.74 of |r0| and once 2.3 (the line search
+/// accepts a step that lowers the incremental potential, not the residual), each
+/// leftover came back ×3–15 as the next step's |r0|, and the motion diverged
+/// within ten steps. Smooth phases are not bound by it: there a fresh iteration
+/// leaves 0.02–0.1 and the chord goal θ + (1 − θ)·c_fresh is 0.22–0.28.
+pub(super) const MAX_STEP_LEFTOVER: f64 = 0.25;
+
+/// Iterations on a fresh factor a step may add to its `newton_iterations` while
+/// its residual is above [`MAX_STEP_LEFTOVER`] (chord iterations that stall
+/// refactor): so a step factors at most this many times more than it would
+/// (each factorisation of gen_kidney_100k costs ~1.3 s).
+pub(super) const MAX_EXTRA_FACTORIZATIONS: usize = 2;
+
 /// How the Newton iterations of a step ended.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct NewtonOutcome {
@@ -144,7 +164,24 @@ impl ImplicitStep<'_> {
             return tolerance;
         }
         let theta = self.settings.refactor_contraction;
-        (r0 * (theta + (1.0 - theta) * self.cache.fresh_contraction)).max(tolerance)
+        let fraction = (theta + (1.0 - theta) * self.cache.fresh_contraction).min(self.max_leftover());
+        (r0 * fraction).max(tolerance)
+    }
+
+    /// The most of |r0| a step on the Cholesky factor may leave
+    /// ([`MAX_STEP_LEFTOVER`], or θ when larger).
+    fn max_leftover(&self) -> f64 {
+        MAX_STEP_LEFTOVER.max(self.settings.refactor_contraction)
+    }
+
+    /// Whether the residual `r` is at most what a step on the Cholesky factor may
+    /// leave (always with CG, whose iterations are capped by `newton_iterations`).
+    fn within_leftover(&self, r: f64) -> bool {
+        if self.settings.linear_solver != LinearSolver::Cholesky {
+            return true;
+        }
+        let Some(r0) = self.r0 else { return true };
+        r <= (r0 * self.max_leftover()).max(self.tolerance())
     }
 
     /// The Newton tolerance of the step: `newton_tolerance`·max(|r0|, |loads|), at
@@ -186,6 +223,14 @@ impl ImplicitStep<'_> {
             });
         if !keep {
             self.cache.refactor = true;
+        }
+    }
+
+    /// |r| / |r0| now (0 before the first solve).
+    pub fn leftover(&self) -> f64 {
+        match self.r0 {
+            Some(r0) if r0 > 0.0 => norm(&self.r) / r0,
+            _ => 0.0,
         }
     }
 
@@ -231,10 +276,14 @@ impl NewtonProblem for ImplicitStep<'_> {
     fn converged(&self, _: &System, it: usize, _: f64) -> Option<NewtonOutcome> {
         let r = norm(&self.r);
         // chord iterations end the step at the residual its Newton iterations would
-        // leave; Newton iterations proper (on a fresh factor, or CG) at their cap
+        // leave; Newton iterations proper (on a fresh factor, or CG) at their cap,
+        // once the residual is within what a step may leave (the Cholesky factor;
+        // else chord iterations on the fresh factor, or more factorisations, follow)
+        let fresh_cap = self.settings.newton_iterations;
         let done = r <= self.tolerance()
             || (self.chord_iterations > 0 && r <= self.chord_goal())
-            || self.fresh_iterations >= self.settings.newton_iterations
+            || (self.fresh_iterations >= fresh_cap && self.within_leftover(r))
+            || self.fresh_iterations >= fresh_cap + MAX_EXTRA_FACTORIZATIONS
             || it >= self.max_iterations();
         done.then_some(NewtonOutcome { iterations: it })
     }

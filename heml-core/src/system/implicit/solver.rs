@@ -269,6 +269,7 @@ impl ImplicitSolver {
             outcome = newton(sys, dofs, &mut problem)?;
             problem.check_contraction();
         }
+        let leftover = problem.leftover();
         problem.set_velocities(sys);
         let mut warnings = std::mem::take(&mut problem.warnings);
         if outcome.is_none() {
@@ -297,6 +298,7 @@ impl ImplicitSolver {
             forces: self.cache.times.forces + merit_time,
             total: start.elapsed().as_secs_f64(),
             factorizations: self.cache.factorizations - factorizations,
+            leftover,
             ..self.cache.times
         };
         Ok(stats)

@@ -31,4 +31,9 @@ pub struct PhaseTimes {
     /// the step solved: a fresh factor (or a converged CG) leaves the
     /// nonlinearity's share, a stale factor more.
     pub contraction: f64,
+    /// Not a time: the residual norm at the end of the step over its norm at the
+    /// start (0 when the step took no solve): what the step left of its equations.
+    /// With the Cholesky factor it is at most 0.25 (or `refactor_contraction`)
+    /// unless the step reached its cap of iterations or factorisations.
+    pub leftover: f64,
 }
