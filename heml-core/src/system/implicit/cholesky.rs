@@ -12,7 +12,7 @@
 //!
 //! The factorisation is always supernodal: faer's default picks its simplicial
 //! (column-by-column, scalar) kernel below ~40 flops per factor nonzero, which is
-//! where the small organ meshes fall (sofa_liver, 489 unknowns, fill 2.1·10⁴:
+//! where the small organ meshes fall (sofa_liver, ~490 unknowns, fill 2.1·10⁴:
 //! ~20), and there it was 2.5× slower than the supernodal one (dense kernels on
 //! the 3×3-node column groups; 0.27–0.46 ms against 0.63–1.2 ms per numeric
 //! factorisation, same solve time, session 13). Factors below [`SEQUENTIAL_FILL`]
