@@ -328,7 +328,7 @@ impl BlockMatrix {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::error::Result;
     use crate::force::TetStiffness;
@@ -367,7 +367,7 @@ mod tests {
         }
     }
 
-    pub(super) fn rnd(s: &mut u64) -> f64 {
+    pub(in crate::system::implicit) fn rnd(s: &mut u64) -> f64 {
         *s ^= *s << 13;
         *s ^= *s >> 7;
         *s ^= *s << 17;
@@ -377,7 +377,7 @@ mod tests {
     /// Two operators over halves of a 3×2×2 box (every tet once), the dense
     /// c_k K + c_m M they make, masked to the free coordinates (node 0 held, node 1
     /// held in y only), and the assembled matrix.
-    pub(super) fn setup() -> (BlockMatrix, DMatrix<f64>, Vec<bool>) {
+    pub(in crate::system::implicit) fn setup() -> (BlockMatrix, DMatrix<f64>, Vec<bool>) {
         let mesh = box_mesh([3.0, 2.0, 2.0], [3, 2, 2], HexSplit::Six).unwrap();
         let (n, nt) = (mesh.n_nodes(), mesh.n_tets());
         let mut s = 0x9e37_79b9_7f4a_7c15u64;
