@@ -237,11 +237,16 @@ fn split_thirds(ax: f64) -> (f64, f64, f64) {
 }
 
 /// x^(−1/3) (sign of x kept) without a division: a quadratic guess of m^(−1/3)
-/// (relative error 3e-3) times 2^(−r/3), three Newton steps y·(4 − a·y³)/3 on
-/// a = m·2^r (each squares the error: 2e-5, 8e-10, then below round-off), times
-/// 2^(−q). With J^(1/3) = J·y², it gives both powers the dilation energy of the
-/// anti-locking term needs per tet, where [`cbrt`] and a reciprocal cost three
-/// divisions. ±0 give ±∞, ±∞ give ±0, NaN stays NaN.
+/// (relative error 3e-3) times 2^(−r/3), two third-order steps on a = m·2^r,
+/// y ← y·(1 + e/3 + 2e²/9) with e = 1 − a·y³ (the series of (1 − e)^(−1/3) to
+/// e²: each cubes the error, 1.3e-7 then below round-off; at most 1 ulp from the
+/// exact root on 3·10⁵ samples), times 2^(−q). Two such steps are 14 dependent
+/// operations where three Newton steps y·(4 − a·y³)/3 were 21: the root sits on
+/// the longest chain of the anti-locking element kernel (J → J^(−1/3) → U′ →
+/// forces; the nodal field measured 7–9 % faster for it). With J^(1/3) = J·y², it
+/// gives both powers the dilation energy of the anti-locking term needs per tet,
+/// where [`cbrt`] and a reciprocal cost three divisions. ±0 give ±∞, ±∞ give
+/// ±0, NaN stays NaN.
 #[inline(always)]
 pub fn inv_cbrt(x: f64) -> f64 {
     const INV_CBRT2: f64 = 0.793_700_525_984_099_7;
@@ -256,9 +261,11 @@ pub fn inv_cbrt(x: f64) -> f64 {
         (4.0 * m, INV_CBRT4)
     };
     let mut y = s * (1.379_140_08 + m * (-0.472_913_07 + m * 0.090_569_42));
-    for _ in 0..3 {
-        // Newton as a correction (1 − a·y³ is small)
-        y += y * (1.0 - a * (y * y * y)) * (1.0 / 3.0);
+    for _ in 0..2 {
+        // a·y and y² side by side, and y·e beside the polynomial in e: 7 operations
+        // deep per step
+        let e = 1.0 - (a * y) * (y * y);
+        y += (y * e) * (1.0 / 3.0 + e * (2.0 / 9.0));
     }
     // 2^(−q): 1023 − q in [682, 1382] for every finite non-zero x
     let qb = (1023.0 - q + SHIFTER).to_bits() & 0x7ff;
