@@ -347,6 +347,7 @@ fn fibre_tangent_is_the_force_jacobian() {
 /// equal the definitions through c4_k = edge_form(b_k, b_k) (the plain kernel's
 /// route) over random b of mixed signs, lengths and ψ of both signs.
 #[test]
+#[allow(clippy::needless_range_loop)] // [entry][lane] arrays filled in lock-step
 fn batch_fibre_terms_equal_the_c4_forms() {
     let mut s = 0x2545_f491_4f6c_dd1du64;
     let mut rnd = || {
