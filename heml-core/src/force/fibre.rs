@@ -18,8 +18,11 @@
 //! [`LANES`] tets of a batch at once, structure of arrays, like the invariant
 //! laws' kernel: the law's `dw_fast` (branch-free `ln`/`exp`/`powf`, `max` as a
 //! select) in a loop over lanes the compiler vectorises. The rest data per tet is
-//! the volume, `vtr` and b_k (13 numbers); c4_k = edge_form(b_k, b_k) is formed in
-//! the kernel, cheaper than streaming it from memory. None of the 13 is derivable
+//! the volume, `vtr` and b_k (13 numbers); the kernel never forms c4_k: I4_k is
+//! b_kᵀD(l)b_k with D(l) formed once for both families, and the fibre part of g_e
+//! the edge entries of S = Σ_k ψ_k b_k b_kᵀ after the law, b_k read again (fewer
+//! operations, and no c4_k held in registers through the law: about 4 % less time
+//! per HGO tet, measured side by side). None of the 13 is derivable
 //! from the others (b_k has one constraint, |V b_k| = 1, not worth a square root).
 //! The sums I1, I4_k and g_e, the law's generated fast code and its exponentials
 //! ([`super::fastmath::exp_fma`]) use fused multiply-adds (`f64::mul_add`: one
@@ -87,6 +90,74 @@ pub(crate) fn i5_terms(b: &[f64; 3], bm: &[[f64; 3]; 3], l: &[f64; 6]) -> (f64, 
     let y = mat3_vec(bm, &db);
     let i5 = db[0] * y[0] + db[1] * y[1] + db[2] * y[2];
     (i5, edge_form(b, &y).map(|g| 2.0 * g))
+}
+
+/// D(l) = Σ_e l_e D_e of a batch (`rest::d_of_lengths`) with its off-diagonal
+/// entries doubled, `[l0, l1, l2, l0 + l1 − l3, l1 + l2 − l4, l0 + l2 − l5]`
+/// (`[entry][lane]`): then bᵀD(l)b = Σ_e (a·C_e·a) l_e = I4 for b = V⁻¹a, in
+/// 9 operations per family instead of forming c4 = edge_form(b, b) (15) and its
+/// dot product with l (6).
+#[inline(always)]
+pub(crate) fn doubled_d_of_lengths(len: &[[f64; LANES]; 6]) -> [[f64; LANES]; 6] {
+    let mut dl = [[0.0; LANES]; 6];
+    for l in 0..LANES {
+        dl[0][l] = len[0][l];
+        dl[1][l] = len[1][l];
+        dl[2][l] = len[2][l];
+        dl[3][l] = len[0][l] + len[1][l] - len[3][l];
+        dl[4][l] = len[1][l] + len[2][l] - len[4][l];
+        dl[5][l] = len[0][l] + len[2][l] - len[5][l];
+    }
+    dl
+}
+
+/// bᵀD b per lane for `dl` from [`doubled_d_of_lengths`]:
+/// b0(b0 d00 + b1 e01 + b2 e02) + b1(b1 d11 + b2 e12) + b2 b2 d22.
+#[inline(always)]
+pub(crate) fn quadratic_form(b: &[[f64; LANES]; 3], dl: &[[f64; LANES]; 6]) -> [f64; LANES] {
+    let mut out = [0.0; LANES];
+    for l in 0..LANES {
+        let (b0, b1, b2) = (b[0][l], b[1][l], b[2][l]);
+        let x0 = b2.mul_add(dl[5][l], b1.mul_add(dl[3][l], b0 * dl[0][l]));
+        let x1 = b2.mul_add(dl[4][l], b1 * dl[1][l]);
+        let x2 = b2 * dl[2][l];
+        out[l] = b2.mul_add(x2, b1.mul_add(x1, b0 * x0));
+    }
+    out
+}
+
+/// Σ_k ψ_k·(a_k·C_e·a_k) for the six edges e (`[edge][lane]`) of a batch, the
+/// fibre part of 2·g_e, with ψ_k = 2·Vol·∂w/∂I4_k: the edge entries
+/// ([`edge_entries`]) of the one symmetric matrix S = Σ_k ψ_k b_k b_kᵀ, both
+/// families summed before the edge form is taken. b_k is read from the rest data
+/// again here rather than c4_k being kept through the law (12 lane vectors that
+/// did not fit in registers).
+#[inline(always)]
+pub(crate) fn fibre_gradient(
+    b: &[[[f64; LANES]; 3]; 2],
+    psi: &[[f64; LANES]; 2],
+    families: usize,
+) -> [[f64; LANES]; 6] {
+    let mut g = [[0.0; LANES]; 6];
+    for l in 0..LANES {
+        // S's entries s00, s11, s22, s01, s12, s02
+        let mut s = [0.0; 6];
+        for k in 0..families {
+            let (b0, b1, b2) = (b[k][0][l], b[k][1][l], b[k][2][l]);
+            let (u0, u1, u2) = (psi[k][l] * b0, psi[k][l] * b1, psi[k][l] * b2);
+            s[0] = u0.mul_add(b0, s[0]);
+            s[1] = u1.mul_add(b1, s[1]);
+            s[2] = u2.mul_add(b2, s[2]);
+            s[3] = u0.mul_add(b1, s[3]);
+            s[4] = u1.mul_add(b2, s[4]);
+            s[5] = u0.mul_add(b2, s[5]);
+        }
+        let e = edge_entries([s[0], s[1], s[2]], s[3], s[4], s[5]);
+        for i in 0..6 {
+            g[i][l] = e[i];
+        }
+    }
+    g
 }
 
 /// Rest data of one tet of a fibre law.
@@ -200,7 +271,7 @@ pub struct FibreKernel<M: FibreLaw> {
 impl<M: FibreLaw> Formulation for FibreKernel<M> {}
 
 /// Rest data of `LANES` tets, structure of arrays: volume, `vtr` and b_k = V⁻¹a_k
-/// (the c4_k of [`FibreTet`] are formed from b_k where needed).
+/// (the plain kernel's c4_k of [`FibreTet`] are formed from b_k by [`FibreBatch::tet`]).
 #[derive(Debug, Clone, Copy)]
 pub struct FibreBatch {
     vol: [f64; LANES],
@@ -396,21 +467,14 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
             ([0.0; L], [[0.0; L]; 6])
         };
         q[1] = i2;
-        // c4_k = edge_form(b_k, b_k) and I4_k = c4_k·l; I5_k and its l-gradient
-        let mut c4 = [[[0.0; L]; 6]; 2];
+        // I4_k = b_kᵀ D(l) b_k with D(l) = Σ_e l_e D_e (`rest::d_of_lengths`), its
+        // off-diagonal entries doubled, formed once for both families: no c4_k held
+        // across the law (see `fibre_gradient`); I5_k and its l-gradient
+        let dl = doubled_d_of_lengths(&len);
         let mut g5 = [[[0.0; L]; 6]; 2];
         for k in 0..M::FAMILIES {
             let i = i4_index(k);
-            let mut i4 = [0.0; L];
-            for l in 0..L {
-                let b = [r.b[k][0][l], r.b[k][1][l], r.b[k][2][l]];
-                let c = edge_form_sq(&b);
-                for e in 0..6 {
-                    c4[k][e][l] = c[e];
-                    i4[l] = c[e].mul_add(len[e][l], i4[l]);
-                }
-            }
-            q[i] = i4;
+            q[i] = quadratic_form(&r.b[k], &dl);
             if M::USES_I5 {
                 for l in 0..L {
                     let b = [r.b[k][0][l], r.b[k][1][l], r.b[k][2][l]];
@@ -433,18 +497,18 @@ impl<M: FibreLaw> TetKernel for FibreKernel<M> {
                 d[a][l] *= s;
             }
         }
+        let psi: [[f64; L]; 2] = std::array::from_fn(|k| d[i4_index(k)]);
+        let gf = fibre_gradient(&r.b, &psi, M::FAMILIES);
         let mut g2 = [[0.0; L]; 6];
         for e in 0..6 {
             for l in 0..L {
-                let mut ge = d[0][l] * r.vtr[e][l];
+                let mut ge = d[0][l].mul_add(r.vtr[e][l], gf[e][l]);
                 if M::USES_I2 {
                     ge = d[1][l].mul_add(i1[l].mul_add(r.vtr[e][l], -ml[e][l]), ge);
                 }
-                for k in 0..M::FAMILIES {
-                    let i = i4_index(k);
-                    ge = d[i][l].mul_add(c4[k][e][l], ge);
-                    if M::USES_I5 {
-                        ge = d[i + 1][l].mul_add(g5[k][e][l], ge);
+                if M::USES_I5 {
+                    for k in 0..M::FAMILIES {
+                        ge = d[i4_index(k) + 1][l].mul_add(g5[k][e][l], ge);
                     }
                 }
                 g2[e][l] = ge;

@@ -3,7 +3,8 @@
 //! differences, HEML = P1, the tangent = the finite-difference Jacobian of the forces,
 //! the batched path = the plain one, with fibres both stretched and compressed.
 
-use super::fibre::{edge_form, edge_form_sq, i5_terms, FibreTet};
+use super::assembly::LANES;
+use super::fibre::{doubled_d_of_lengths, edge_form, edge_form_sq, fibre_gradient, i5_terms, quadratic_form, FibreTet};
 use super::{fibre_invariants, Assembly, ElasticForces, FibreField, FibreP1Field, ForceOptions, TangentField};
 use crate::fibres::Fibres;
 use crate::force::TangentOperator;
@@ -339,4 +340,58 @@ fn fibre_tangent_is_the_force_jacobian() {
     // central differences of the forces: h² truncation and ε|f|/h round-off ~1e-10
     // relative; the max() kink is not crossed by a 1e-6 step in this state
     assert!(worst < 1e-6 * scale, "tangent vs FD: {worst:e} (scale {scale:e})");
+}
+
+/// The batch kernel's fibre terms, I4_k = b_kᵀD(l)b_k ([`quadratic_form`]) and the
+/// gradient Σ_k ψ_k c4_k as the edge entries of Σ_k ψ_k b_k b_kᵀ ([`fibre_gradient`]),
+/// equal the definitions through c4_k = edge_form(b_k, b_k) (the plain kernel's
+/// route) over random b of mixed signs, lengths and ψ of both signs.
+#[test]
+#[allow(clippy::needless_range_loop)] // [entry][lane] arrays filled in lock-step
+fn batch_fibre_terms_equal_the_c4_forms() {
+    let mut s = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..500 {
+        let mut b = [[[0.0; LANES]; 3]; 2];
+        let (mut len, mut psi) = ([[0.0; LANES]; 6], [[0.0; LANES]; 2]);
+        for l in 0..LANES {
+            for k in 0..2 {
+                for i in 0..3 {
+                    b[k][i][l] = 2.0 * rnd() - 1.0;
+                }
+                psi[k][l] = 2.0 * rnd() - 1.0;
+            }
+            for e in 0..6 {
+                len[e][l] = 0.1 + rnd();
+            }
+        }
+        let i4 = [0, 1].map(|k| quadratic_form(&b[k], &doubled_d_of_lengths(&len)));
+        for families in [1, 2] {
+            let g = fibre_gradient(&b, &psi, families);
+            for l in 0..LANES {
+                let bl = [0, 1].map(|k| [b[k][0][l], b[k][1][l], b[k][2][l]]);
+                let c4 = bl.map(|b| edge_form(&b, &b));
+                // both routes sum the same monomials b_i·b_j·l_e (≤ 9 per form) in
+                // another order: round-off ~10ε of (Σ|b_i|)²·Σl_e, so 1e-14 of it
+                let lsum: f64 = (0..6).map(|e| len[e][l]).sum();
+                for k in 0..2 {
+                    let want: f64 = (0..6).map(|e| c4[k][e] * len[e][l]).sum();
+                    let scale = bl[k].iter().map(|x| x.abs()).sum::<f64>().powi(2) * lsum;
+                    assert!((i4[k][l] - want).abs() <= 1e-14 * scale, "I4 {} vs {want}", i4[k][l]);
+                }
+                let scale: f64 = (0..families)
+                    .map(|k| psi[k][l].abs() * bl[k].iter().map(|x| x.abs()).sum::<f64>().powi(2))
+                    .sum();
+                for e in 0..6 {
+                    let want: f64 = (0..families).map(|k| psi[k][l] * c4[k][e]).sum();
+                    assert!((g[e][l] - want).abs() <= 1e-14 * scale, "g {} vs {want}", g[e][l]);
+                }
+            }
+        }
+    }
 }
