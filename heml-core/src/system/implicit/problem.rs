@@ -51,7 +51,7 @@ pub(super) const REFACTOR_COST_IN_CHORDS: f64 = 20.0;
 /// iteration per step the leftover imbalance is carried into the next step, and
 /// under a tool's contacts (stiff springs made and released within a step) it
 /// grows: in gen_kidney_100k's press (`heml bench --implicit`'s long run, session
-/// 13) fresh iterations left 0.29–0.74 of |r0| and once 2.3 (the line search
+/// 13) fresh iterations left 0.29–0.78 of |r0| and once 2.3 (the line search
 /// accepts a step that lowers the incremental potential, not the residual), each
 /// leftover came back ×3–15 as the next step's |r0|, and the motion diverged
 /// within ten steps. Smooth phases are not bound by it: there a fresh iteration
