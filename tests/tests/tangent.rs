@@ -34,7 +34,8 @@ fn product(k: &dyn TangentOperator, dx: &[Vec3]) -> Vec<Vec3> {
 /// ~1e-13·|f'''|; exponential laws on deeply inverted tets have |f'''|/|f| up to ~1e4
 /// (see forces.rs), still ≤ 1e-9. A bound of 1e-6 relative to the largest of |K dx|
 /// and |f| keeps a margin of ≥ 1e3 over both, while any missing or wrong second-
-/// derivative term shows up at O(1).
+/// derivative term shows up at O(1). Two kinds of sample break those estimates; they
+/// get the fallbacks of [`fd_agrees`].
 fn check_law(name: &str, law: &dyn Material, mesh: &TetMesh, x: &[Vec3], dx: &[Vec3]) {
     let field = law.force_field(mesh, None, &ForceOptions::default()).unwrap();
     let (e, f) = field.forces(x).unwrap();
@@ -47,29 +48,15 @@ fn check_law(name: &str, law: &dyn Material, mesh: &TetMesh, x: &[Vec3], dx: &[V
     let kdx = product(k.as_ref(), dx);
     let size = max_norm(x).max(1.0);
     let h = 1e-6 * size / max_norm(dx);
-    let shifted = |s: f64| -> Vec<Vec3> { x.iter().zip(dx).map(|(p, d)| p + d * s).collect() };
-    let (_, fp) = field.forces(&shifted(h)).unwrap();
-    let (_, fm) = field.forces(&shifted(-h)).unwrap();
-    let fd: Vec<Vec3> = fp.iter().zip(&fm).map(|(a, b)| -(a - b) / (2.0 * h)).collect();
+    let forces_at = |s: f64| -> Vec<Vec3> {
+        let shifted: Vec<Vec3> = x.iter().zip(dx).map(|(p, d)| p + d * s).collect();
+        field.forces(&shifted).unwrap().1
+    };
     let scale = max_norm(&kdx).max(max_norm(&f) / size).max(1e-12);
-    let mut err = max_diff(&kdx, &fd);
-    if err > 1e-6 * scale {
-        // A fibre switch max(I4 − 1, 0) within h of x makes the central difference
-        // straddle a kink of the force (the tangent there is the one-sided one of x's
-        // side). Then one of the second-order one-sided differences, (−3f(x) + 4f(x ± h)
-        // − f(x ± 2h))/(±2h), stays on x's side; same truncation order h², same bound.
-        let (_, fp2) = field.forces(&shifted(2.0 * h)).unwrap();
-        let (_, fm2) = field.forces(&shifted(-2.0 * h)).unwrap();
-        let one_sided = |f1: &[Vec3], f2: &[Vec3], s: f64| -> Vec<Vec3> {
-            f.iter()
-                .zip(f1)
-                .zip(f2)
-                .map(|((a, b), c)| -(-3.0 * a + 4.0 * b - c) / (2.0 * h * s))
-                .collect()
-        };
-        err = max_diff(&kdx, &one_sided(&fp, &fp2, 1.0)).min(max_diff(&kdx, &one_sided(&fm, &fm2, -1.0)));
+    let shifted = [forces_at(-2.0 * h), forces_at(-h), forces_at(h), forces_at(2.0 * h)];
+    if let Err(msg) = fd_agrees(&kdx, &f, &shifted, h, scale) {
+        panic!("{name}: {msg}");
     }
-    assert!(err <= 1e-6 * scale, "{name}: |K dx − FD| = {err:e} vs scale {scale:e}");
     for t in 0..k.tet_ids().len() {
         let m = k.tet_stiffness(t);
         let asym = (m - m.transpose()).amax();
@@ -83,6 +70,59 @@ fn check_law(name: &str, law: &dyn Material, mesh: &TetMesh, x: &[Vec3], dx: &[V
             m.amax()
         );
     }
+}
+
+/// Whether `kdx` is the derivative of the forces along dx, given the forces `f` at x
+/// and `g` = [f(x − 2h dx), f(x − h dx), f(x + h dx), f(x + 2h dx)]; else a message
+/// with the errors found.
+///
+/// First the central difference D(h) within 1e-6·`scale` (see [`check_law`]). Then:
+/// - A fibre switch max(I4 − 1, 0) within h of x makes D(h) straddle a kink of the
+///   force (the tangent there is the one-sided one of x's side); one of the
+///   second-order one-sided differences (−3f(x) + 4f(x ± h) − f(x ± 2h))/(±2h) stays on
+///   x's side: same truncation order h², same bound.
+/// - Inverting one tet can leave a neighbour nearly flat (|J| ~ 1e-4, one eigenvalue
+///   of C ~1e-9 of its trace). A principal-stretch law then has |f'''|/|f| ~ λ_min⁻³
+///   and forces with relative round-off ~ε·e_max/e_min ~ 1e-7, so D(h) itself errs by
+///   up to ~1e-3·scale (Ogden: 31 of 20 000 samples of this test's generator; there the
+///   error fell ×80–100 per decade of h down to a round-off floor — the difference's
+///   truncation, not a wrong tangent). Then the Richardson extrapolation
+///   R = (4D(h) − D(2h))/3 (truncation O(h⁴)) must agree within 1e-6·scale plus
+///   2·|D(h) − D(2h)|, which measures the difference's own error (3× D(h)'s truncation,
+///   plus the round-off of both). Taken only while that estimate is below 1e-2·scale,
+///   so a missing or wrong second-derivative term (O(scale)) still fails.
+fn fd_agrees(kdx: &[Vec3], f: &[Vec3], g: &[Vec<Vec3>; 4], h: f64, scale: f64) -> Result<(), String> {
+    let [fm2, fm, fp, fp2] = g;
+    let central = |a: &[Vec3], b: &[Vec3], step: f64| -> Vec<Vec3> {
+        a.iter().zip(b).map(|(p, m)| -(p - m) / (2.0 * step)).collect()
+    };
+    let d1 = central(fp, fm, h);
+    let err = max_diff(kdx, &d1);
+    if err <= 1e-6 * scale {
+        return Ok(());
+    }
+    let one_sided = |f1: &[Vec3], f2: &[Vec3], s: f64| -> Vec<Vec3> {
+        f.iter()
+            .zip(f1)
+            .zip(f2)
+            .map(|((a, b), c)| -(-3.0 * a + 4.0 * b - c) / (2.0 * h * s))
+            .collect()
+    };
+    let kink = max_diff(kdx, &one_sided(fp, fp2, 1.0)).min(max_diff(kdx, &one_sided(fm, fm2, -1.0)));
+    if kink <= 1e-6 * scale {
+        return Ok(());
+    }
+    let d2 = central(fp2, fm2, 2.0 * h);
+    let uncertainty = max_diff(&d1, &d2);
+    let richardson: Vec<Vec3> = d1.iter().zip(&d2).map(|(a, b)| (a * 4.0 - b) / 3.0).collect();
+    let extrapolated = max_diff(kdx, &richardson);
+    if uncertainty <= 1e-2 * scale && extrapolated <= 1e-6 * scale + 2.0 * uncertainty {
+        return Ok(());
+    }
+    Err(format!(
+        "|K dx − FD| = {err:e} (one-sided {kink:e}, extrapolated {extrapolated:e} with FD \
+         uncertainty {uncertainty:e}) vs scale {scale:e}"
+    ))
 }
 
 fn random_dx(rng: &mut TestRng, n: usize) -> Vec<Vec3> {
