@@ -30,6 +30,21 @@ pub const BUILT_IN: [&str; 11] = [
 /// Re-exported so that tests build their RNG the same way.
 pub use rand_chacha::ChaCha8Rng as TestRng;
 
+/// The property tests' configuration: `cases` random cases, and a failing case's
+/// seed saved beside the test's source (`tests/<name>.proptest-regressions`, checked
+/// in) and re-run first on every later run. Proptest's default looks for the crate's
+/// `lib.rs` above the test file, which integration tests do not have: it then warns
+/// and neither saves nor re-runs any case.
+pub fn proptest_config(cases: u32) -> proptest::test_runner::Config {
+    proptest::test_runner::Config {
+        cases,
+        failure_persistence: Some(Box::new(proptest::test_runner::FileFailurePersistence::WithSource(
+            "proptest-regressions",
+        ))),
+        ..proptest::test_runner::Config::default()
+    }
+}
+
 /// A deterministic RNG for `seed`.
 pub fn rng(seed: u64) -> TestRng {
     use rand::SeedableRng;

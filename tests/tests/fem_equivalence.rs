@@ -69,7 +69,7 @@ fn compare(mesh: &TetMesh, x: &[Vec3], rng: &mut TestRng) -> usize {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 32, .. ProptestConfig::default() })]
+    #![proptest_config(proptest_config(32))]
 
     #[test]
     fn heml_equals_p1_fem(seed in any::<u64>(), invert in any::<bool>()) {

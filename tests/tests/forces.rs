@@ -43,7 +43,7 @@ fn check_fd(name: &str, field: &dyn ElasticForces, x: &[Vec3]) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 24, .. ProptestConfig::default() })]
+    #![proptest_config(proptest_config(24))]
 
     #[test]
     fn forces_are_minus_the_energy_gradient(seed in any::<u64>()) {

@@ -130,7 +130,7 @@ fn random_dx(rng: &mut TestRng, n: usize) -> Vec<Vec3> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 16, .. ProptestConfig::default() })]
+    #![proptest_config(proptest_config(16))]
 
     #[test]
     fn hessian_vector_product_is_the_derivative_of_the_forces(seed in any::<u64>(), depth in 0.1f64..1.5, invert in any::<bool>()) {
