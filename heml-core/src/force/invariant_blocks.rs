@@ -24,6 +24,7 @@
 //! closed-form eigen-decomposition of C = FᵀF ([`svd_from_eigen`]): the clamped
 //! eigen-projection, exactly, in a few rank-one updates.
 
+use super::definite::semi_definite_without_svd;
 use super::eigensystem::{spectrum, svd_from_eigen, PAIRS};
 use super::spectral::sym_eigen;
 use super::tangent::{TetBlocks as NodeBlocks, BLOCK_PAIRS};
@@ -100,8 +101,30 @@ pub(crate) fn exact_blocks(s: &TetState, d: [f64; 3], h: [[f64; 3]; 3], used: [b
 /// analytic spectrum is semi-definite, otherwise plus Vol·|λ| (Q n_a)(Q n_b)ᵀ for
 /// each negative mode. False (and `k` unchanged) when the closed-form SVD is not
 /// accurate enough: the caller then projects otherwise.
+///
+/// A tet that [`semi_definite_without_svd`] accepts (laws without I2: a test on
+/// C = FᵀF and J, no eigen-decomposition) is returned at once: the spectral test
+/// would keep it too, and the blocks are the same bits.
 pub(crate) fn project_blocks(k: &mut NodeBlocks, s: &TetState, d: [f64; 3], h: [[f64; 3]; 3]) -> bool {
-    let (e, vecs) = sym_eigen(&(s.f.transpose() * s.f));
+    let c = s.f.transpose() * s.f;
+    semi_definite_without_svd(&c, s.f.determinant(), d, h) || project_blocks_spectral_c(k, s, &c, d, h)
+}
+
+/// [`project_blocks`] without the pre-test: decided from the closed-form spectrum.
+#[cfg(test)]
+pub(crate) fn project_blocks_spectral(k: &mut NodeBlocks, s: &TetState, d: [f64; 3], h: [[f64; 3]; 3]) -> bool {
+    project_blocks_spectral_c(k, s, &(s.f.transpose() * s.f), d, h)
+}
+
+/// The spectral decision and projection of [`project_blocks`], C = FᵀF given.
+fn project_blocks_spectral_c(
+    k: &mut NodeBlocks,
+    s: &TetState,
+    c: &Matrix3<f64>,
+    d: [f64; 3],
+    h: [[f64; 3]; 3],
+) -> bool {
+    let (e, vecs) = sym_eigen(c);
     let Some((u, sigma, v)) = svd_from_eigen(&s.f, &e, &vecs) else {
         return false;
     };
@@ -145,7 +168,7 @@ pub(crate) fn project_blocks(k: &mut NodeBlocks, s: &TetState, d: [f64; 3], h: [
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::force::eigensystem::tests::{gradient, invariants, rnd};
     use crate::force::eigensystem::{edge_hessian, eigensystem};
@@ -280,6 +303,22 @@ mod tests {
             definite >= 10 && indefinite >= 10,
             "{definite} definite, {indefinite} indefinite"
         );
+    }
+
+    /// The state of a tet with a random rest shape deformed by `f`.
+    pub(crate) fn tet_state(s: &mut u64, f: Matrix3<f64>) -> TetState {
+        let dm = Matrix3::from_fn(|_, _| rnd(s) * 0.4) + Matrix3::identity();
+        let dm_inv_t = dm.try_inverse().expect("invertible rest shape").transpose();
+        let col = |i: usize| dm_inv_t.column(i).into_owned();
+        let n = [-(col(0) + col(1) + col(2)), col(0), col(1), col(2)];
+        let cof = f.try_inverse().expect("invertible F").transpose() * f.determinant();
+        TetState {
+            f,
+            n,
+            gj: n.map(|x| cof * x),
+            i1: invariants(&f)[0],
+            vol: dm.determinant() / 6.0,
+        }
     }
 
     /// The analytic decision of [`project_blocks`].

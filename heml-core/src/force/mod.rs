@@ -4,6 +4,7 @@
 //! through which a system evaluates any of them ([`ElasticForces`]).
 
 pub mod assembly;
+mod definite;
 mod eigensystem;
 mod elastic;
 pub mod fastmath;

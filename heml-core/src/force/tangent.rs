@@ -27,7 +27,8 @@
 //! (detected by a Cholesky factorisation). Invariant laws are isotropic: their
 //! stiffness is built in 3×3 node blocks straight from F and the law's second
 //! derivatives, definiteness is decided from the closed-form eigenvalues of ∂²Ψ/∂F²
-//! and an indefinite tet gets rank-one corrections along its negative modes
+//! (after a cheaper sufficient test on C and J for laws without I2,
+//! `force/definite.rs`) and an indefinite tet gets rank-one corrections along its negative modes
 //! (`force/invariant_blocks.rs`; the iterative SVD of `force/eigensystem.rs` only
 //! where the closed-form one is inaccurate); link laws, and a tet whose SVD fails,
 //! go through the numerical eigen-decomposition of K₉ ([`project_psd`]). The
