@@ -295,7 +295,28 @@ pub trait FibreLaw: MaterialInfo {
     fn dw_ext_fast(&self, q: &[f64; FIBRE_VARS], j0: f64) -> FibreDerivs {
         self.dw_ext(q, j0)
     }
+    /// The sub-expressions of [`Self::dw_fast`] that depend on the parameters only
+    /// (k1/(2k2), 1 − 3d, … after simplification), evaluated once per law: the
+    /// batch kernel holds them, so that they are not recomputed per batch of tets
+    /// (the compiler does not hoist them out of the mesh loop by itself when the law
+    /// is read through the kernel). `#[heml::material]` generates it; none by default.
+    #[inline]
+    fn hoisted(&self) -> [f64; HOISTED] {
+        [0.0; HOISTED]
+    }
+    /// [`Self::dw_fast`] with its parametric sub-expressions read from `h`, the
+    /// values of [`Self::hoisted`]: the same operations on the same numbers, the
+    /// same bits.
+    #[inline(always)]
+    fn dw_fast_hoisted(&self, h: &[f64; HOISTED], q: &[f64; FIBRE_VARS]) -> FibreDerivs {
+        let _ = h;
+        self.dw_fast(q)
+    }
 }
+
+/// Room for the parametric values of a fibre law's fast kernel ([`FibreLaw::hoisted`]);
+/// a law with more computes the rest per call.
+pub const HOISTED: usize = 24;
 
 /// The rest state of a fibre law with parameter values `values`: the energy at
 /// C = I and, as the stress, |2w1 + 4w2 + wJ| + Σ_k |2w4_k + 4w5_k| (the isotropic

@@ -9,9 +9,13 @@ use crate::emit_law::allows;
 use crate::expr::{Graph, Id, Var};
 use crate::straight_line::{self, count_ops, Names, OpTally};
 use heml_symbolic::diff::diff;
+use heml_symbolic::gradient::gradient;
 use heml_symbolic::taylor::inversion_extension;
 use proc_macro2::TokenStream;
 use quote::quote;
+
+/// Slots of `FibreLaw::hoisted` (`heml_core::law::HOISTED`).
+const HOISTED: usize = 24;
 
 /// The variables of a fibre law, in the index order of its gradient and Hessian.
 pub const FIBRE_VARS: [Var; 7] = [Var::I1, Var::I2, Var::J, Var::I4a, Var::I5a, Var::I4b, Var::I5b];
@@ -31,7 +35,7 @@ pub struct FibreDerivatives {
 
 impl FibreDerivatives {
     fn of(g: &mut Graph, w: Id) -> Self {
-        let grad: Vec<Id> = FIBRE_VARS.iter().map(|&v| diff(g, w, v)).collect();
+        let grad = gradient(g, w, &FIBRE_VARS);
         let mut hess = vec![vec![0; 7]; 7];
         for a in 0..7 {
             for b in a..7 {
@@ -144,7 +148,24 @@ fn fns(core: &TokenStream, k: &FibreKernels, names: &Names, d: &FibreDerivatives
             #core::law::FibreDerivs { w: #w, d: [#(#grad),*] }
         }
     };
-    quote!(#w_fn #dw_fn #d2w_fn #fast_fn)
+    if ext {
+        return quote!(#w_fn #dw_fn #d2w_fn #fast_fn);
+    }
+    // the batch kernel's version: parametric temporaries computed once per law
+    let h = straight_line::block_hoisting(g, &fast, &roots, HOISTED);
+    let (values, lets, o) = (h.values, h.block.lets, &h.block.outputs);
+    let (w, grad) = (&o[0], &o[1..]);
+    let n = HOISTED;
+    let hoisted_fns = quote! {
+        #[inline]
+        fn hoisted(&self) -> [f64; #n] { #values }
+        #[inline(always)]
+        fn dw_fast_hoisted(&self, h: &[f64; #n], #args) -> #core::law::FibreDerivs {
+            #un #lets
+            #core::law::FibreDerivs { w: #w, d: [#(#grad),*] }
+        }
+    };
+    quote!(#w_fn #dw_fn #d2w_fn #fast_fn #hoisted_fns)
 }
 
 /// `impl FibreLaw`.

@@ -109,6 +109,81 @@ pub fn block(g: &Graph, names: &Names, roots: &[Id]) -> Block {
     Block { lets, outputs }
 }
 
+/// The fast block of `roots` split in two: `values`, the body of a function
+/// computing its parametric temporaries (those depending on no variable, see
+/// [`Graph::is_parametric`]) into an array of `slots` values (`[f64; slots]`),
+/// and `block`, which reads the first `slots` of them from `h` instead (`let tN:
+/// f64 = h[i];`) and computes everything else as [`block`] does. Each parametric
+/// temporary is written exactly as in [`block`] (the same fused products), so the
+/// two halves together give [`block`]'s bits.
+pub struct Hoisting {
+    /// Body of the function returning the `[f64; slots]` of parametric values.
+    pub values: TokenStream,
+    /// The block reading them from `h`.
+    pub block: Block,
+}
+
+/// See [`Hoisting`].
+pub fn block_hoisting(g: &Graph, names: &Names, roots: &[Id], slots: usize) -> Hoisting {
+    let live = g.reachable(roots);
+    let logged: Vec<Id> = (0..live.len())
+        .filter(|&id| live[id])
+        .filter_map(|id| match g.node(id) {
+            Node::Ln(a) => Some(a),
+            _ => None,
+        })
+        .collect();
+    let fma = match names.fast {
+        Some(_) if names.fma => fused_products(g, &live, roots),
+        _ => Fused::default(),
+    };
+    let emitted = |id: Id| live[id] && !is_leaf(g.node(id)) && fma.product.get(id) != Some(&true);
+    let parametric: Vec<Id> = (0..live.len())
+        .filter(|&id| emitted(id) && g.is_parametric(id))
+        .collect();
+    let hoisted = &parametric[..parametric.len().min(slots)];
+    // what the block still reads: the roots' operands down to the hoisted values
+    let mut needed = vec![false; live.len()];
+    let mut stack: Vec<Id> = roots.to_vec();
+    while let Some(id) = stack.pop() {
+        if !needed[id] {
+            needed[id] = true;
+            if !hoisted.contains(&id) {
+                stack.extend(g.children(id));
+            }
+        }
+    }
+    let (mut values, mut lets) = (TokenStream::new(), TokenStream::new());
+    for id in (0..live.len()).filter(|&id| emitted(id)) {
+        let Some(value) = fma.operation(g, names, id).or_else(|| operation(g, names, &logged, id)) else {
+            continue;
+        };
+        let t = temp(id);
+        let slot = hoisted.iter().position(|&h| h == id);
+        if slot.is_some() {
+            values.extend(quote!(let #t: f64 = #value;));
+        }
+        match slot {
+            Some(i) if needed[id] => lets.extend(quote!(let #t: f64 = h[#i];)),
+            None if needed[id] => lets.extend(quote!(let #t: f64 = #value;)),
+            _ => {}
+        }
+    }
+    let slot_values = (0..slots).map(|i| match hoisted.get(i) {
+        Some(&id) => {
+            let t = temp(id);
+            quote!(#t)
+        }
+        None => quote!(0.0),
+    });
+    values.extend(quote!([#(#slot_values),*]));
+    let outputs = roots.iter().map(|&r| output(g, names, r)).collect();
+    Hoisting {
+        values,
+        block: Block { lets, outputs },
+    }
+}
+
 /// The products the fast block folds into multiply-adds: a `Mul` whose only use
 /// is one operand of an `Add` or `Sub` becomes `x.mul_add(y, c)` there (one
 /// rounding instead of two, one instruction instead of two in the FMA-enabled batch
@@ -415,6 +490,42 @@ mod tests {
         };
         let blk = block(&g, &names, &[c, d, e]);
         blk.lets.to_string()
+    }
+
+    /// The hoisted block computes the parametric temporaries once, the rest reads
+    /// them: every other line is [`block`]'s, and the parametric lines are
+    /// [`block`]'s too (moved into `values`), so the bits are the same.
+    #[test]
+    fn parametric_temporaries_are_hoisted() {
+        let mut g = Graph::new();
+        let (j, k1, k2) = (g.var(Var::J), g.param(0), g.param(1));
+        let two = g.constant(2.0);
+        let twok2 = g.mul(two, k2);
+        let q = g.div(k1, twok2);
+        let e = g.exp(j);
+        let w = g.mul(q, e);
+        assert!(g.is_parametric(q) && !g.is_parametric(w));
+        let core = quote!(heml_core);
+        let params = [format_ident!("k1"), format_ident!("k2")];
+        let names = Names {
+            params: &params,
+            receiver: None,
+            fast: Some(&core),
+            fma: true,
+        };
+        let plain = block(&g, &names, &[w]).lets.to_string();
+        let h = block_hoisting(&g, &names, &[w], 4);
+        let (values, lets) = (h.values.to_string(), h.block.lets.to_string());
+        // k1/(2·k2) is computed by `values` exactly as `block` does, read from h[..]
+        let div = format!("let t{q} : f64 = self . k1 * (1.0 / t{twok2}) ;");
+        assert!(plain.contains(&div) && values.contains(&div), "{plain}\n{values}");
+        assert!(lets.contains(&format!("let t{q} : f64 = h [1usize] ;")), "{lets}");
+        // 2·k2 is only read by the hoisted quotient: not in the block at all
+        assert!(!lets.contains(&format!("t{twok2}")), "{lets}");
+        // the rest is `block`'s
+        let tail = format!("let t{w} : f64 = t{q} * t{e} ;");
+        assert!(plain.contains(&tail) && lets.contains(&tail), "{lets}");
+        assert!(values.ends_with(&format!("[t{twok2} , t{q} , 0.0 , 0.0]")), "{values}");
     }
 
     #[test]

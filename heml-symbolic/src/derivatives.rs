@@ -5,6 +5,7 @@
 
 use crate::diff::diff;
 use crate::expr::{Graph, Id, Var};
+use crate::gradient::gradient;
 use crate::taylor::inversion_extension;
 
 /// The variables of an invariant law, in the index order of the generated
@@ -24,7 +25,8 @@ pub struct Derivatives {
 
 impl Derivatives {
     fn of(g: &mut Graph, w: Id) -> Self {
-        let grad = INVARIANTS.map(|v| diff(g, w, v));
+        let g_vec = gradient(g, w, &INVARIANTS);
+        let grad = [g_vec[0], g_vec[1], g_vec[2]];
         let mut hess = [[0; 3]; 3];
         for a in 0..3 {
             for b in a..3 {

@@ -90,6 +90,9 @@ pub enum Node {
 #[derive(Debug, Default, Clone)]
 pub struct Graph {
     nodes: Vec<Node>,
+    /// `parametric[id]`: node `id` depends on no variable (constants and parameters
+    /// only), so a kernel could evaluate it once per law instead of once per tet.
+    parametric: Vec<bool>,
     index: HashMap<Node, Id>,
     /// For each base, the first non-integer constant power of it that was built
     /// (`base -> (exponent, node)`): later powers of the same base are expressed
@@ -133,6 +136,8 @@ impl Graph {
         }
         let id = self.nodes.len();
         self.nodes.push(node);
+        let parametric = !matches!(node, Node::Var(_)) && Self::children_of(node).all(|c| self.parametric[c]);
+        self.parametric.push(parametric);
         self.index.insert(node, id);
         id
     }
@@ -175,6 +180,9 @@ impl Graph {
                 self.mul(two, a)
             }
             _ => {
+                if let Some(c) = self.collect(a, b, false) {
+                    return c;
+                }
                 let (a, b) = Self::ordered(a, b);
                 self.intern(Node::Add(a, b))
             }
@@ -195,7 +203,10 @@ impl Graph {
                 let sum = self.add(x, b);
                 self.neg(sum)
             }
-            _ => self.intern(Node::Sub(a, b)),
+            _ => match self.collect(a, b, true) {
+                Some(c) => c,
+                None => self.intern(Node::Sub(a, b)),
+            },
         }
     }
 
@@ -234,6 +245,12 @@ impl Graph {
                         let k = self.constant(c * cq);
                         return self.mul(k, p);
                     }
+                    // c·(P·y) = (c·P)·y: the constant joins the parametric factor
+                    if let Some((p, y)) = self.split_param_factor(x) {
+                        let k = self.constant(c);
+                        let cp = self.mul(k, p);
+                        return self.mul(cp, y);
+                    }
                 }
                 _ => {}
             }
@@ -250,25 +267,179 @@ impl Graph {
             let k = self.constant(c);
             return self.mul(k, m);
         }
+        if let Some(p) = self.parametric_outwards(a, b) {
+            return p;
+        }
         match (self.node(a), self.node(b)) {
             (Node::Neg(x), Node::Neg(y)) => self.mul(x, y),
-            (Node::Neg(x), _) => {
+            (Node::Neg(x), _) if !self.parametric[a] => {
                 let m = self.mul(x, b);
                 self.neg(m)
             }
-            (_, Node::Neg(y)) => {
+            (_, Node::Neg(y)) if !self.parametric[b] => {
                 let m = self.mul(a, y);
                 self.neg(m)
             }
             _ => {
+                if let Some(p) = self.without_step(a, b).or_else(|| self.without_step(b, a)) {
+                    return p;
+                }
+                if let Some(p) = self.gather_square(a, b).or_else(|| self.gather_square(b, a)) {
+                    return p;
+                }
                 let (a, b) = Self::ordered(a, b);
                 self.intern(Node::Mul(a, b))
             }
         }
     }
 
+    /// Parametric factors move outwards as the constant ones do, so that they meet
+    /// and form one parametric sub-expression — evaluated once per law where the
+    /// kernel hoists it, and one product per tet at most: (P·x)·(Q·y) =
+    /// (P·Q)·(x·y), P·(Q·y) = (P·Q)·y, (P·x)·y = P·(x·y), as k1/(2k2)·(k2·…) in a
+    /// fibre law's derivative. Reassociation: round-off only.
+    fn parametric_outwards(&mut self, a: Id, b: Id) -> Option<Id> {
+        // a constant factor joins a parametric one in `mul`'s constant case
+        if self.as_const(a).is_some() || self.as_const(b).is_some() {
+            return None;
+        }
+        let (pa, pb) = (self.parametric[a], self.parametric[b]);
+        match (pa, pb) {
+            (true, true) => None,
+            (true, false) => {
+                let (q, y) = self.split_param_factor(b)?;
+                let pq = self.mul(a, q);
+                Some(self.mul(pq, y))
+            }
+            (false, true) => {
+                let (p, x) = self.split_param_factor(a)?;
+                let pq = self.mul(p, b);
+                Some(self.mul(pq, x))
+            }
+            (false, false) => match (self.split_param_factor(a), self.split_param_factor(b)) {
+                (Some((p, x)), Some((q, y))) => {
+                    let pq = self.mul(p, q);
+                    let xy = self.mul(x, y);
+                    Some(self.mul(pq, xy))
+                }
+                (Some((p, x)), None) => {
+                    let xb = self.mul(x, b);
+                    Some(self.mul(p, xb))
+                }
+                (None, Some((q, y))) => {
+                    let ay = self.mul(a, y);
+                    Some(self.mul(q, ay))
+                }
+                (None, None) => None,
+            },
+        }
+    }
+
+    /// (p·x)·x = p·(x·x): the square becomes one node, whose derivative is one
+    /// term 2·x·dx (the product rule on (p·x)·x gives two, dx·(p·x) + x·(p·dx), as
+    /// in k2·E·E of a fibre law). Reassociation: round-off only. `None` when `a` is
+    /// not such a product with `b`, or is itself a square.
+    fn gather_square(&mut self, a: Id, b: Id) -> Option<Id> {
+        let Node::Mul(p, q) = self.node(a) else {
+            return None;
+        };
+        let other = match (p == b, q == b) {
+            _ if p == q => return None,
+            (true, _) => q,
+            (_, true) => p,
+            _ => return None,
+        };
+        let square = self.mul(b, b);
+        Some(self.mul(other, square))
+    }
+
+    /// `b` (or `b` times the rest of `a`) when `a` is step(x) (or step(x)·y) and `b`
+    /// has the factor max(x, 0): the step of a switched-off fibre multiplies a
+    /// product that is zero already (max(x, 0) = 0 where step(x) = 0, and step(x) =
+    /// 1 elsewhere), so dropping it changes no value (but the sign of a zero).
+    fn without_step(&mut self, a: Id, b: Id) -> Option<Id> {
+        let (x, rest) = match self.node(a) {
+            Node::Step(x) => (x, None),
+            Node::Mul(p, q) => match (self.node(p), self.node(q)) {
+                (Node::Step(x), _) => (x, Some(q)),
+                (_, Node::Step(x)) => (x, Some(p)),
+                _ => return None,
+            },
+            _ => return None,
+        };
+        let zero = *self.index.get(&Node::Const(0f64.to_bits()))?;
+        let max = *self.index.get(&Node::Max(x, zero))?;
+        if !self.has_factor(b, max, 8) {
+            return None;
+        }
+        Some(match rest {
+            Some(y) => self.mul(y, b),
+            None => b,
+        })
+    }
+
+    /// Whether `target` is a factor of the product tree `id` (through `Mul` and
+    /// `Neg`, at most `depth` levels down).
+    fn has_factor(&self, id: Id, target: Id, depth: u32) -> bool {
+        if id == target {
+            return true;
+        }
+        if depth == 0 {
+            return false;
+        }
+        match self.node(id) {
+            Node::Mul(p, q) => self.has_factor(p, target, depth - 1) || self.has_factor(q, target, depth - 1),
+            Node::Neg(p) => self.has_factor(p, target, depth - 1),
+            _ => false,
+        }
+    }
+
+    /// f·(x ± y) for f·x ± f·y (`minus`: −) when the two products share their outer
+    /// factor f, a constant or a parametric sub-expression (c·x ± (−c)·y gives
+    /// c·(x ∓ y)): one product instead of two (the derivatives of a law are sums
+    /// of such terms, e.g. κ/2·J − κ/2/J). Distributivity: round-off only.
+    fn collect(&mut self, a: Id, b: Id, minus: bool) -> Option<Id> {
+        if let (Some((c, x)), Some((d, y))) = (self.split_const_factor(a), self.split_const_factor(b)) {
+            let same = if c == d {
+                minus
+            } else if c == -d {
+                !minus
+            } else {
+                return None;
+            };
+            let inner = if same { self.sub(x, y) } else { self.add(x, y) };
+            let k = self.constant(c);
+            return Some(self.mul(k, inner));
+        }
+        let (f, x) = self.split_param_factor(a)?;
+        let (g, y) = self.split_param_factor(b)?;
+        if f != g {
+            return None;
+        }
+        let inner = if minus { self.sub(x, y) } else { self.add(x, y) };
+        Some(self.mul(f, inner))
+    }
+
+    /// `(p, x)` when `id` is the product `p·x` of a parametric non-constant factor
+    /// and a factor that depends on a variable.
+    fn split_param_factor(&self, id: Id) -> Option<(Id, Id)> {
+        let Node::Mul(p, q) = self.node(id) else {
+            return None;
+        };
+        let constant = |i: Id| self.as_const(i).is_some();
+        match (self.parametric[p], self.parametric[q]) {
+            (true, false) if !constant(p) => Some((p, q)),
+            (false, true) if !constant(q) => Some((q, p)),
+            _ => None,
+        }
+    }
+
     /// `(c, x)` when `id` is the product `c·x` of a constant and something else.
     fn split_const_factor(&self, id: Id) -> Option<(f64, Id)> {
+        if self.parametric[id] {
+            // c·P is one parametric factor (see `parametric_outwards`)
+            return None;
+        }
         match self.node(id) {
             Node::Mul(p, q) => match (self.as_const(p), self.as_const(q)) {
                 (Some(c), None) => Some((c, q)),
@@ -309,6 +480,13 @@ impl Graph {
             let k = self.constant(c);
             return self.mul(k, q);
         }
+        if !self.parametric[b] {
+            // P·x/b = P·(x/b): the parametric factor stays outside
+            if let Some((p, x)) = self.split_param_factor(a) {
+                let q = self.div(x, b);
+                return self.mul(p, q);
+            }
+        }
         match (self.node(a), self.node(b)) {
             (Node::Neg(x), Node::Neg(y)) => self.div(x, y),
             (Node::Neg(x), _) => {
@@ -331,6 +509,12 @@ impl Graph {
         match self.node(a) {
             Node::Neg(x) => x,
             Node::Sub(x, y) => self.sub(y, x),
+            // −(P·x) = (−P)·x: the sign joins the parametric factor
+            Node::Mul(..) if self.split_param_factor(a).is_some() => {
+                let (p, x) = self.split_param_factor(a).unwrap_or((a, a));
+                let np = self.neg(p);
+                self.mul(np, x)
+            }
             Node::Mul(p, q) if self.as_const(p).is_some() || self.as_const(q).is_some() => {
                 let (c, x) = match self.as_const(p) {
                     Some(c) => (c, q),
@@ -475,7 +659,16 @@ impl Graph {
 
     /// The children of a node.
     pub fn children(&self, id: Id) -> impl Iterator<Item = Id> {
-        let (a, b) = match self.nodes[id] {
+        Self::children_of(self.nodes[id])
+    }
+
+    /// Whether `id` depends on no variable (only on constants and parameters).
+    pub fn is_parametric(&self, id: Id) -> bool {
+        self.parametric[id]
+    }
+
+    fn children_of(node: Node) -> impl Iterator<Item = Id> {
+        let (a, b) = match node {
             Node::Const(_) | Node::Var(_) | Node::Param(_) => (None, None),
             Node::Add(a, b)
             | Node::Sub(a, b)
@@ -629,6 +822,55 @@ mod tests {
         let lb = g.ln(b);
         assert_eq!(la, lb);
         assert_eq!(g.len(), before + 1);
+    }
+
+    /// The rules that shrink a fibre law's derivatives, each exact up to the
+    /// order of roundings (checked by value at a point on each side of the switch).
+    #[test]
+    fn fibre_derivative_rules() {
+        let mut g = Graph::new();
+        let (e, j, k) = (g.var(Var::I4a), g.var(Var::J), g.param(0));
+        // (k·e)·e = k·(e·e): the square is one node
+        let ke = g.mul(k, e);
+        let kee = g.mul(ke, e);
+        let ee = g.mul(e, e);
+        assert_eq!(kee, g.mul(k, ee));
+        // step(x)·max(x, 0) = max(x, 0), also inside a product
+        let zero = g.constant(0.0);
+        let m = g.max(e, zero);
+        let s = g.step(e);
+        let sj = g.mul(s, j);
+        let mj = g.mul(m, j);
+        assert_eq!(g.mul(s, mj), mj);
+        assert_eq!(g.mul(sj, m), mj);
+        // parametric factors move outwards and merge: (k·e)·(k·j) = (k·k)·(e·j)
+        let kj = g.mul(k, j);
+        let p = g.mul(ke, kj);
+        let kk = g.mul(k, k);
+        let ej = g.mul(e, j);
+        assert_eq!(p, g.mul(kk, ej));
+        assert!(g.is_parametric(kk) && !g.is_parametric(p));
+        // a constant joins the parametric factor: 2·(k·e) = (2k)·e
+        let two = g.constant(2.0);
+        let twoke = g.mul(two, ke);
+        let twok = g.mul(two, k);
+        assert_eq!(twoke, g.mul(twok, e));
+        // common factors collect: k·e + k·j = k·(e + j), 0.5·e − 0.5·j = 0.5·(e − j)
+        let sum = g.add(ke, kj);
+        let ej_sum = g.add(e, j);
+        assert_eq!(sum, g.mul(k, ej_sum));
+        let half = g.constant(0.5);
+        let (he, hj) = (g.mul(half, e), g.mul(half, j));
+        let diff = g.sub(he, hj);
+        let ej_diff = g.sub(e, j);
+        assert_eq!(diff, g.mul(half, ej_diff));
+        for (x, jv) in [(1.3, 0.8), (-0.4, 1.2)] {
+            let at = |v: Var| if v == Var::J { jv } else { x };
+            let p = [2.5];
+            let expect = 2.5 * x * x;
+            assert!((g.eval(kee, &at, &p) - expect).abs() <= 1e-15 * expect.abs().max(1.0));
+            assert_eq!(g.eval(mj, &at, &p), x.max(0.0) * jv);
+        }
     }
 
     #[test]

@@ -16,6 +16,7 @@
 pub mod derivatives;
 pub mod diff;
 pub mod expr;
+pub mod gradient;
 pub mod lower;
 pub mod ops;
 pub mod print;

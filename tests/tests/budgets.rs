@@ -21,3 +21,48 @@ fn neo_hookean_field_fits_in_100_bytes_per_tet() {
     // the accounting counts at least the rest data (7 f64) and the 4 local indices
     assert!(b >= 7.0 * 8.0 + 8.0, "{b:.1} bytes per tet is less than the rest data");
 }
+
+/// Operations of each built-in law's generated value-and-gradient kernel (the
+/// `dw_fast` the batch kernels run per tet; leaves not counted, `max` and its
+/// step as additions), against the counts before heml-symbolic gathered squares,
+/// dropped the step of max(x, 0), moved parametric factors outwards, collected
+/// common factors and chose reverse accumulation where it is smaller (session 14).
+/// None may grow. HGO's bound: its energy alone takes 40 operations (two
+/// isochoric I4, two `exp`, the volumetric term, 1/J for the chain), its
+/// gradient the chain through each family's ψ_k = k1·E_k·exp(k2·E_k²) once
+/// (reverse accumulation) and the sums for I1, I4_k, J: 67 when written, 70
+/// leaves room for a rule that trades one product for reuse, far below the
+/// 107 of forward differentiation before.
+#[test]
+fn generated_law_kernels_do_not_grow() {
+    let before: &[(&str, u32)] = &[
+        ("arruda_boyce", 79),
+        ("fung_demiray", 26),
+        ("gent", 27),
+        ("holzapfel_gasser_ogden", 107),
+        ("mooney_rivlin", 28),
+        ("neo_hookean", 16),
+        ("saint_venant_kirchhoff", 20),
+        ("stable_neo_hookean", 27),
+        ("ti_mooney_rivlin", 61),
+        ("veronda_westmann", 38),
+        ("yeoh", 44),
+    ];
+    for &(name, old) in before {
+        let entry = heml::materials_list()
+            .into_iter()
+            .find(|e| e.name == name)
+            .unwrap_or_else(|| panic!("{name} is not registered"));
+        let law = (entry.build)(&vec![1.0; entry.params.len()]);
+        let o = law.ops();
+        let total = o.add + o.mul + o.div + o.func;
+        println!("{name}: {total} operations (before {old}): {o:?}");
+        assert!(total <= old, "{name}: {total} operations, {old} before");
+    }
+    let hgo = heml::materials_list()
+        .into_iter()
+        .find(|e| e.name == "holzapfel_gasser_ogden")
+        .map(|e| (e.build)(&vec![1.0; e.params.len()]).ops())
+        .unwrap();
+    assert!(hgo.add + hgo.mul + hgo.div + hgo.func <= 70, "{hgo:?}");
+}

@@ -44,7 +44,7 @@ use super::p1::cofactor;
 use super::ForceOptions;
 use crate::error::Result;
 use crate::fibres::Fibres;
-use crate::law::{i4_index, FibreDerivs, FibreLaw, FIBRE_VARS};
+use crate::law::{i4_index, FibreDerivs, FibreLaw, FIBRE_VARS, HOISTED};
 use crate::mesh::TetMesh;
 use crate::rest::{b_from_vtr, d_of_lengths, edge_vectors, rest_edge_matrix, RestTet};
 use crate::Vec3;
@@ -264,6 +264,8 @@ pub type FibreField<M> = TetField<FibreKernel<M>>;
 #[derive(Debug, Clone)]
 pub struct FibreKernel<M: FibreLaw> {
     law: M,
+    /// The law's parametric values ([`FibreLaw::hoisted`]), once for all batches.
+    hoisted: [f64; HOISTED],
     opts: ForceOptions,
     fibres: Arc<Fibres>,
 }
@@ -305,7 +307,14 @@ impl<M: FibreLaw> FibreField<M> {
         opts: ForceOptions,
     ) -> Result<Self> {
         fibres.check(M::NAME, mesh.n_tets(), M::FAMILIES)?;
-        TetField::build(FibreKernel { law, opts, fibres }, mesh, tets, opts, true)
+        let hoisted = law.hoisted();
+        let kernel = FibreKernel {
+            law,
+            hoisted,
+            opts,
+            fibres,
+        };
+        TetField::build(kernel, mesh, tets, opts, true)
     }
 
     /// The law.
@@ -355,7 +364,7 @@ impl<M: FibreLaw> FibreKernel<M> {
                 let r = if q[2][l] < j0 {
                     self.law.dw_ext_fast(&lane(l), j0)
                 } else {
-                    self.law.dw_fast(&lane(l))
+                    self.law.dw_fast_hoisted(&self.hoisted, &lane(l))
                 };
                 w[l] = r.w;
                 for a in 0..FIBRE_VARS {
@@ -364,7 +373,7 @@ impl<M: FibreLaw> FibreKernel<M> {
             }
         } else {
             for l in 0..LANES {
-                let r = self.law.dw_fast(&lane(l));
+                let r = self.law.dw_fast_hoisted(&self.hoisted, &lane(l));
                 w[l] = r.w;
                 for a in 0..FIBRE_VARS {
                     d[a][l] = r.d[a];
