@@ -79,10 +79,11 @@ impl<'a> Names<'a> {
     }
 }
 
-/// Emits the block computing `roots`.
-pub fn block(g: &Graph, names: &Names, roots: &[Id]) -> Block {
+/// What every block of `roots` starts from: the live nodes, the bases whose
+/// logarithm the block computes anyway (ln J of a volumetric term), and the products
+/// folded into multiply-adds.
+fn prologue(g: &Graph, names: &Names, roots: &[Id]) -> (Vec<bool>, Vec<Id>, Fused) {
     let live = g.reachable(roots);
-    // the bases whose logarithm the block computes anyway (ln J of a volumetric term)
     let logged: Vec<Id> = (0..live.len())
         .filter(|&id| live[id])
         .filter_map(|id| match g.node(id) {
@@ -94,6 +95,12 @@ pub fn block(g: &Graph, names: &Names, roots: &[Id]) -> Block {
         Some(_) if names.fma => fused_products(g, &live, roots),
         _ => Fused::default(),
     };
+    (live, logged, fma)
+}
+
+/// Emits the block computing `roots`.
+pub fn block(g: &Graph, names: &Names, roots: &[Id]) -> Block {
+    let (live, logged, fma) = prologue(g, names, roots);
     let mut lets = TokenStream::new();
     for (id, _) in live.iter().enumerate().filter(|(_, &l)| l) {
         if fma.product.get(id) == Some(&true) {
@@ -125,18 +132,7 @@ pub struct Hoisting {
 
 /// See [`Hoisting`].
 pub fn block_hoisting(g: &Graph, names: &Names, roots: &[Id], slots: usize) -> Hoisting {
-    let live = g.reachable(roots);
-    let logged: Vec<Id> = (0..live.len())
-        .filter(|&id| live[id])
-        .filter_map(|id| match g.node(id) {
-            Node::Ln(a) => Some(a),
-            _ => None,
-        })
-        .collect();
-    let fma = match names.fast {
-        Some(_) if names.fma => fused_products(g, &live, roots),
-        _ => Fused::default(),
-    };
+    let (live, logged, fma) = prologue(g, names, roots);
     let emitted = |id: Id| live[id] && !is_leaf(g.node(id)) && fma.product.get(id) != Some(&true);
     let parametric: Vec<Id> = (0..live.len())
         .filter(|&id| emitted(id) && g.is_parametric(id))
