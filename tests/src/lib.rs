@@ -35,7 +35,14 @@ pub use rand_chacha::ChaCha8Rng as TestRng;
 /// in) and re-run first on every later run. Proptest's default looks for the crate's
 /// `lib.rs` above the test file, which integration tests do not have: it then warns
 /// and neither saves nor re-runs any case.
+///
+/// Long mode: `PROPTEST_CASES=N` (proptest's own variable) replaces every test's
+/// quick-CI count with N, for soaking the suite for rare cases before a release.
 pub fn proptest_config(cases: u32) -> proptest::test_runner::Config {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(cases);
     proptest::test_runner::Config {
         cases,
         failure_persistence: Some(Box::new(proptest::test_runner::FileFailurePersistence::WithSource(

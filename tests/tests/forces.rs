@@ -29,6 +29,18 @@ fn check_fd(name: &str, field: &dyn ElasticForces, x: &[Vec3]) {
         // inverted tet can reach (Ī1 is taken at J0 there): no gradient to compare.
         return;
     }
+    if name == "holzapfel_gasser_ogden" && !e.is_finite() {
+        // HGO's exp(k2·E²) exceeds f64 once k2·E² > 709.8: at k2 ≈ 1.7 that is
+        // E ≈ 20, i.e. Ī4 ≈ 28 (at J0 = 0.4, a fibre stretched ~3.9×), which a
+        // neighbour of a deeply inverted tet reaches (CI seed 18174480426871946383,
+        // depth 1.44). The law has no finite value there; what must hold is that the
+        // forces say so too, so that a step rolls back instead of moving on.
+        assert!(
+            f.iter().any(|v| !v.iter().all(|c| c.is_finite())),
+            "{name}: energy {e} but all forces finite"
+        );
+        return;
+    }
     assert!(e.is_finite(), "{name}: energy {e}");
     // HGO's exp(k2·E²) of a fibre stretched ~4× in a deeply inverted tet (forces
     // ~1e50) has |E'''|/|E'| ~ (2·k2·E·|∇E|)² ≈ 1e5, 30× the other exponential laws':
