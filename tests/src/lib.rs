@@ -153,6 +153,109 @@ pub fn fd_gradient(x: &[Vec3], h: f64, mut energy: impl FnMut(&[Vec3]) -> f64) -
     g
 }
 
+/// Whether the law `name` has no finite energy at this state, so that there is no
+/// derivative to compare (asserting that the forces `f` say so too, so that a step
+/// rolls back instead of moving on):
+/// - Gent is undefined beyond its locking stretch (Ī1 − 3 ≥ Jm), which a deeply
+///   inverted tet can reach (Ī1 is taken at J0 there);
+/// - HGO's exp(k2·E²) exceeds f64 once k2·E² > 709.8: at k2 ≈ 1.7 that is E ≈ 20,
+///   i.e. Ī4 ≈ 28 (at J0 = 0.4, a fibre stretched ~3.9×), which a neighbour of a
+///   deeply inverted tet reaches (CI seed 18174480426871946383 of `forces.rs`,
+///   depth 1.44).
+///
+/// Any other law with a non-finite energy fails.
+pub fn beyond_the_law(name: &str, e: f64, f: &[Vec3]) -> bool {
+    if e.is_finite() {
+        return false;
+    }
+    assert!(matches!(name, "gent" | "holzapfel_gasser_ogden"), "{name}: energy {e}");
+    if name == "holzapfel_gasser_ogden" {
+        assert!(
+            f.iter().any(|v| !v.iter().all(|c| c.is_finite())),
+            "{name}: energy {e} but all forces finite"
+        );
+    }
+    true
+}
+
+/// Whether `exact` is minus the derivative of a sampled function, given its value
+/// `at_x` and `g` = [φ(−2h), φ(−h), φ(h), φ(2h)] (componentwise samples along the
+/// direction(s) of differentiation: forces along dx for a tangent, the energy along
+/// each coordinate for forces); else a message with the errors found.
+///
+/// First the central difference D(h) within 1e-6·`scale` (the callers justify h and
+/// that bound). Then:
+/// - A fibre switch max(I4 − 1, 0) within h of x makes D(h) straddle a kink (the
+///   derivative there is the one-sided one of x's side); one of the second-order
+///   one-sided differences (−3φ(0) + 4φ(±h) − φ(±2h))/(±2h) stays on x's side: same
+///   truncation order h², same bound.
+/// - Inverting one tet can leave a neighbour nearly flat (|J| ~ 1e-4, one eigenvalue
+///   of C ~1e-9 of its trace). A principal-stretch law then has |φ‴|/|φ′| ~ λ_min⁻³
+///   and values with relative round-off ~ε·e_max/e_min ~ 1e-7, so D(h) itself errs by
+///   up to ~1e-3·scale (Ogden: 31 of 20 000 samples of the tangent test's generator,
+///   1 of 3 000 of the forces test's; there the error fell ×80–100 per decade of h
+///   down to a round-off floor — the difference's truncation, not a wrong
+///   derivative). Then the Richardson extrapolation R = (4D(h) − D(2h))/3 (truncation
+///   O(h⁴)) must agree within 1e-6·scale plus 2·|D(h) − D(2h)|, which measures the
+///   difference's own error (3× D(h)'s truncation, plus the round-off of both). Taken
+///   only while that estimate is below 1e-2·scale, so a missing or wrong term
+///   (O(scale)) still fails.
+pub fn fd_agrees(exact: &[Vec3], at_x: &[Vec3], g: &[Vec<Vec3>; 4], h: f64, scale: f64) -> Result<(), String> {
+    let [fm2, fm, fp, fp2] = g;
+    let central = |a: &[Vec3], b: &[Vec3], step: f64| -> Vec<Vec3> {
+        a.iter().zip(b).map(|(p, m)| -(p - m) / (2.0 * step)).collect()
+    };
+    let d1 = central(fp, fm, h);
+    let err = max_diff(exact, &d1);
+    if err <= 1e-6 * scale {
+        return Ok(());
+    }
+    let one_sided = |f1: &[Vec3], f2: &[Vec3], s: f64| -> Vec<Vec3> {
+        at_x.iter()
+            .zip(f1)
+            .zip(f2)
+            .map(|((a, b), c)| -(-3.0 * a + 4.0 * b - c) / (2.0 * h * s))
+            .collect()
+    };
+    let kink = max_diff(exact, &one_sided(fp, fp2, 1.0)).min(max_diff(exact, &one_sided(fm, fm2, -1.0)));
+    if kink <= 1e-6 * scale {
+        return Ok(());
+    }
+    let d2 = central(fp2, fm2, 2.0 * h);
+    let uncertainty = max_diff(&d1, &d2);
+    let richardson: Vec<Vec3> = d1.iter().zip(&d2).map(|(a, b)| (a * 4.0 - b) / 3.0).collect();
+    let extrapolated = max_diff(exact, &richardson);
+    if uncertainty <= 1e-2 * scale && extrapolated <= 1e-6 * scale + 2.0 * uncertainty {
+        return Ok(());
+    }
+    Err(format!(
+        "|exact − FD| = {err:e} (one-sided {kink:e}, extrapolated {extrapolated:e} with FD \
+         uncertainty {uncertainty:e}) vs scale {scale:e}"
+    ))
+}
+
+/// The energy moved along every coordinate in turn: `[E(x + s·e_ic) for s in steps]`
+/// (the samples [`fd_agrees`] takes to check forces = −∇E).
+pub fn energy_samples<const N: usize>(
+    x: &[Vec3],
+    steps: [f64; N],
+    mut energy: impl FnMut(&[Vec3]) -> f64,
+) -> [Vec<Vec3>; N] {
+    let mut y = x.to_vec();
+    let mut out: [Vec<Vec3>; N] = std::array::from_fn(|_| vec![Vec3::zeros(); x.len()]);
+    for i in 0..x.len() {
+        for k in 0..3 {
+            let x0 = y[i][k];
+            for (o, s) in out.iter_mut().zip(steps) {
+                y[i][k] = x0 + s;
+                o[i][k] = energy(&y);
+            }
+            y[i][k] = x0;
+        }
+    }
+    out
+}
+
 /// max_i |a_i − b_i|.
 pub fn max_diff(a: &[Vec3], b: &[Vec3]) -> f64 {
     a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max)

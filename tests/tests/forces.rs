@@ -22,36 +22,23 @@ fn mesh_for(seed: u64, rng: &mut TestRng) -> TetMesh {
 /// regression case below: relative error 2.8e-6 at h = 1e-5, 2.8e-8 at h = 1e-6, a
 /// clean h² truncation), so a 1e-6 bound relative to the largest force (at least 1)
 /// keeps a margin of ~30, while any wrong derivative term would show up at O(1).
+/// Samples that break these estimates (fibre kinks, nearly flat Ogden tets) get the
+/// fallbacks of [`fd_agrees`].
 fn check_fd(name: &str, field: &dyn ElasticForces, x: &[Vec3]) {
     let (e, f) = field.forces(x).unwrap();
-    if name == "gent" && !e.is_finite() {
-        // Gent is undefined beyond its locking stretch (Ī1 − 3 ≥ Jm), which a deeply
-        // inverted tet can reach (Ī1 is taken at J0 there): no gradient to compare.
+    if beyond_the_law(name, e, &f) {
         return;
     }
-    if name == "holzapfel_gasser_ogden" && !e.is_finite() {
-        // HGO's exp(k2·E²) exceeds f64 once k2·E² > 709.8: at k2 ≈ 1.7 that is
-        // E ≈ 20, i.e. Ī4 ≈ 28 (at J0 = 0.4, a fibre stretched ~3.9×), which a
-        // neighbour of a deeply inverted tet reaches (CI seed 18174480426871946383,
-        // depth 1.44). The law has no finite value there; what must hold is that the
-        // forces say so too, so that a step rolls back instead of moving on.
-        assert!(
-            f.iter().any(|v| !v.iter().all(|c| c.is_finite())),
-            "{name}: energy {e} but all forces finite"
-        );
-        return;
-    }
-    assert!(e.is_finite(), "{name}: energy {e}");
     // HGO's exp(k2·E²) of a fibre stretched ~4× in a deeply inverted tet (forces
     // ~1e50) has |E'''|/|E'| ~ (2·k2·E·|∇E|)² ≈ 1e5, 30× the other exponential laws':
     // h = 1e-7 cuts the h² truncation 100× while the round-off ε·|E|/h stays ≲ 1e-8
     // relative (|E| ≲ |f| here), keeping the same 1e-6 bound meaningful.
     let h = if name == "holzapfel_gasser_ogden" { 1e-7 } else { 1e-6 };
-    let g = fd_gradient(x, h, |y| field.energy(y).unwrap());
-    let minus_g: Vec<Vec3> = g.iter().map(|v| -v).collect();
+    let g = energy_samples(x, [-2.0 * h, -h, h, 2.0 * h], |y| field.energy(y).unwrap());
     let scale = max_norm(&f).max(1.0);
-    let err = max_diff(&f, &minus_g);
-    assert!(err <= 1e-6 * scale, "{name}: |f + ∇E| = {err:e} vs scale {scale:e}");
+    if let Err(msg) = fd_agrees(&f, &vec![Vec3::repeat(e); x.len()], &g, h, scale) {
+        panic!("{name}: {msg}");
+    }
 }
 
 proptest! {
