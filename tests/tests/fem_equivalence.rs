@@ -48,8 +48,13 @@ fn compare(mesh: &TetMesh, x: &[Vec3], rng: &mut TestRng) -> usize {
         } else {
             REL
         };
+        // Exponential laws' forces carry exp(a) too, with the same condition number
+        // |a| ≲ ln(scale) as their energy below (HGO, CI soak seed 8137711160023145010:
+        // forces ~1e127, the paths 1.03e-12 apart relative, ln(scale) = 293); for the
+        // other laws' forces (scale ≲ 1e2) the factor is at most ~5.
+        let cond_f = scale.ln().max(1.0);
         assert!(
-            max_diff(&fh, &ff) <= rel * scale,
+            max_diff(&fh, &ff) <= rel * cond_f * scale,
             "{}: forces differ by {:e} (scale {scale:e})",
             entry.name,
             max_diff(&fh, &ff)
