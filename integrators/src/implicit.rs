@@ -52,6 +52,9 @@ macro_rules! implicit_integrator {
             fn implicit_settings_mut(&mut self) -> Option<&mut ImplicitSettings> {
                 Some(self.0.settings_mut())
             }
+            fn prepare(&mut self, sys: &System) -> Result<()> {
+                self.0.prepare(sys)
+            }
         }
 
         inventory::submit! {

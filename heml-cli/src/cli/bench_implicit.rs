@@ -109,6 +109,9 @@ struct ImplicitRun {
     phases: Vec<PhaseTimes>,
     /// Nonzeros of the Cholesky factor at the end (0 with CG).
     factor_nonzeros: usize,
+    /// Wall time of [`ImplicitSolver::prepare`] before the first step (operators,
+    /// pattern, symbolic analysis: not in the step times).
+    prepare: f64,
 }
 
 /// `IMPLICIT_STEPS` backward-Euler steps from rest with `settings`.
@@ -116,6 +119,9 @@ fn implicit_case(mesh: &TetMesh, settings: ImplicitSettings, pool: &rayon::Threa
     let mut sys = scene(mesh)?;
     let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, settings);
     pool.install(|| {
+        let t = Instant::now();
+        solver.prepare(&sys)?;
+        let prepare = t.elapsed().as_secs_f64();
         let (mut times, mut cgs, mut newtons, mut phases) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..IMPLICIT_STEPS {
             let t = Instant::now();
@@ -131,6 +137,7 @@ fn implicit_case(mesh: &TetMesh, settings: ImplicitSettings, pool: &rayon::Threa
             newtons,
             phases,
             factor_nonzeros: solver.factor_nonzeros(),
+            prepare,
         })
     })
 }
@@ -161,8 +168,12 @@ fn long_case(
         newtons: Vec::new(),
         phases: Vec::new(),
         factor_nonzeros: 0,
+        prepare: 0.0,
     };
     let out = pool.install(|| -> heml::Result<()> {
+        let t = Instant::now();
+        solver.prepare(&sys)?;
+        run.prepare = t.elapsed().as_secs_f64();
         let mut step = |sys: &mut System, run: &mut ImplicitRun| -> heml::Result<()> {
             let t = Instant::now();
             let s = solver.step(sys, DT)?;
@@ -215,7 +226,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement
     outln!();
     outln!(
         "long run, default preset: {} ({total} steps of {} ms; ms per step p50 / p90 / max / mean, \
-         factorisations)",
+         factorisations; `prepare`: operators, pattern and symbolic analysis before the first step)",
         LONG_PHASES.map(|(name, n)| format!("{name} {n}")).join(", "),
         DT * 1e3
     );
@@ -238,7 +249,11 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement
                     run.times.len()
                 );
             }
-            let mut line = format!("{label:<30} {n:>3} {solver:<8} load {}", super::haptic::load_average());
+            let mut line = format!(
+                "{label:<30} {n:>3} {solver:<8} load {} | prepare {:.1} ms",
+                super::haptic::load_average(),
+                run.prepare * 1e3
+            );
             let done = run.times.len();
             let mut start = 0;
             for (name, len) in LONG_PHASES.iter().copied().chain([("all", total)]) {
@@ -254,7 +269,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement
                 let (p50, p90, max, mean) = percentiles(&run.times[range.clone()]);
                 let f: usize = run.phases[range].iter().map(|p| p.factorizations).sum();
                 line += &format!(
-                    " | {name}: {:.1}/{:.1}/{:.0}/{:.1} ({f})",
+                    " | {name}: {:.2}/{:.2}/{:.1}/{:.2} ({f})",
                     p50 * 1e3,
                     p90 * 1e3,
                     max * 1e3,
@@ -339,7 +354,7 @@ pub fn run(
         DT * 1e3
     );
     outln!(
-        "implicit: {IMPLICIT_STEPS} steps from rest per case (median [min–max]); linear solver: cg \
+        "implicit: {IMPLICIT_STEPS} steps from rest per case after `prepare` (median [min–max]); linear solver: cg \
          (preconditioner {preconditioner:?}) or cholesky (sparse LLᵀ kept while chord iterations on it reach \
          0.2 + 0.8 c_fresh, at most 0.25, of the step's residual cheaper than a refactorisation; `Newton` counts them, \
          `fact.` = factorisations over the {IMPLICIT_STEPS} steps, fill = factor nonzeros); explicit: \

@@ -126,6 +126,10 @@ impl Simulation {
         if let Err(e) = sys.compute_forces() {
             return Err(fail(&mut out, sys, e));
         }
+        // an implicit integrator's pattern and symbolic analysis, before the first step
+        if let Err(e) = self.integrator.prepare(sys) {
+            return Err(fail(&mut out, sys, e));
+        }
         let mut adapt =
             (self.dt_policy == TimeStepPolicy::Adapt).then(|| AdaptiveStep::new(sys, self.dt, self.adapt_every));
         let first_reason = if adapt.is_some() {

@@ -32,6 +32,16 @@ pub trait Integrator: Send {
     fn implicit_settings_mut(&mut self) -> Option<&mut ImplicitSettings> {
         None
     }
+    /// Builds what the steps of `sys` reuse and depends on its mesh and constraints
+    /// only (an implicit integrator's tangent operators, matrix pattern and Cholesky
+    /// symbolic analysis: [`super::ImplicitSolver::prepare`]), so that the first
+    /// step pays only numeric work; a later change of mesh or constraints is
+    /// prepared again by the step that meets it. Nothing to do for explicit
+    /// integrators (the default).
+    fn prepare(&mut self, sys: &System) -> Result<()> {
+        let _ = sys;
+        Ok(())
+    }
 }
 
 /// A registered integrator.

@@ -194,6 +194,9 @@ fn build(scene: &Scene) -> heml::Result<Simulation> {
         sim.system.set_time_step_policy(TimeStepPolicy::Ignore);
     }
     sim.system.compute_forces()?;
+    // an implicit integrator's pattern and symbolic analysis now, not in the first
+    // live step
+    sim.integrator.prepare(&sim.system)?;
     Ok(sim)
 }
 

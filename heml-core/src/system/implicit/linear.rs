@@ -163,6 +163,31 @@ impl SolveCache {
         self.direct = None;
     }
 
+    /// Builds what depends on the mesh, the operators and the numbering of the
+    /// unknowns only — the block pattern of the system matrix and, for `direct`, the
+    /// Cholesky factor's pattern and symbolic analysis (ordering, elimination tree,
+    /// supernodes, scratch) — when not held yet, so that a step pays only for
+    /// numeric work. Contacts and grasps add diagonal blocks only, which the pattern
+    /// always holds: they never invalidate it.
+    pub(in crate::system) fn prepare(
+        &mut self,
+        n: usize,
+        tets: &[[u32; 4]],
+        tangents: &[Box<dyn TangentOperator>],
+        dofs: &DofMap,
+        direct: Option<usize>,
+    ) -> Result<()> {
+        if !self.matrix.as_ref().is_some_and(|m| m.fits(n, tangents)) {
+            self.matrix = Some(BlockMatrix::new(n, tets, tangents));
+            self.direct = None;
+        }
+        if let (Some(max_nonzeros), None) = (direct, &self.direct) {
+            let matrix = self.matrix.as_ref().expect("built above");
+            self.direct = Some((Cholesky::new(matrix, dofs, max_nonzeros)?, None));
+        }
+        Ok(())
+    }
+
     /// Nonzeros of the Cholesky factor held (0 without one).
     pub(in crate::system) fn factor_nonzeros(&self) -> usize {
         self.direct.as_ref().map_or(0, |(c, _)| c.factor_nonzeros())

@@ -123,14 +123,23 @@ impl ImplicitStep<'_> {
     }
 
     /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
-    /// velocity).
+    /// velocity). The forces held stay current when no velocity changed: at the end
+    /// of a step whose last evaluation was at the final iterate (the usual case),
+    /// they are the forces of the end state, bit for bit, and `finish_step` need
+    /// not compute them again (one force evaluation per step saved).
     pub fn set_velocities(&self, sys: &mut System) {
+        let mut changed = false;
         for i in 0..sys.state.x.len() {
             if sys.model.inv_mass[i] > 0.0 {
-                sys.state.v[i] = self.v0[i] + self.d(sys, i) * self.cv;
+                let v = self.v0[i] + self.d(sys, i) * self.cv;
+                // `!=` is true for NaN, so a non-finite velocity always counts as new
+                changed |= v != sys.state.v[i];
+                sys.state.v[i] = v;
             }
         }
-        sys.eval.forces_current = false;
+        if changed {
+            sys.eval.forces_current = false;
+        }
     }
 
     /// a⁺ = c_a d − â on the free nodes, zero on the constrained ones.

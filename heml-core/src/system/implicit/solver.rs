@@ -3,7 +3,7 @@
 
 use super::linear::SolveCache;
 use super::problem::ImplicitStep;
-use super::settings::{ImplicitScheme, ImplicitSettings};
+use super::settings::{ImplicitScheme, ImplicitSettings, LinearSolver};
 use super::timings::PhaseTimes;
 use crate::error::{HemlError, Result};
 use crate::force::TangentOperator;
@@ -108,9 +108,29 @@ impl ImplicitSolver {
         &mut self.settings
     }
 
-    /// Builds the tangent operators and the numbering of the free coordinates when
-    /// the system's regions, constraints or the projection setting changed.
-    fn prepare(&mut self, sys: &System) -> Result<()> {
+    /// Builds what the steps of `sys` reuse and depends on its mesh, regions and
+    /// constraints only: the tangent operators, the numbering of the free
+    /// coordinates, the system matrix's pattern and, with the Cholesky solver, the
+    /// factor's symbolic analysis. Each step calls it and it rebuilds only after a
+    /// change of regions (cuts), constraints (fixed or released nodes) or the
+    /// projection setting; calling it once before the first step moves that setup
+    /// (the larger part of a small mesh's first step) out of the stepping loop, so
+    /// that steps pay only numeric work. On a factor too large for
+    /// `max_factor_nonzeros`, the error the first step would give.
+    pub fn prepare(&mut self, sys: &System) -> Result<()> {
+        self.settings.validate()?;
+        self.prepare_operators(sys)?;
+        let direct =
+            (self.settings.linear_solver == LinearSolver::Cholesky).then_some(self.settings.max_factor_nonzeros);
+        let dofs = self.dofs.as_ref().expect("prepared");
+        self.cache
+            .prepare(sys.state.x.len(), sys.model.mesh.tets(), &self.tangents, dofs, direct)
+    }
+
+    /// The tangent operators and the numbering of the free coordinates, rebuilt when
+    /// the system's regions, constraints or the projection setting changed (and the
+    /// cached matrix and factor then dropped).
+    fn prepare_operators(&mut self, sys: &System) -> Result<()> {
         let shape = Shape {
             n_nodes: sys.state.x.len(),
             tets: sys

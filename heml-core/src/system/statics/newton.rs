@@ -69,6 +69,10 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
     let norm2 = |f: &[Vec3]| f.iter().map(|v| v.norm_squared()).sum::<f64>();
     problem.evaluate(sys)?;
     let mut step_taken = 0.0;
+    // the merit at the iterate the last line search accepted: the next iteration
+    // starts there (the linear solve changes no position), so it is not evaluated
+    // again (same value, one merit less per iteration)
+    let mut accepted_merit: Option<f64> = None;
     let max_iterations = problem.max_iterations();
     for it in 0..=max_iterations {
         if let Some(report) = problem.converged(sys, it, step_taken) {
@@ -83,7 +87,10 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
         }
         let x0 = sys.state.x.clone();
         let r0 = norm2(problem.residual(sys));
-        let e0 = problem.merit(sys)?;
+        let e0 = match accepted_merit.take() {
+            Some(e) => e,
+            None => problem.merit(sys)?,
+        };
         let mut step = 1.0;
         let mut accepted = false;
         for _ in 0..MAX_HALVINGS {
@@ -95,6 +102,7 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
                 let e = problem.merit(sys)?;
                 if e <= e0 + 1e-13 * e0.abs() || norm2(problem.residual(sys)) < r0 {
                     accepted = true;
+                    accepted_merit = Some(e);
                     step_taken = step;
                     break;
                 }
