@@ -28,6 +28,8 @@ const LG7: f64 = f64::from_bits(0x3fc2_f112_df3e_5244);
 /// 2^52 + 2^51: adding it to a number of magnitude < 2^51 rounds it to an integer
 /// held in the low bits of the sum's bit pattern.
 const SHIFTER: f64 = 6_755_399_441_055_744.0;
+/// 2^21 added to [`SHIFTER`] in `exp`: keeps the integer in the bits positive.
+const N_OFFSET: f64 = 2_097_152.0;
 
 /// Natural logarithm (fdlibm `__ieee754_log`, branch-free).
 #[inline(always)]
@@ -97,12 +99,18 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
 /// The exponential, its multiply-adds fused when `FMA`.
 #[inline(always)]
 fn exp_with<const FMA: bool>(x: f64) -> f64 {
-    let xc = x.clamp(-746.0, 710.0);
-    // n = round(x / ln 2), read from the bits of the shifted sum
-    let t = madd::<FMA>(xc, std::f64::consts::LOG2_E, SHIFTER);
-    let n = t - SHIFTER;
-    let ni = (t.to_bits() as i64).wrapping_sub(SHIFTER.to_bits() as i64);
-    let r = madd::<FMA>(-n, LN2_LO, madd::<FMA>(-n, LN2_HI, xc));
+    // No clamp of x and no NaN select: outside [−745.2, 709.78] (±∞ included) the
+    // selects at the end give the result, whatever the arithmetic made of x (finite
+    // garbage or NaN), and a NaN x stays NaN through r and p. Four fewer vector
+    // operations than clamping, the same bits for every non-NaN x.
+    // n = round(x / ln 2), read from the bits of the shifted sum; the shifter carries
+    // 2^21 more (even: the same rounding) so that the bits hold n + 2^21 ≥ 0 for
+    // every x the result depends on, and the halves of 2^n come from logical shifts
+    // (AVX2 has no 64-bit arithmetic shift: its emulation took three operations)
+    let t = madd::<FMA>(x, std::f64::consts::LOG2_E, SHIFTER + N_OFFSET);
+    let n = t - (SHIFTER + N_OFFSET);
+    let u = t.to_bits().wrapping_sub(SHIFTER.to_bits());
+    let r = madd::<FMA>(-n, LN2_LO, madd::<FMA>(-n, LN2_HI, x));
     // Taylor series of e^r to degree 13 (|r| <= 0.347: truncation < 1e-17)
     const C: [f64; 14] = [
         1.0,
@@ -134,16 +142,16 @@ fn exp_with<const FMA: bool>(x: f64) -> f64 {
     );
     let q = madd::<FMA>(b2, r4 * r4, madd::<FMA>(b1, r4, b0));
     let p = C[0] + madd::<FMA>(r2, q, r);
-    // 2^n as two factors so that n down to -1075 and up to 1024 stays representable
-    let n1 = ni >> 1;
-    let n2 = ni - n1;
-    let s1 = f64::from_bits(((n1 + 1023) as u64) << 52);
-    let s2 = f64::from_bits(((n2 + 1023) as u64) << 52);
+    // 2^n as two factors so that n down to -1075 and up to 1024 stays
+    // representable: n1 = ⌊n/2⌋ = (u >> 1) − 2^20, n2 = n − n1 = u − (u >> 1) − 2^20
+    // (wrapping: garbage bits for the x the selects replace)
+    let h = u >> 1;
+    let s1 = f64::from_bits(h.wrapping_sub((1 << 20) - 1023) << 52);
+    let s2 = f64::from_bits(u.wrapping_sub(h).wrapping_sub((1 << 20) - 1023) << 52);
     let y = p * s1 * s2;
     let y = if x > 709.782_712_893_384 { f64::INFINITY } else { y };
-    let y = if x < -745.2 { 0.0 } else { y };
-    if x.is_nan() {
-        f64::NAN
+    if x < -745.2 {
+        0.0
     } else {
         y
     }
@@ -380,7 +388,70 @@ mod tests {
             assert_eq!(f(-800.0), 0.0);
             assert_eq!(f(f64::NEG_INFINITY), 0.0);
             assert!(f(f64::NAN).is_nan());
+            // no clamp: arguments far outside the range reach only the selects
+            assert_eq!(f(f64::INFINITY), f64::INFINITY);
+            assert_eq!(f(f64::MAX), f64::INFINITY);
+            assert_eq!(f(1e17), f64::INFINITY);
+            assert_eq!(f(f64::MIN), 0.0);
+            assert_eq!(f(-1e17), 0.0);
+            assert_eq!(f(709.79), f64::INFINITY);
+            assert!(ulps(f(709.78), 709.78f64.exp()) <= 2.0);
+            assert!((f(-745.1) - (-745.1f64).exp()).abs() <= 5e-324);
             assert!((f(-740.0) - (-740f64).exp()).abs() <= 1e-323);
+        }
+    }
+
+    /// `exp_fma` as it was written before the clamp and the arithmetic shift went
+    /// (session 15): same bits expected for every non-NaN x.
+    fn exp_fma_clamped_reference(x: f64) -> f64 {
+        let xc = x.clamp(-746.0, 710.0);
+        let t = xc.mul_add(std::f64::consts::LOG2_E, SHIFTER);
+        let n = t - SHIFTER;
+        let ni = (t.to_bits() as i64).wrapping_sub(SHIFTER.to_bits() as i64);
+        let r = (-n).mul_add(LN2_LO, (-n).mul_add(LN2_HI, xc));
+        let c: Vec<f64> = (0..14)
+            .scan(1.0, |f, i| {
+                if i > 1 {
+                    *f *= i as f64;
+                }
+                Some(1.0 / *f)
+            })
+            .collect();
+        let (r2, pair) = (r * r, |i: usize| c[i + 1].mul_add(r, c[i]));
+        let (r4, a0, a1, a2, a3, a4, a5) = (r2 * r2, pair(2), pair(4), pair(6), pair(8), pair(10), pair(12));
+        let (b0, b1, b2) = (a1.mul_add(r2, a0), a3.mul_add(r2, a2), a5.mul_add(r2, a4));
+        let q = b2.mul_add(r4 * r4, b1.mul_add(r4, b0));
+        let p = c[0] + r2.mul_add(q, r);
+        let n1 = ni >> 1;
+        let n2 = ni - n1;
+        let y = p * f64::from_bits(((n1 + 1023) as u64) << 52) * f64::from_bits(((n2 + 1023) as u64) << 52);
+        let y = if x > 709.782_712_893_384 { f64::INFINITY } else { y };
+        if x < -745.2 {
+            0.0
+        } else {
+            y
+        }
+    }
+
+    #[test]
+    fn fused_exp_keeps_its_bits() {
+        // over the whole range (subnormal results, n = −1075, included) and past both ends
+        let mut x = -760.0;
+        while x < 720.0 {
+            assert_eq!(exp_fma(x).to_bits(), exp_fma_clamped_reference(x).to_bits(), "{x}");
+            x += 0.000_713_7;
+        }
+        for x in [
+            f64::MIN,
+            -1e300,
+            -746.0,
+            -745.2,
+            709.782_712_893_384,
+            710.0,
+            1e300,
+            f64::MAX,
+        ] {
+            assert_eq!(exp_fma(x).to_bits(), exp_fma_clamped_reference(x).to_bits(), "{x}");
         }
     }
 
@@ -416,6 +487,12 @@ mod tests {
         while x < 709.0 {
             assert_eq!(exp(x).to_bits(), exp_unfused_reference(x).to_bits(), "{x}");
             x += 0.0137;
+        }
+        // and the subnormal results, n down to −1075 (the halves of 2^n)
+        let mut x = -745.19;
+        while x < -700.0 {
+            assert_eq!(exp(x).to_bits(), exp_unfused_reference(x).to_bits(), "{x}");
+            x += 0.001_37;
         }
     }
 
