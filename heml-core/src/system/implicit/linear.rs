@@ -8,8 +8,10 @@
 use super::cg::{dot, pcg_fused, CgOperator, CgReport};
 use super::cholesky::Cholesky;
 use super::matrix::{BlockMatrix, GsOrdering};
+use super::problem::REFACTOR_COST_IN_CHORDS;
 use super::settings::{CgPreconditioner, LinearSolver};
 use super::timings::PhaseTimes;
+use super::woodbury::Correction;
 use crate::error::Result;
 use crate::force::TangentOperator;
 use crate::system::statics::dofs::DofMap;
@@ -40,6 +42,9 @@ pub(in crate::system) struct TangentSolve {
     /// assembling, when it was made for the same matrix terms ([`FactorKey`]: chord
     /// Newton); otherwise (or when false) refactor first.
     pub reuse_factor: bool,
+    /// Cholesky: a held factor made for other tool contacts (only) is corrected by
+    /// low rank ([`Correction`]) instead of refactored, within [`CORRECTION_SOLVES`].
+    pub contact_corrections: bool,
     /// Cholesky: the most nonzeros the factor may hold.
     pub max_factor_nonzeros: usize,
 }
@@ -48,9 +53,11 @@ pub(in crate::system) struct TangentSolve {
 /// ((k + c c_v) per node, `None` without grasps) and the active tool contacts.
 /// Runtime changes that leave the matrix alone (a grasp or tool moved without
 /// changing the contact set, loads, gravity) keep the factor; a grasp made or
-/// opened, other coefficients, or a contact made or released refactor.
+/// opened or other coefficients refactor; a contact made or released (or turned
+/// beyond [`CONTACT_NORMAL_COSINE`]) is corrected by low rank on the kept factor
+/// ([`Correction`]) until that has cost [`CORRECTION_SOLVES`], then refactors.
 ///
-/// Why the contacts are in it: a contact spring k·n nᵀ is far stiffer than a
+/// Why the contacts must enter the solve exactly: a contact spring k·n nᵀ is far stiffer than a
 /// surface node's share of the rest of the matrix (k = 200 N/m against m/h² ≈ 0.3
 /// N/m and an elastic stiffness of ~10 N/m on gen_kidney_20k at 10 ms). A factor
 /// without the spring of a node that has since come into contact treats it
@@ -91,20 +98,22 @@ impl FactorKey {
         }
     }
 
-    /// Whether a factor made for `self` serves a matrix with the terms of `now`:
-    /// the same coefficients, grasps and contacts, the normals within
-    /// [`CONTACT_NORMAL_COSINE`].
-    fn serves(&self, now: &FactorKey) -> bool {
-        self.coefficients == now.coefficients
-            && self.grasps == now.grasps
-            && self.contacts.len() == now.contacts.len()
-            && self
-                .contacts
-                .iter()
-                .zip(&now.contacts)
-                .all(|(a, b)| a.0 == b.0 && a.1 == b.1 && a.2.dot(&b.2) >= CONTACT_NORMAL_COSINE)
+    /// Whether a factor made for `self` serves a matrix with the terms of `now` up to
+    /// the tool contacts (the same coefficients and grasps): the contacts that
+    /// changed are then corrected by low rank ([`Correction`]).
+    fn same_but_contacts(&self, now: &FactorKey) -> bool {
+        self.coefficients == now.coefficients && self.grasps == now.grasps
     }
 }
+
+/// The most column solves (A0⁻¹u, one pair of triangular solves each) a factor may
+/// take for low-rank contact corrections before the next contact change refactors
+/// instead: [`REFACTOR_COST_IN_CHORDS`], the fixed cost of a refactorisation in
+/// chord iterations, each of which holds one pair of triangular solves besides its
+/// force evaluations (so a column costs less than a chord iteration: the budget
+/// errs towards refactoring, whose fresh tangent also helps the contraction). A
+/// constant, not a timing: which steps refactor replays on every run.
+const CORRECTION_SOLVES: usize = REFACTOR_COST_IN_CHORDS as usize;
 
 /// What a tangent solve keeps between calls: the assembled matrix (its pattern is
 /// built once per set of operators) and the wall-clock time of its phases.
@@ -114,6 +123,12 @@ pub(in crate::system) struct SolveCache {
     /// The sparse Cholesky analysis and factor (for the matrix's pattern) and what
     /// the factor was made for.
     direct: Option<(Cholesky, Option<FactorKey>)>,
+    /// The low-rank correction of the factor for the contacts changed since it was
+    /// made (cleared by each factorisation).
+    correction: Correction,
+    /// Changes of the correction (each a new matrix for the chord iterations, as a
+    /// factorisation is) since the cache was made.
+    pub corrections: usize,
     /// Numeric Cholesky factorisations since the cache was made.
     pub factorizations: usize,
     /// Cholesky: the next solve must refactor (set by the chord-Newton rules of the
@@ -161,6 +176,7 @@ impl SolveCache {
     pub(in crate::system) fn invalidate(&mut self) {
         self.matrix = None;
         self.direct = None;
+        self.correction.clear();
     }
 
     /// Builds what depends on the mesh, the operators and the numbering of the
@@ -180,6 +196,7 @@ impl SolveCache {
         if !self.matrix.as_ref().is_some_and(|m| m.fits(n, tangents)) {
             self.matrix = Some(BlockMatrix::new(n, tets, tangents));
             self.direct = None;
+            self.correction.clear();
         }
         if let (Some(max_nonzeros), None) = (direct, &self.direct) {
             let matrix = self.matrix.as_ref().expect("built above");
@@ -272,6 +289,7 @@ impl TangentSolve {
         if !cache.matrix.as_ref().is_some_and(|m| m.fits(n, tangents)) {
             cache.matrix = Some(BlockMatrix::new(n, sys.model.mesh.tets(), tangents));
             cache.direct = None;
+            cache.correction.clear();
         }
         let matrix = cache.matrix.as_mut().expect("assembled");
         // grasp springs and dampers ((k + c c_v) I) and tool contacts ((k + c c_v) n nᵀ)
@@ -309,11 +327,14 @@ impl TangentSolve {
     }
 
     /// The Cholesky path of [`Self::solve`]: reuses the held factor when allowed and
-    /// made for the same matrix terms ([`FactorKey`]), else updates the tangents,
-    /// assembles, (analyses the pattern once and) factors; then two triangular
-    /// solves. Couplings beyond a tet (nodal volumes) enter the factor through their
-    /// diagonal blocks only, so with them the factor is an approximation (positive
-    /// definite) and the Newton iteration converges as a chord iteration.
+    /// made for the same coefficients and grasps ([`FactorKey`]), the tool contacts
+    /// changed since corrected by low rank ([`Correction`]) within the budget
+    /// [`CORRECTION_SOLVES`]; else updates the tangents, assembles, (analyses the
+    /// pattern once and) factors. Then two triangular solves (and the correction's
+    /// rank-m update). Couplings beyond a tet (nodal volumes) enter the factor
+    /// through their diagonal blocks only, so with them the factor is an
+    /// approximation (positive definite) and the Newton iteration converges as a
+    /// chord iteration.
     fn solve_direct(
         &self,
         sys: &System,
@@ -323,11 +344,29 @@ impl TangentSolve {
         rhs: &mut [f64],
     ) -> Result<CgReport> {
         let key = FactorKey::of(sys, self.ck, self.cm, self.cv);
-        let fresh = cache
-            .direct
-            .as_ref()
-            .is_some_and(|(c, k)| c.is_factored() && k.as_ref().is_some_and(|k| k.serves(&key)));
-        if !(self.reuse_factor && fresh) {
+        let t0 = Instant::now();
+        let served = self.reuse_factor
+            && match cache.direct.as_mut() {
+                Some((direct, Some(base))) if direct.is_factored() && base.same_but_contacts(&key) => {
+                    // without corrections, only a factor whose contacts serve as they are
+                    let budget = if self.contact_corrections { CORRECTION_SOLVES } else { 0 };
+                    let solves = cache.correction.solves;
+                    let out = cache.correction.update(
+                        direct,
+                        dofs,
+                        &base.contacts,
+                        &key.contacts,
+                        CONTACT_NORMAL_COSINE,
+                        budget,
+                    );
+                    cache.times.correction_columns += cache.correction.solves - solves;
+                    cache.corrections += usize::from(out == Some(true));
+                    out.is_some()
+                }
+                _ => false,
+            };
+        cache.times.factor += t0.elapsed().as_secs_f64();
+        if !served {
             self.assemble(sys, tangents, cache, dofs)?;
             let t0 = Instant::now();
             let matrix = cache.matrix.as_ref().expect("assembled");
@@ -337,6 +376,7 @@ impl TangentSolve {
             };
             let (direct, made_for) = cache.direct.insert((direct, made_for));
             *made_for = None;
+            cache.correction.clear();
             direct.factor(matrix)?;
             *made_for = Some(key);
             cache.factorizations += 1;
@@ -344,7 +384,7 @@ impl TangentSolve {
         }
         let t0 = Instant::now();
         let (direct, _) = cache.direct.as_mut().expect("factored");
-        direct.solve(rhs);
+        cache.correction.solve(direct, rhs);
         cache.times.cg += t0.elapsed().as_secs_f64();
         Ok(CgReport {
             iterations: 0,

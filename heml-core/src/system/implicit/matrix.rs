@@ -460,6 +460,13 @@ pub(super) mod tests {
         assert!((rz - want).abs() <= 1e-12 * want.abs(), "{rz} vs {want}");
     }
 
+    /// Adds `block` to node `i`'s diagonal block (a contact spring in the tests of
+    /// the direct solver).
+    pub(in crate::system::implicit) fn add_to_diagonal(m: &mut BlockMatrix, i: usize, block: Matrix3<f64>) {
+        let d = m.diag[i];
+        m.val[d] += block;
+    }
+
     /// Asserts z = P⁻¹ r on the free coordinates and z = 0 on the held ones, with
     /// P = (D + L) D⁻¹ (D + U) built densely from `dense` with the nodes in the
     /// order `order` (L: the blocks (i, j) with j before i). Bound: the sweeps are

@@ -49,6 +49,7 @@ mod problem;
 mod settings;
 mod solver;
 mod timings;
+mod woodbury;
 
 pub use settings::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings, LinearSolver};
 pub use solver::ImplicitSolver;

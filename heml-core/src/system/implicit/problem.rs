@@ -321,17 +321,19 @@ impl NewtonProblem for ImplicitStep<'_> {
             preconditioner: s.preconditioner,
             linear_solver: s.linear_solver,
             reuse_factor: !self.cache.refactor,
+            contact_corrections: s.contact_corrections,
             max_factor_nonzeros: s.max_factor_nonzeros,
         };
         let guess = self.guess.take().filter(|g| first && g.len() == rhs.len());
-        let factorizations = self.cache.factorizations;
+        let (factorizations, corrections) = (self.cache.factorizations, self.cache.corrections);
         let direct = s.linear_solver == LinearSolver::Cholesky;
         let residual = direct.then(|| rhs.to_vec());
         let report = solve.solve(sys, self.tangents, self.cache, dofs, rhs, guess.as_deref())?;
         let reused = direct && self.cache.factorizations == factorizations;
         if let Some(r) = residual {
-            // chord iterations mixed with the step's earlier iterates on this factor
-            if !reused {
+            // chord iterations mixed with the step's earlier iterates on this matrix
+            // (factor and contact correction)
+            if !reused || self.cache.corrections != corrections {
                 self.anderson.clear();
             }
             self.anderson.mix(dofs.gather(&sys.state.x), rhs, &r);

@@ -147,6 +147,16 @@ pub struct ImplicitSettings {
     /// factor; a mesh whose factor would be larger fails the step with an error that
     /// names both numbers (default 5·10⁷, 400 MB).
     pub max_factor_nonzeros: usize,
+    /// [`LinearSolver::Cholesky`]: correct a kept factor for the tool contacts made,
+    /// released or turned since it was made by a low-rank (Sherman–Morrison–Woodbury)
+    /// update, one pair of triangular solves per contact changed, instead of
+    /// refactoring (default true). The contact springs then enter every solve
+    /// exactly, over the kept factor's elastic part; after 20 such column solves on
+    /// one factor (a refactorisation's fixed cost in chord iterations) a contact
+    /// change refactors. On `heml bench --implicit`'s long run this took the
+    /// liver's press phase from 28 factorisations to 4. False: every contact
+    /// change refactors (the rule before session 16).
+    pub contact_corrections: bool,
 }
 
 impl Default for ImplicitSettings {
@@ -163,6 +173,7 @@ impl Default for ImplicitSettings {
             linear_solver: LinearSolver::Cg,
             refactor_contraction: 0.2,
             max_factor_nonzeros: 50_000_000,
+            contact_corrections: true,
         }
     }
 }

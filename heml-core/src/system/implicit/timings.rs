@@ -25,6 +25,10 @@ pub struct PhaseTimes {
     /// Not a time: the numeric Cholesky factorisations of the step (0 with CG; fewer
     /// than the Newton iterations when the factor is reused).
     pub factorizations: usize,
+    /// Not a time: the columns of low-rank contact corrections the step solved for
+    /// on a kept factor (one pair of triangular solves each; their time is in
+    /// `factor`), instead of refactoring for contacts made or released.
+    pub correction_columns: usize,
     /// Not a time: the residual norm at the end of the step over its value before
     /// the step's last linear solve (how much that Newton or chord iteration
     /// contracted it; 0 without a solve). With one iteration per step it is what

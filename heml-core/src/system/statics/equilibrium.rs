@@ -95,6 +95,7 @@ impl NewtonProblem for Equilibrium<'_> {
                     preconditioner: CgPreconditioner::SymmetricGaussSeidel,
                     linear_solver: *linear_solver,
                     reuse_factor: false,
+                    contact_corrections: false,
                     max_factor_nonzeros: ImplicitSettings::default().max_factor_nonzeros,
                 };
                 let report = solve.solve(sys, tangents, cache, dofs, rhs, None)?;
