@@ -35,8 +35,11 @@
 //! step when their observed contraction (0.9 or worse, or a predicted count of
 //! iterations to that goal costing more than a refactorisation, a fixed ratio so
 //! that runs replay) says a refactorisation is cheaper, when a line search on it stalls, and
-//! after a change of the matrix, tool contacts made or released included (not
-//! after a grasp or tool moved without changing the contacts, or a load changed).
+//! after a change of the matrix's coefficients or grasps (not after a grasp or tool
+//! moved without changing the contacts, or a load changed). Tool contacts made,
+//! released or turned since the factorisation are corrected exactly by low rank on
+//! the kept factor (`woodbury.rs`, Sherman–Morrison–Woodbury: one pair of
+//! triangular solves per contact changed) until that has cost a refactorisation.
 //! A residual at round-off (a body at rest) is converged: such a step takes no
 //! linear solve.
 
