@@ -85,8 +85,8 @@ pub struct BenchArgs {
     /// print --law's cost relative to it (e.g. a fibre law against neo_hookean).
     #[arg(long, value_name = "LAW")]
     pub against: Option<String>,
-    /// Instead of the usual table: the anti-locking volumetric formulation
-    /// (`volumetric = "nodal"`) of --law against the standard (element) one at
+    /// Instead of the usual table: the anti-locking volumetric formulations
+    /// (`volumetric = "nodal"` and `"patch"`) of --law against the standard (element) one at
     /// ν = 0.49, cost per tet and ratio, at 1 and --threads threads, timed round-robin.
     #[arg(long)]
     pub nodal: bool,
