@@ -10,7 +10,7 @@ use heml::registry::MaterialEntry;
 use heml_validation::fixtures::tissue_params;
 
 /// Times the element, nodal and patch fields of `entry` on `mesh` at `x`, one case per
-/// (pool, field), `repeats` samples of `inner` calls each.
+/// (pool, field), `repeats` samples of `inner` calls each; patches of `k` tets.
 pub(super) fn run(
     entry: &MaterialEntry,
     mesh: &TetMesh,
@@ -18,6 +18,7 @@ pub(super) fn run(
     pools: &[rayon::ThreadPool],
     repeats: usize,
     inner: usize,
+    k: usize,
 ) -> heml::Result<()> {
     let params = tissue_params(entry, 3e3, 0.49).ok_or_else(|| {
         HemlError::Invalid(format!(
@@ -31,7 +32,6 @@ pub(super) fn run(
     let nodal = law
         .with_volumetric(Volumetric::nodal())?
         .force_field(mesh, None, &opts)?;
-    let k = heml::force::patch_volume::DEFAULT_PATCH_SIZE;
     let patch = law
         .with_volumetric(Volumetric::patch(k))?
         .force_field(mesh, None, &opts)?;
