@@ -70,6 +70,8 @@ pub struct PatchVolume<M> {
     n_nodes: usize,
     /// Global ids of the field tets, in layout order.
     ids: Vec<usize>,
+    /// (global id, field position), sorted by id.
+    position_of: Vec<(usize, u32)>,
     /// Corner nodes of each field tet.
     tets: Vec<[u32; 4]>,
     /// Integration weight of each field tet (0 once removed).
@@ -107,7 +109,10 @@ impl<M: InvariantLaw> PatchVolume<M> {
         let layout = super::assembly::Layout::new(mesh, &sel, true);
         let (patch, n_patches) = super::patch::partition(mesh, &layout, k)?;
         let ids = layout.ids.clone();
+        let mut position_of: Vec<(usize, u32)> = ids.iter().enumerate().map(|(k, &t)| (t, k as u32)).collect();
+        position_of.sort_unstable();
         let mut pv = PatchVolume {
+            position_of,
             vol: Dilation::new(law),
             c,
             opts,
@@ -221,13 +226,19 @@ impl<M: InvariantLaw> PatchVolume<M> {
         Ok(e)
     }
 
+    /// The field position of global tet `t`, if the term holds it.
+    fn position(&self, t: usize) -> Option<usize> {
+        self.position_of
+            .binary_search_by_key(&t, |&(g, _)| g)
+            .ok()
+            .map(|i| self.position_of[i].1 as usize)
+    }
+
     /// The patch term's share of the forces of global tet `t`: −ω_t p̄_t ∇vol_t.
     pub fn tet_forces(&self, t: usize, x: &[Vec3]) -> Result<[Vec3; 4]> {
         check_sizes(self.n_nodes, x, None)?;
         let k = self
-            .ids
-            .iter()
-            .position(|&g| g == t)
+            .position(t)
             .ok_or_else(|| HemlError::Invalid(format!("tet {t} is not in this force field")))?;
         let (_, p) = self.pressures(x);
         let g = volume_gradient(&self.tets[k].map(|i| x[i as usize]));
@@ -240,9 +251,7 @@ impl<M: InvariantLaw> PatchVolume<M> {
         let mut pos = Vec::with_capacity(tets.len());
         for &t in tets {
             pos.push(
-                self.ids
-                    .iter()
-                    .position(|&g| g == t)
+                self.position(t)
                     .ok_or_else(|| HemlError::Invalid(format!("tet {t} is not in this force field")))?,
             );
         }
@@ -259,7 +268,7 @@ impl<M: InvariantLaw> PatchVolume<M> {
 
     /// Whether global tet `t` is in the term.
     fn holds(&self, t: usize) -> bool {
-        self.ids.contains(&t)
+        self.position(t).is_some()
     }
 
     /// Heap bytes per tet of the patch term.
@@ -267,6 +276,7 @@ impl<M: InvariantLaw> PatchVolume<M> {
         let n = self.tets.len().max(1) as f64;
         (std::mem::size_of_val(self.tets.as_slice())
             + std::mem::size_of_val(self.ids.as_slice())
+            + std::mem::size_of_val(self.position_of.as_slice())
             + std::mem::size_of_val(self.weights.as_slice())
             + std::mem::size_of_val(self.patch.as_slice())
             + std::mem::size_of_val(self.rest_v.as_slice())

@@ -213,9 +213,8 @@ impl Layout {
         let isa = Isa::current();
         let blocks = self.blocks.list();
         s.ensure(self.n_slots, blocks.len(), false);
-        let n_lanes = if K::TWO_PHASE { self.n_batches() } else { 0 };
-        if s.lanes.len() != n_lanes {
-            s.lanes = vec![[0.0; LANES]; n_lanes];
+        if K::TWO_PHASE && s.lanes.len() != self.n_batches() {
+            s.lanes = vec![[0.0; LANES]; self.n_batches()];
         }
         // each block's own part of the flat buffers
         type Task<'a> = (usize, BlockBuffers<'a>, &'a mut f64, &'a mut [[f64; LANES]]);
