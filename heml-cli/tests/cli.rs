@@ -113,10 +113,10 @@ fn bench_prints_a_complete_side_by_side_table() {
 /// nodal cost per tet, each median inside its own range and the ratio positive; a
 /// link law (no volumetric part) is refused with an error naming the law.
 #[test]
-fn bench_nodal_reports_both_formulations_and_refuses_link_laws() {
+fn bench_nodal_reports_the_formulations_and_refuses_link_laws() {
     let (ok, out, err) = heml(&["bench", "--nodal", "--tets", "3000", "--repeats", "3", "--threads", "2"]);
     assert!(ok, "{err}");
-    assert!(out.contains("element (standard) vs nodal (anti-locking"), "{out}");
+    assert!(out.contains("element (standard) vs nodal and patch (k = 6)"), "{out}");
     for threads in ["1", "2"] {
         let nums: Vec<f64> = out
             .lines()
@@ -127,8 +127,8 @@ fn bench_nodal_reports_both_formulations_and_refuses_link_laws() {
             .skip(1)
             .map(|v| v.parse().unwrap())
             .collect();
-        // element, nodal and ratio, each as median [min–max]
-        assert_eq!(nums.len(), 9, "{out}");
+        // element, nodal, patch and the two ratios, each as median [min–max]
+        assert_eq!(nums.len(), 15, "{out}");
         for m in nums.chunks(3) {
             assert!(
                 m[1] > 0.0 && m[1] <= m[0] && m[0] <= m[2],

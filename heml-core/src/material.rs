@@ -6,10 +6,12 @@ use crate::error::{HemlError, Result};
 use crate::fibres::Fibres;
 use crate::force::nodal_volume::{element_fraction, DEFAULT_STABILIZATION};
 use crate::force::p1::energy_and_piola;
+use crate::force::patch_volume::DEFAULT_PATCH_SIZE;
 use crate::force::{
     energy_and_piola_stretch, fibre_energy_and_piola, Dilation, ElasticForces, FibreField, FibreP1Field, ForceOptions,
     Formulation, HemlField, Isochoric, LinkField, NodalVolume, NodalVolumeField, NodalVolumeTangent, P1Field,
-    StretchHemlField, StretchP1Field, TangentField, TangentOperator, TetField,
+    PatchVolume, PatchVolumeField, PatchVolumeTangent, StretchHemlField, StretchP1Field, TangentField, TangentOperator,
+    TetField,
 };
 use crate::law::{FibreLaw, InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo, StretchLaw};
 use crate::mesh::TetMesh;
@@ -80,6 +82,13 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     fn volumetric(&self) -> Volumetric {
         Volumetric::Element
     }
+    /// Groups of nodes the volumetric term couples beyond a tet (the patch term's
+    /// patches), for solvers that assemble K in a band; `None` when it couples
+    /// at most the nodes around a node (element and nodal terms).
+    fn coupled_groups(&self, mesh: &TetMesh, tets: Option<&[usize]>) -> Result<Option<Vec<Vec<u32>>>> {
+        let _ = (mesh, tets);
+        Ok(None)
+    }
     /// The same law with volumetric formulation `v`. Only invariant laws have a
     /// volumetric part (see [`crate::force::volumetric`]); the default refuses.
     fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
@@ -103,12 +112,29 @@ pub enum Volumetric {
         /// The stabilisation factor s ≥ 0 (default [`DEFAULT_STABILIZATION`]).
         stabilization: f64,
     },
+    /// At patch volume ratios: one volume per compact patch of about `size` tets
+    /// (see [`crate::force::patch_volume`]), with the nodal term's stabilisation.
+    Patch {
+        /// Tets per patch, k (default [`DEFAULT_PATCH_SIZE`]).
+        size: usize,
+        /// The stabilisation factor s ≥ 0 (default [`DEFAULT_STABILIZATION`]).
+        stabilization: f64,
+    },
 }
 
 impl Volumetric {
     /// The nodal formulation with the default stabilisation.
     pub fn nodal() -> Self {
         Volumetric::Nodal {
+            stabilization: DEFAULT_STABILIZATION,
+        }
+    }
+
+    /// The patch formulation with `size` tets per patch and the default
+    /// stabilisation.
+    pub fn patch(size: usize) -> Self {
+        Volumetric::Patch {
+            size,
             stabilization: DEFAULT_STABILIZATION,
         }
     }
@@ -120,19 +146,26 @@ impl Volumetric {
         match (name, stabilization) {
             ("element", None) => Ok(Volumetric::Element),
             ("element", Some(_)) => Err(HemlError::Invalid(
-                "volumetric_stabilization applies to volumetric = \"nodal\" only".into(),
+                "volumetric_stabilization applies to volumetric = \"nodal\" or \"patch\" only".into(),
             )),
-            ("nodal", s) => {
+            ("nodal" | "patch", s) => {
                 let s = s.unwrap_or(DEFAULT_STABILIZATION);
                 if !(s.is_finite() && s >= 0.0) {
                     return Err(HemlError::Invalid(format!(
                         "volumetric_stabilization = {s} must be finite and >= 0"
                     )));
                 }
-                Ok(Volumetric::Nodal { stabilization: s })
+                Ok(if name == "nodal" {
+                    Volumetric::Nodal { stabilization: s }
+                } else {
+                    Volumetric::Patch {
+                        size: DEFAULT_PATCH_SIZE,
+                        stabilization: s,
+                    }
+                })
             }
             (other, _) => Err(HemlError::Invalid(format!(
-                "unknown volumetric formulation `{other}` (expected \"element\" or \"nodal\")"
+                "unknown volumetric formulation `{other}` (expected \"element\", \"nodal\" or \"patch\")"
             ))),
         }
     }
@@ -143,6 +176,9 @@ impl std::fmt::Display for Volumetric {
         match self {
             Volumetric::Element => write!(f, "element"),
             Volumetric::Nodal { stabilization } => write!(f, "nodal (stabilization {stabilization})"),
+            Volumetric::Patch { size, stabilization } => {
+                write!(f, "patch ({size} tets, stabilization {stabilization})")
+            }
         }
     }
 }
@@ -360,6 +396,13 @@ impl<M: InvariantLaw> Material for Invariant<M> {
                 Volumetric::parse("nodal", Some(stabilization))?;
                 Ok(Box::new(NodalInvariant::new(self.0, stabilization)))
             }
+            Volumetric::Patch { size, stabilization } => {
+                Volumetric::parse("patch", Some(stabilization))?;
+                if !(1..=64).contains(&size) {
+                    return Err(HemlError::Invalid(format!("patch size {size} must lie in 1..=64 tets")));
+                }
+                Ok(Box::new(PatchInvariant::new(self.0, size, stabilization)))
+            }
         }
     }
 }
@@ -468,6 +511,124 @@ impl<M: InvariantLaw> Material for NodalInvariant<M> {
     }
     fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
         Invariant(self.law).with_volumetric(v)
+    }
+}
+
+/// An invariant law with its volumetric energy at patch volume ratios (the patch
+/// anti-locking formulation, [`crate::force::patch_volume`]): the element fields
+/// evaluate [`Isochoric`]`<M>` and a patch term adds (1 − β) Σ_P V_P U(J_P).
+#[derive(Debug, Clone, Copy)]
+pub struct PatchInvariant<M> {
+    law: M,
+    size: usize,
+    stabilization: f64,
+    /// 1 − β.
+    c: f64,
+}
+
+impl<M: InvariantLaw> PatchInvariant<M> {
+    /// `law` with patches of `size` tets and stabilisation factor `stabilization`.
+    pub fn new(law: M, size: usize, stabilization: f64) -> Self {
+        let beta = element_fraction(&Dilation::new(law), stabilization);
+        PatchInvariant {
+            law,
+            size,
+            stabilization,
+            c: 1.0 - beta,
+        }
+    }
+
+    fn patch<K: Formulation + 'static>(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        iso: TetField<K>,
+    ) -> Result<Box<dyn ElasticForces>> {
+        let patch = PatchVolume::new(self.law, self.c, self.size, mesh, tets, *opts)?;
+        Ok(Box::new(PatchVolumeField::new(iso, patch)?))
+    }
+}
+
+impl<M: InvariantLaw> Material for PatchInvariant<M> {
+    fn name(&self) -> &'static str {
+        M::NAME
+    }
+    fn kind(&self) -> LawKind {
+        LawKind::Invariant
+    }
+    fn param_info(&self) -> &'static [ParamInfo] {
+        M::PARAMS
+    }
+    fn param_values(&self) -> Vec<f64> {
+        self.law.to_params()
+    }
+    fn ops(&self) -> OpCount {
+        <M as InvariantLaw>::OPS
+    }
+    fn uses(&self) -> (bool, bool) {
+        (M::USES_I2, true)
+    }
+    fn force_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Box<dyn ElasticForces>> {
+        let iso = HemlField::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
+        self.patch(mesh, tets, opts, iso)
+    }
+    /// The same split on the standard P1 element, with the same partition.
+    fn fem_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Option<Box<dyn ElasticForces>>> {
+        let iso = P1Field::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
+        Ok(Some(self.patch(mesh, tets, opts, iso)?))
+    }
+    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
+        Some(energy_and_piola(&self.law, f, opts))
+    }
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>> {
+        let iso = TangentField::invariant(Isochoric::new(self.law, self.c), mesh, tets, *opts, project_psd)?;
+        let patch = PatchVolume::new(self.law, self.c, self.size, mesh, tets, *opts)?;
+        Ok(Some(Box::new(PatchVolumeTangent::new(
+            Box::new(iso),
+            patch,
+            project_psd,
+        ))))
+    }
+    fn volumetric(&self) -> Volumetric {
+        Volumetric::Patch {
+            size: self.size,
+            stabilization: self.stabilization,
+        }
+    }
+    fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
+        Invariant(self.law).with_volumetric(v)
+    }
+    fn coupled_groups(&self, mesh: &TetMesh, tets: Option<&[usize]>) -> Result<Option<Vec<Vec<u32>>>> {
+        let patch = PatchVolume::new(self.law, self.c, self.size, mesh, tets, ForceOptions::default())?;
+        Ok(Some(
+            patch
+                .patches()
+                .iter()
+                .map(|p| {
+                    let mut nodes: Vec<u32> = p.iter().flat_map(|&t| mesh.tets()[t]).collect();
+                    nodes.sort_unstable();
+                    nodes.dedup();
+                    nodes
+                })
+                .collect(),
+        ))
     }
 }
 

@@ -811,6 +811,13 @@ fn volumetric_keys_choose_the_nodal_formulation_per_material_or_for_all() {
         volumetric_of(scene("", "volumetric = \"nodal\"\nvolumetric_stabilization = 0.5")),
         Volumetric::Nodal { stabilization: 0.5 }
     );
+    assert_eq!(
+        volumetric_of(scene("volumetric = \"patch\"\nvolumetric_stabilization = 0.2", "")),
+        Volumetric::Patch {
+            size: heml::force::patch_volume::DEFAULT_PATCH_SIZE,
+            stabilization: 0.2
+        }
+    );
     // the material's own key wins over [solver]'s
     assert_eq!(
         volumetric_of(scene("volumetric = \"element\"", "volumetric = \"nodal\"")),
@@ -821,7 +828,7 @@ fn volumetric_keys_choose_the_nodal_formulation_per_material_or_for_all() {
     let e = err_of(&scene("volumetric = \"nodal\"\nvolumetric_stabilization = -1.0", ""));
     assert!(e.contains("volumetric_stabilization = -1"), "{e}");
     let e = err_of(&scene("volumetric_stabilization = 0.2", ""));
-    assert!(e.contains("volumetric = \"nodal\" is not"), "{e}");
+    assert!(e.contains("volumetric = \"nodal\" or \"patch\" is not"), "{e}");
     let e = err_of(&scene("", "volumetric = \"nodal\"").replace(
         "law = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.49 }",
         "law = \"mass_spring\"\nparams = { k = 10.0 }",

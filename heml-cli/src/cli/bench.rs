@@ -85,11 +85,14 @@ pub struct BenchArgs {
     /// print --law's cost relative to it (e.g. a fibre law against neo_hookean).
     #[arg(long, value_name = "LAW")]
     pub against: Option<String>,
-    /// Instead of the usual table: the anti-locking volumetric formulation
-    /// (`volumetric = "nodal"`) of --law against the standard (element) one at
+    /// Instead of the usual table: the anti-locking volumetric formulations
+    /// (`volumetric = "nodal"` and `"patch"`) of --law against the standard (element) one at
     /// ν = 0.49, cost per tet and ratio, at 1 and --threads threads, timed round-robin.
     #[arg(long)]
     pub nodal: bool,
+    /// Tets per patch of the patch formulation in --nodal.
+    #[arg(long, value_name = "K", default_value_t = heml::force::patch_volume::DEFAULT_PATCH_SIZE)]
+    pub patch_size: usize,
 }
 
 /// Soft-tissue parameters (E = 3 kPa, ν = 0.45) for a built-in law; link laws get a
@@ -308,7 +311,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     }
     let pools = counts.iter().map(|&n| pool(n)).collect::<heml::Result<Vec<_>>>()?;
     if args.nodal {
-        return super::bench_nodal::run(entry, &mesh, &x, &pools, repeats, inner);
+        return super::bench_nodal::run(entry, &mesh, &x, &pools, repeats, inner, args.patch_size);
     }
 
     let law = with_bench_fibres(law, &mesh)?;

@@ -68,6 +68,42 @@ impl<K: TetKernel> BatchKernel for Pressured<'_, K> {
     }
 }
 
+/// The per-block pressures of a two-phase pass ([`TetField::add_forces_two_phase`]):
+/// the patch volumetric term's.
+pub(crate) trait BlockPressures: Sync {
+    /// Turns the volumes `s` of the block's tets (weighted; one array per batch from
+    /// `batch0`) in place into the pressures on them and returns their energy.
+    fn pressures(&self, batch0: usize, s: &mut [[f64; LANES]]) -> f64;
+}
+
+/// A field's tets with per-block pressures: phase 1 takes each tet's volume from
+/// the block's gathered positions, [`BlockPressures`] turns them into pressures,
+/// phase 2 runs the element kernel with the pressure forces on its ∂w/∂J lane.
+struct TwoPhase<'a, K: TetKernel, P>(Tets<'a, K>, &'a P);
+
+impl<K: TetKernel, P: BlockPressures> BatchKernel for TwoPhase<'_, K, P> {
+    const TWO_PHASE: bool = true;
+    #[inline(always)]
+    fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
+        self.0.batch(b, p, f, e)
+    }
+    #[inline(always)]
+    fn pre_batch(&self, _b: usize, p: &LanePoints, s: &mut [f64; LANES]) {
+        let (_, det) = super::lanes::lane_crosses(p);
+        for (sl, d) in s.iter_mut().zip(det) {
+            *sl = d * (1.0 / 6.0);
+        }
+    }
+    fn between(&self, batch0: usize, s: &mut [[f64; LANES]]) -> f64 {
+        self.1.pressures(batch0, s)
+    }
+    #[inline(always)]
+    fn batch_s(&self, b: usize, p: &LanePoints, s: &[f64; LANES], f: &mut LaneForces, e: &mut [f64; LANES]) {
+        prefetch(self.0.rest, b);
+        self.0.kernel.batch_pressure(&self.0.rest[b], p, s, f, e)
+    }
+}
+
 impl<K: TetKernel> PlainKernel for Tets<'_, K> {
     #[inline(always)]
     fn tet(&self, k: usize, p: &[Vec3; 4], add: impl FnMut(usize, Vec3)) -> f64 {
@@ -158,6 +194,24 @@ impl<K: Formulation> TetField<K> {
                     .add_batched_lumped(&Pressured(self.tets()), parallel, x, |p| nodal(p, parallel), f)
             }
         }
+    }
+
+    /// Adds the element part's forces and the pressure forces −p̄_t ∇vol_t of
+    /// per-block pressures `pressures` (one pass of the block driver in two phases per
+    /// block, [`BatchKernel::TWO_PHASE`]) and returns both energies. Batched
+    /// assemblies only: the reference path is the caller's.
+    pub(crate) fn add_forces_two_phase<P: BlockPressures>(
+        &self,
+        pressures: &P,
+        x: &[Vec3],
+        f: &mut [Vec3],
+    ) -> Result<f64> {
+        self.layout.add_batched(
+            &TwoPhase(self.tets(), pressures),
+            self.assembly == Assembly::Parallel,
+            x,
+            f,
+        )
     }
 
     /// Global ids of the field's tets in its order (removed ones included).

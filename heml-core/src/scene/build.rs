@@ -588,7 +588,7 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec, mesh: &
         (None, Some(v)) => Some((v, m.volumetric_stabilization.or(solver.volumetric_stabilization))),
         (None, None) if m.volumetric_stabilization.is_some() || solver.volumetric_stabilization.is_some() => {
             return Err(HemlError::Invalid(
-                "volumetric_stabilization is given but volumetric = \"nodal\" is not".into(),
+                "volumetric_stabilization is given but volumetric = \"nodal\" or \"patch\" is not".into(),
             ))
         }
         (None, None) => None,

@@ -140,11 +140,11 @@ pub struct MaterialSpec {
     /// Prony series (visco-hyperelasticity): `[{ alpha = 0.3, tau = 0.1 }, …]`.
     #[serde(default)]
     pub prony: Vec<PronyTerm>,
-    /// Volumetric formulation: `"element"` (standard) or `"nodal"` (anti-locking,
-    /// for nearly incompressible tissue); default: `[solver] volumetric`, else
-    /// `"element"`.
+    /// Volumetric formulation: `"element"` (standard), `"nodal"` or `"patch"`
+    /// (anti-locking, for nearly incompressible tissue; `"patch"`: one volume per
+    /// patch of 6 tets); default: `[solver] volumetric`, else `"element"`.
     pub volumetric: Option<String>,
-    /// Stabilisation factor s of `volumetric = "nodal"` (β = min(1, s·μ0/K0) of the
+    /// Stabilisation factor s of `volumetric = "nodal"` or `"patch"` (β = min(1, s·μ0/K0) of the
     /// element volumetric energy is kept; default 0.1, or `[solver]`'s).
     pub volumetric_stabilization: Option<f64>,
     /// Fibre laws: one or two constant fibre directions (rest frame) for the
@@ -332,9 +332,9 @@ pub struct SolverSpec {
     /// factor may hold (default 5e7, 400 MB); a larger factor is refused.
     pub max_factor_nonzeros: Option<usize>,
     /// Volumetric formulation of every material that does not set its own:
-    /// `"element"` (default) or `"nodal"` (anti-locking).
+    /// `"element"` (default), `"nodal"` or `"patch"` (anti-locking).
     pub volumetric: Option<String>,
-    /// Stabilisation factor of `volumetric = "nodal"` for every material that does
+    /// Stabilisation factor of `volumetric = "nodal"` or `"patch"` for every material that does
     /// not set its own (default 0.1).
     pub volumetric_stabilization: Option<f64>,
 }

@@ -40,6 +40,39 @@ pub(crate) trait BatchKernel: Sync {
         let _ = w;
         self.batch(b, p, f, e)
     }
+
+    /// Whether the driver runs each block in two phases: [`Self::pre_batch`] over
+    /// its batches, then [`Self::between`] on their per-lane results, then
+    /// [`Self::batch_s`] over the batches again (on the positions the block
+    /// gathered already, still in L1): the patch volumetric term, whose pressures
+    /// need the volumes of a patch's tets, all in the block.
+    const TWO_PHASE: bool = false;
+
+    /// Phase 1 of a two-phase kernel: one number per lane of batch `b` from its
+    /// corner positions `p` (the tets' volumes). The driver then multiplies it by the
+    /// tet's weight and sets it to 0 for removed and padding lanes.
+    #[inline(always)]
+    fn pre_batch(&self, b: usize, p: &LanePoints, s: &mut [f64; LANES]) {
+        let _ = (b, p);
+        *s = [0.0; LANES];
+    }
+
+    /// Between the phases: turns the block's phase-1 numbers `s` (one array per
+    /// batch, from batch `batch0`) in place into the per-lane inputs of phase 2, and
+    /// returns an energy (the block's patch energies).
+    #[inline(always)]
+    fn between(&self, batch0: usize, s: &mut [[f64; LANES]]) -> f64 {
+        let _ = (batch0, s);
+        0.0
+    }
+
+    /// Phase 2 of a two-phase kernel: as [`Self::batch`], with `s` the lanes'
+    /// inputs from [`Self::between`].
+    #[inline(always)]
+    fn batch_s(&self, b: usize, p: &LanePoints, s: &[f64; LANES], f: &mut LaneForces, e: &mut [f64; LANES]) {
+        let _ = s;
+        self.batch(b, p, f, e)
+    }
 }
 
 /// The plain per-tet kernel of a field, for the reference path.
@@ -58,6 +91,8 @@ pub(crate) struct Scratch {
     energy: Vec<f64>,
     /// One scalar per slot, for [`Layout::lumped_volumes`].
     pub(super) lumped: Vec<f64>,
+    /// One array per batch, for two-phase kernels ([`BatchKernel::TWO_PHASE`]).
+    lanes: Vec<[f64; LANES]>,
 }
 
 impl Scratch {
@@ -178,15 +213,26 @@ impl Layout {
         let isa = Isa::current();
         let blocks = self.blocks.list();
         s.ensure(self.n_slots, blocks.len(), false);
+        if K::TWO_PHASE && s.lanes.len() != self.n_batches() {
+            s.lanes = vec![[0.0; LANES]; self.n_batches()];
+        }
         // each block's own part of the flat buffers
-        type Task<'a> = (usize, BlockBuffers<'a>, &'a mut f64);
+        type Task<'a> = (usize, BlockBuffers<'a>, &'a mut f64, &'a mut [[f64; LANES]]);
         let mut tasks: Vec<Task> = Vec::with_capacity(blocks.len());
         let (mut xs, mut fs) = (&mut s.x[..], &mut s.f[..]);
+        let mut ls = &mut s.lanes[..];
         for (b, e) in s.energy.iter_mut().enumerate() {
-            tasks.push((b, self.blocks.buffers(b, &mut xs, &mut fs), e));
+            let n = if K::TWO_PHASE {
+                blocks[b].batch_end - blocks[b].batch_start
+            } else {
+                0
+            };
+            let (mine, rest) = std::mem::take(&mut ls).split_at_mut(n);
+            ls = rest;
+            tasks.push((b, self.blocks.buffers(b, &mut xs, &mut fs), e, mine));
         }
         let n_tets = self.n_tets();
-        let one = |(b, mut bufs, e): Task| {
+        let one = |(b, mut bufs, e, lanes): Task| {
             let blk = &blocks[b];
             match gather {
                 Gather::WithW(w) => {
@@ -208,7 +254,7 @@ impl Layout {
             bufs.f_mut().fill(Node4::default());
             let dead = &self.dead[blk.batch_start..blk.batch_end];
             let weights = self.weights.as_ref().map(|w| &w[blk.batch_start..blk.batch_end]);
-            *e = run_block(isa, k, blk.batch_start, n_tets, dead, weights, bufs);
+            *e = run_block(isa, k, blk.batch_start, n_tets, dead, weights, bufs, lanes);
         };
         if parallel {
             tasks.into_par_iter().with_max_len(1).for_each(one);
@@ -234,7 +280,9 @@ impl Layout {
     }
 }
 
-/// Runs the batches of one block with the driver compiled for `isa`.
+/// Runs the batches of one block with the driver compiled for `isa` (`lanes`: the
+/// block's phase-1 buffer, one array per batch, for two-phase kernels).
+#[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
 fn run_block<K: BatchKernel>(
     isa: Isa,
     k: &K,
@@ -243,6 +291,7 @@ fn run_block<K: BatchKernel>(
     dead: &[u8],
     weights: Option<&[[f64; LANES]]>,
     blk: BlockBuffers,
+    lanes: &mut [[f64; LANES]],
 ) -> f64 {
     // separate references, so that the driver knows the buffers do not alias
     let (tets, x, f) = blk.into_parts();
@@ -251,13 +300,13 @@ fn run_block<K: BatchKernel>(
         // SAFETY: the token proves the CPU has avx512f, avx512dq, avx512vl, avx2 and
         // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
         // of one `BlockBuffers`, so every index is below both buffers' length.
-        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, dead, weights, tets, x, f) },
+        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the token proves the CPU has avx2 and fma, the features
         // `block_avx2` enables; the indices as above.
-        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f) },
+        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
         // SAFETY: the indices as above (and the portable I/O checks them anyway).
-        _ => unsafe { block_body(Portable, k, batch0, n_tets, dead, weights, tets, x, f) },
+        _ => unsafe { block_body(Portable, k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
     }
 }
 
@@ -281,9 +330,10 @@ macro_rules! block_with_features {
             tets: &[LocalBatch],
             x: &[Node4],
             f: &mut [Node4],
+            lanes: &mut [[f64; LANES]],
         ) -> f64 {
             // SAFETY: the caller's preconditions.
-            unsafe { block_body(io, k, batch0, n_tets, dead, weights, tets, x, f) }
+            unsafe { block_body(io, k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
         }
     };
 }
@@ -311,15 +361,40 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
     tets: &[LocalBatch],
     x: &[Node4],
     f: &mut [Node4],
+    lanes: &mut [[f64; LANES]],
 ) -> f64 {
     let mut energy = 0.0;
     let mut p = [[[0.0; LANES]; 3]; 4];
     let mut fl = [[[0.0; LANES]; 3]; 4];
     let mut el = [0.0; LANES];
     let mut wl = [[0.0; LANES]; 4];
+    if K::TWO_PHASE {
+        for (bo, (idx, s)) in tets.iter().zip(lanes.iter_mut()).enumerate() {
+            let b = batch0 + bo;
+            // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
+            unsafe { io.gather(idx, x, &mut p) };
+            k.pre_batch(b, &p, s);
+            if let Some(w) = weights {
+                for l in 0..LANES {
+                    s[l] *= w[bo][l];
+                }
+            }
+            let count = (n_tets - b * LANES).min(LANES);
+            for l in 0..LANES {
+                if l >= count || dead[bo] & (1 << l) != 0 {
+                    s[l] = 0.0;
+                }
+            }
+        }
+        energy += k.between(batch0, lanes);
+    }
     for (bo, idx) in tets.iter().enumerate() {
         let b = batch0 + bo;
-        if K::USES_W {
+        if K::TWO_PHASE {
+            // SAFETY: as above
+            unsafe { io.gather(idx, x, &mut p) };
+            k.batch_s(b, &p, &lanes[bo], &mut fl, &mut el);
+        } else if K::USES_W {
             // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
             unsafe { io.gather_w(idx, x, &mut p, &mut wl) };
             k.batch_w(b, &p, &wl, &mut fl, &mut el);

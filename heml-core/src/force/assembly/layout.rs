@@ -372,6 +372,16 @@ impl Layout {
         self.blocks.local(k).map(|l| blk.nodes[l as usize])
     }
 
+    /// The field positions `[start, end)` of each block's tets (the patch volumetric
+    /// term keeps every patch inside one block, see [`crate::force::patch`]).
+    pub(crate) fn block_ranges(&self) -> Vec<(usize, usize)> {
+        self.blocks
+            .list()
+            .iter()
+            .map(|b| (b.batch_start * LANES, (b.batch_end * LANES).min(self.n_tets)))
+            .collect()
+    }
+
     fn block_of(&self, k: usize) -> usize {
         let b = k / LANES;
         self.blocks.list().partition_point(|blk| blk.batch_end <= b)

@@ -77,6 +77,20 @@ impl DofMap {
             .unwrap_or(0)
     }
 
+    /// Half-bandwidth of a matrix that couples the nodes of each of `groups` (the
+    /// patch volumetric term's patches).
+    pub(in crate::system) fn group_band(&self, groups: &[Vec<u32>]) -> usize {
+        groups
+            .iter()
+            .map(|g| {
+                let ids = g.iter().flat_map(|&i| self.dof[i as usize]).filter(|&d| d != HELD);
+                let (l, h) = ids.fold((usize::MAX, 0), |(l, h), d| (l.min(d), h.max(d)));
+                h.saturating_sub(l)
+            })
+            .max()
+            .unwrap_or(0)
+    }
+
     /// The degree of freedom of coordinate `axis` of `node`, if free.
     pub(in crate::system) fn get(&self, node: usize, axis: usize) -> Option<usize> {
         let d = self.dof[node][axis];

@@ -24,7 +24,8 @@ enum Linear {
     /// Banded LDLᵀ of the exact generated tangents (per-tet blocks and the nodal
     /// volumetric couplings, which reach two links: a nodal-volume material whose
     /// band fits in memory).
-    BandedTangent(Vec<Box<dyn TangentOperator>>),
+    /// The half-bandwidth is the second field.
+    BandedTangent(Vec<Box<dyn TangentOperator>>, usize),
     /// Preconditioned conjugate gradients, or a sparse Cholesky factorisation, of
     /// the assembled generated tangent (projected to positive semi-definite per tet).
     Cg(Vec<Box<dyn TangentOperator>>, Box<SolveCache>, LinearSolver),
@@ -77,11 +78,11 @@ impl NewtonProblem for Equilibrium<'_> {
                 stiffness.add_to(sys, dofs, &mut k);
                 Ok(solve_banded(sys, dofs, k, rhs))
             }
-            Linear::BandedTangent(tangents) => {
+            Linear::BandedTangent(tangents, band) => {
                 for t in tangents.iter_mut() {
                     t.update(&sys.state.x)?;
                 }
-                let mut k = BandLdl::new(dofs.len(), dofs.ring_band(sys.model.mesh.tets()));
+                let mut k = BandLdl::new(dofs.len(), *band);
                 add_operators(tangents, sys, dofs, &mut k);
                 Ok(solve_banded(sys, dofs, k, rhs))
             }
@@ -160,6 +161,18 @@ fn add_contact_stiffness(sys: &System, dofs: &DofMap, k: &mut BandLdl) {
 }
 
 impl System {
+    /// Half-bandwidth of the stiffness with the volumetric terms' couplings: nodes
+    /// two links apart (the nodal term) or within one patch (the patch term).
+    fn coupled_band(&self, dofs: &DofMap) -> Result<usize> {
+        let mut band = dofs.ring_band(self.model.mesh.tets());
+        for r in &self.model.regions {
+            if let Some(groups) = r.material.coupled_groups(&self.model.mesh, Some(r.field.tet_ids()))? {
+                band = band.max(dofs.group_band(&groups));
+            }
+        }
+        Ok(band)
+    }
+
     /// Newton iterations towards equilibrium; `Ok(None)` when not applicable (a law
     /// without stress, nothing free) or stalled (then dynamic relaxation goes on from the
     /// current iterate).
@@ -195,9 +208,8 @@ impl System {
         let linear = if opts.linear_solver.is_none() && !nodal && BandLdl::fits(dofs.len(), dofs.band()) {
             Linear::Banded(stiffness)
         } else {
-            let banded = opts.linear_solver.is_none()
-                && nodal
-                && BandLdl::fits(dofs.len(), dofs.ring_band(self.model.mesh.tets()));
+            let band = self.coupled_band(&dofs)?;
+            let banded = opts.linear_solver.is_none() && nodal && BandLdl::fits(dofs.len(), band);
             let mut tangents = Vec::with_capacity(self.model.regions.len());
             for r in &self.model.regions {
                 match r.material.tangent(
@@ -211,7 +223,7 @@ impl System {
                 }
             }
             if banded {
-                Linear::BandedTangent(tangents)
+                Linear::BandedTangent(tangents, band)
             } else {
                 Linear::Cg(tangents, Box::default(), opts.linear_solver.unwrap_or_default())
             }
