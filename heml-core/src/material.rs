@@ -4,14 +4,12 @@
 
 use crate::error::{HemlError, Result};
 use crate::fibres::Fibres;
-use crate::force::nodal_volume::{element_fraction, DEFAULT_STABILIZATION};
+use crate::force::grouped::{group_weight, VolumeTerm, DEFAULT_STABILIZATION};
 use crate::force::p1::energy_and_piola;
 use crate::force::patch_volume::DEFAULT_PATCH_SIZE;
 use crate::force::{
-    energy_and_piola_stretch, fibre_energy_and_piola, Dilation, ElasticForces, FibreField, FibreP1Field, ForceOptions,
-    Formulation, HemlField, Isochoric, LinkField, NodalVolume, NodalVolumeField, NodalVolumeTangent, P1Field,
-    PatchVolume, PatchVolumeField, PatchVolumeTangent, StretchHemlField, StretchP1Field, TangentField, TangentOperator,
-    TetField,
+    energy_and_piola_stretch, fibre_energy_and_piola, ElasticForces, FibreField, FibreP1Field, ForceOptions, HemlField,
+    Isochoric, LinkField, P1Field, PatchVolume, StretchHemlField, StretchP1Field, TangentField, TangentOperator,
 };
 use crate::law::{FibreLaw, InvariantLaw, LawKind, LinkLaw, OpCount, ParamInfo, StretchLaw};
 use crate::mesh::TetMesh;
@@ -391,43 +389,47 @@ impl<M: InvariantLaw> Material for Invariant<M> {
     fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
         match v {
             Volumetric::Element => Ok(Box::new(*self)),
-            Volumetric::Nodal { stabilization } => {
-                // checks the factor
-                Volumetric::parse("nodal", Some(stabilization))?;
-                Ok(Box::new(NodalInvariant::new(self.0, stabilization)))
-            }
-            Volumetric::Patch { size, stabilization } => {
-                Volumetric::parse("patch", Some(stabilization))?;
-                if !(1..=64).contains(&size) {
-                    return Err(HemlError::Invalid(format!("patch size {size} must lie in 1..=64 tets")));
-                }
-                Ok(Box::new(PatchInvariant::new(self.0, size, stabilization)))
-            }
+            grouped => Ok(Box::new(GroupedInvariant::new(self.0, grouped)?)),
         }
     }
 }
 
-/// An invariant law with its volumetric energy at nodal volume ratios (the
-/// anti-locking formulation, [`crate::force::nodal_volume`]): the element fields
-/// evaluate [`Isochoric`]`<M>` (the law minus (1 − β) U(J)), and a nodal term adds
-/// (1 − β) Σ_a V_a U(J_a).
+/// An invariant law with its volumetric energy at grouped volume ratios — nodal or
+/// patch, the anti-locking formulations of [`crate::force::grouped`]: the element
+/// fields evaluate [`Isochoric`]`<M>` (the law minus (1 − β) U(J)), and a grouped
+/// term adds (1 − β) Σ_g V_g U(J_g).
 #[derive(Debug, Clone, Copy)]
-pub struct NodalInvariant<M> {
+pub struct GroupedInvariant<M> {
     law: M,
-    stabilization: f64,
+    /// Nodal or patch, with the stabilisation factor (never `Element`).
+    volumetric: Volumetric,
     /// 1 − β.
     c: f64,
 }
 
-impl<M: InvariantLaw> NodalInvariant<M> {
-    /// `law` with stabilisation factor `stabilization` (β = min(1, s·μ0/K0)).
-    pub fn new(law: M, stabilization: f64) -> Self {
-        let beta = element_fraction(&Dilation::new(law), stabilization);
-        NodalInvariant {
-            law,
-            stabilization,
-            c: 1.0 - beta,
+impl<M: InvariantLaw> GroupedInvariant<M> {
+    /// `law` with the grouped volumetric term `volumetric` (nodal or patch; β =
+    /// min(1, s·μ0/K0) from its stabilisation factor s), checked.
+    pub fn new(law: M, volumetric: Volumetric) -> Result<Self> {
+        let (s, size) = match volumetric {
+            Volumetric::Element => {
+                return Err(HemlError::Invalid(
+                    "the element volumetric term is the plain invariant law".into(),
+                ))
+            }
+            Volumetric::Nodal { stabilization } => (stabilization, None),
+            Volumetric::Patch { size, stabilization } => (stabilization, Some(size)),
+        };
+        // checks the factor, then the size
+        Volumetric::parse("nodal", Some(s))?;
+        if let Some(size) = size.filter(|k| !(1..=64).contains(k)) {
+            return Err(HemlError::Invalid(format!("patch size {size} must lie in 1..=64 tets")));
         }
+        Ok(GroupedInvariant {
+            law,
+            volumetric,
+            c: group_weight(law, s),
+        })
     }
 
     /// The fraction β of the element volumetric energy kept.
@@ -435,19 +437,13 @@ impl<M: InvariantLaw> NodalInvariant<M> {
         1.0 - self.c
     }
 
-    fn nodal<K: Formulation + 'static>(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-        iso: TetField<K>,
-    ) -> Result<Box<dyn ElasticForces>> {
-        let nodal = NodalVolume::new(self.law, self.c, mesh, tets, *opts)?;
-        Ok(Box::new(NodalVolumeField::new(iso, nodal)?))
+    /// The grouped term over the tets `tets` of `mesh`.
+    fn term(&self, mesh: &TetMesh, tets: Option<&[usize]>, opts: &ForceOptions) -> Result<VolumeTerm<M>> {
+        VolumeTerm::new(self.volumetric, self.law, self.c, mesh, tets, *opts)
     }
 }
 
-impl<M: InvariantLaw> Material for NodalInvariant<M> {
+impl<M: InvariantLaw> Material for GroupedInvariant<M> {
     fn name(&self) -> &'static str {
         M::NAME
     }
@@ -473,9 +469,10 @@ impl<M: InvariantLaw> Material for NodalInvariant<M> {
         opts: &ForceOptions,
     ) -> Result<Box<dyn ElasticForces>> {
         let iso = HemlField::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
-        self.nodal(mesh, tets, opts, iso)
+        self.term(mesh, tets, opts)?.field(iso)
     }
-    /// The same split on the standard P1 element (the oracle of the HEML path).
+    /// The same split on the standard P1 element (the oracle of the HEML path), with
+    /// the same groups.
     fn fem_field(
         &self,
         mesh: &TetMesh,
@@ -483,9 +480,9 @@ impl<M: InvariantLaw> Material for NodalInvariant<M> {
         opts: &ForceOptions,
     ) -> Result<Option<Box<dyn ElasticForces>>> {
         let iso = P1Field::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
-        Ok(Some(self.nodal(mesh, tets, opts, iso)?))
+        Ok(Some(self.term(mesh, tets, opts)?.field(iso)?))
     }
-    /// The continuum law's stress (the nodal formulation is a discretisation of it).
+    /// The continuum law's stress (the grouped formulation is a discretisation of it).
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
         Some(energy_and_piola(&self.law, f, opts))
     }
@@ -497,126 +494,21 @@ impl<M: InvariantLaw> Material for NodalInvariant<M> {
         project_psd: bool,
     ) -> Result<Option<Box<dyn TangentOperator>>> {
         let iso = TangentField::invariant(Isochoric::new(self.law, self.c), mesh, tets, *opts, project_psd)?;
-        let nodal = NodalVolume::new(self.law, self.c, mesh, tets, *opts)?;
-        Ok(Some(Box::new(NodalVolumeTangent::new(
-            Box::new(iso),
-            nodal,
-            project_psd,
-        ))))
+        Ok(Some(self.term(mesh, tets, opts)?.tangent(Box::new(iso), project_psd)))
     }
     fn volumetric(&self) -> Volumetric {
-        Volumetric::Nodal {
-            stabilization: self.stabilization,
-        }
+        self.volumetric
     }
     fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
         Invariant(self.law).with_volumetric(v)
     }
-}
-
-/// An invariant law with its volumetric energy at patch volume ratios (the patch
-/// anti-locking formulation, [`crate::force::patch_volume`]): the element fields
-/// evaluate [`Isochoric`]`<M>` and a patch term adds (1 − β) Σ_P V_P U(J_P).
-#[derive(Debug, Clone, Copy)]
-pub struct PatchInvariant<M> {
-    law: M,
-    size: usize,
-    stabilization: f64,
-    /// 1 − β.
-    c: f64,
-}
-
-impl<M: InvariantLaw> PatchInvariant<M> {
-    /// `law` with patches of `size` tets and stabilisation factor `stabilization`.
-    pub fn new(law: M, size: usize, stabilization: f64) -> Self {
-        let beta = element_fraction(&Dilation::new(law), stabilization);
-        PatchInvariant {
-            law,
-            size,
-            stabilization,
-            c: 1.0 - beta,
-        }
-    }
-
-    fn patch<K: Formulation + 'static>(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-        iso: TetField<K>,
-    ) -> Result<Box<dyn ElasticForces>> {
-        let patch = PatchVolume::new(self.law, self.c, self.size, mesh, tets, *opts)?;
-        Ok(Box::new(PatchVolumeField::new(iso, patch)?))
-    }
-}
-
-impl<M: InvariantLaw> Material for PatchInvariant<M> {
-    fn name(&self) -> &'static str {
-        M::NAME
-    }
-    fn kind(&self) -> LawKind {
-        LawKind::Invariant
-    }
-    fn param_info(&self) -> &'static [ParamInfo] {
-        M::PARAMS
-    }
-    fn param_values(&self) -> Vec<f64> {
-        self.law.to_params()
-    }
-    fn ops(&self) -> OpCount {
-        <M as InvariantLaw>::OPS
-    }
-    fn uses(&self) -> (bool, bool) {
-        (M::USES_I2, true)
-    }
-    fn force_field(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-    ) -> Result<Box<dyn ElasticForces>> {
-        let iso = HemlField::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
-        self.patch(mesh, tets, opts, iso)
-    }
-    /// The same split on the standard P1 element, with the same partition.
-    fn fem_field(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-    ) -> Result<Option<Box<dyn ElasticForces>>> {
-        let iso = P1Field::on_tets(Isochoric::new(self.law, self.c), mesh, tets, *opts)?;
-        Ok(Some(self.patch(mesh, tets, opts, iso)?))
-    }
-    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
-        Some(energy_and_piola(&self.law, f, opts))
-    }
-    fn tangent(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-        project_psd: bool,
-    ) -> Result<Option<Box<dyn TangentOperator>>> {
-        let iso = TangentField::invariant(Isochoric::new(self.law, self.c), mesh, tets, *opts, project_psd)?;
-        let patch = PatchVolume::new(self.law, self.c, self.size, mesh, tets, *opts)?;
-        Ok(Some(Box::new(PatchVolumeTangent::new(
-            Box::new(iso),
-            patch,
-            project_psd,
-        ))))
-    }
-    fn volumetric(&self) -> Volumetric {
-        Volumetric::Patch {
-            size: self.size,
-            stabilization: self.stabilization,
-        }
-    }
-    fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
-        Invariant(self.law).with_volumetric(v)
-    }
+    /// The patches' nodes for the patch term (the nodal term couples at most the
+    /// nodes around a node: `None`).
     fn coupled_groups(&self, mesh: &TetMesh, tets: Option<&[usize]>) -> Result<Option<Vec<Vec<u32>>>> {
-        let patch = PatchVolume::new(self.law, self.c, self.size, mesh, tets, ForceOptions::default())?;
+        let Volumetric::Patch { size, .. } = self.volumetric else {
+            return Ok(None);
+        };
+        let patch = PatchVolume::new(self.law, self.c, size, mesh, tets, ForceOptions::default())?;
         Ok(Some(
             patch
                 .patches()

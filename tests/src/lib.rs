@@ -3,6 +3,7 @@
 //!
 //! This crate depends on the `heml` facade only, like a user's crate would.
 
+pub mod grouped;
 pub mod implicit;
 pub mod laws;
 

@@ -48,7 +48,7 @@ impl<K: TetKernel> BatchKernel for Tets<'_, K> {
 }
 
 /// A field's tets with the nodal pressures on them, which the driver gathers with
-/// the positions ([`Layout::add_batched_w`]): each lane's tet gets p̄ = ¼ Σ of its
+/// the positions ([`Layout::add_batched_lumped`]): each lane's tet gets p̄ = ¼ Σ of its
 /// corners' pressures through [`TetKernel::batch_pressure`] (the nodal volumetric
 /// term's forces −p̄ ∇vol on the element pass: one gather, one scatter, and for HEML
 /// one force loop).
@@ -62,10 +62,21 @@ impl<K: TetKernel> BatchKernel for Pressured<'_, K> {
     }
     #[inline(always)]
     fn batch_w(&self, b: usize, p: &LanePoints, w: &LaneScalars, f: &mut LaneForces, e: &mut [f64; LANES]) {
-        let pbar = super::nodal_volume::mean_pressures(w);
+        let pbar = mean_pressures(w);
         prefetch(self.0.rest, b);
         self.0.kernel.batch_pressure(&self.0.rest[b], p, &pbar, f, e)
     }
+}
+
+/// p̄_t = ¼ Σ_{a∈t} p_a of each lane's tet from its corners' pressures `w`
+/// (`[corner][lane]`, as the driver gathers them).
+#[inline(always)]
+fn mean_pressures(w: &LaneScalars) -> [f64; LANES] {
+    let mut s = [0.0; LANES];
+    for (l, sl) in s.iter_mut().enumerate() {
+        *sl = (w[0][l] + w[1][l] + w[2][l] + w[3][l]) * 0.25;
+    }
+    s
 }
 
 /// The per-block pressures of a two-phase pass ([`TetField::add_forces_two_phase`]):
@@ -168,32 +179,20 @@ impl<K: Formulation> TetField<K> {
     /// added to `f`; returns the field's energy plus the nodal one. `nodal` turns the
     /// lumped volumes at `x` (per global node, [`Layout::lumped_volumes`] over this
     /// field's own layout: the nodal term covers the same tets in the same order)
-    /// into the pressures in place and returns the nodal energy. The batched paths
-    /// run the sweep and one pass of the block driver (see [`Pressured`]) on one
-    /// gather of the positions ([`Layout::add_batched_lumped`]); the reference path
-    /// runs the field's plain kernel, then `pressure`, a batch kernel of the
-    /// pressure forces alone (given the pressures the same way).
-    pub(crate) fn add_forces_with_pressure<E: BatchKernel>(
+    /// into the pressures in place and returns the nodal energy. The sweep and one
+    /// pass of the block driver (see [`Pressured`]) run on one gather of the
+    /// positions ([`Layout::add_batched_lumped`]). Batched assemblies only: the
+    /// reference path is the caller's.
+    pub(crate) fn add_forces_with_pressure(
         &self,
         nodal: impl FnOnce(&mut [f64], bool) -> f64,
-        pressure: &E,
         x: &[Vec3],
         f: &mut [Vec3],
     ) -> Result<f64> {
         check_sizes(self.n_nodes, x, Some(f))?;
-        match self.assembly {
-            Assembly::Reference => {
-                let mut p = vec![0.0; self.n_nodes];
-                self.layout.lumped_volumes(x, false, &mut p);
-                let e = nodal(&mut p, false);
-                Ok(e + self.add_forces_reference(x, f)? + self.layout.add_batched_w(pressure, false, x, &p, f)?)
-            }
-            a => {
-                let parallel = a == Assembly::Parallel;
-                self.layout
-                    .add_batched_lumped(&Pressured(self.tets()), parallel, x, |p| nodal(p, parallel), f)
-            }
-        }
+        let parallel = self.assembly == Assembly::Parallel;
+        self.layout
+            .add_batched_lumped(&Pressured(self.tets()), parallel, x, |p| nodal(p, parallel), f)
     }
 
     /// Adds the element part's forces and the pressure forces −p̄_t ∇vol_t of

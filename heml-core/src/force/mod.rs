@@ -1,7 +1,8 @@
 //! Internal elastic forces: one generic field ([`TetField`]) over three
 //! formulations — the HEML link kernels, the link laws (mass–spring) and the
-//! standard P1 oracle — on one block driver ([`assembly`]), and the interface
-//! through which a system evaluates any of them ([`ElasticForces`]).
+//! standard P1 oracle — on one block driver ([`assembly`]), one grouped
+//! volumetric term over two groupings (nodal, patch: [`grouped`]), and the
+//! interface through which a system evaluates any of them ([`ElasticForces`]).
 
 pub mod assembly;
 mod definite;
@@ -13,17 +14,16 @@ mod fibre_tangent;
 #[cfg(test)]
 mod fibre_tests;
 mod field;
+pub mod grouped;
 mod heml;
 mod invariant_blocks;
 pub(crate) mod kernel;
 pub(crate) mod lanes;
 mod link;
-mod nodal_tangent;
 pub mod nodal_volume;
 mod options;
 pub mod p1;
 pub(crate) mod patch;
-mod patch_tangent;
 pub mod patch_volume;
 pub mod spectral;
 mod stretch;
@@ -38,14 +38,13 @@ pub use fibre::{
 };
 pub use fibre_tangent::FibreHessian;
 pub use field::{Formulation, TetField};
+pub use grouped::{GroupedVolumeField, GroupedVolumeTangent, VolumeGroups};
 pub use heml::{HemlField, HemlKernel};
 pub use link::{LinkField, LinkKernel};
-pub use nodal_tangent::NodalVolumeTangent;
-pub use nodal_volume::{NodalVolume, NodalVolumeField};
+pub use nodal_volume::{NodalVolume, NodalVolumeField, NodalVolumeTangent};
 pub use options::ForceOptions;
 pub use p1::{P1Field, P1Kernel};
-pub use patch_tangent::PatchVolumeTangent;
-pub use patch_volume::{PatchVolume, PatchVolumeField};
+pub use patch_volume::{PatchVolume, PatchVolumeField, PatchVolumeTangent};
 pub use stretch::{energy_and_piola_stretch, StretchHemlField, StretchHemlKernel, StretchP1Field, StretchP1Kernel};
 pub use stretch_tangent::StretchHessian;
 pub use tangent::{TangentField, TangentOperator, TetStiffness};

@@ -30,7 +30,10 @@
 //! 0.873); its stiffness at rest has no spurious zero mode on the tested meshes.
 //!
 //! # Evaluation
-//! Batched assemblies: one pass of the block driver in two phases per block
+//! The energy, reference path, tangent and plumbing are the grouped term's
+//! ([`super::grouped`]: patches are its groups, each tet giving its whole volume
+//! to its patch); what is the patch term's own is the partition and its batched
+//! pass. Batched assemblies: one pass of the block driver in two phases per block
 //! ([`super::assembly`]'s `TWO_PHASE` kernels): phase 1 takes each tet's volume
 //! from the block's gathered positions (one determinant per tet), the patches'
 //! volumes are summed in field order and turned into pressures (four patches per
@@ -38,21 +41,16 @@
 //! (the nodal term's slot: one force loop and one scatter for both). Blocks are
 //! fixed by the mesh and each block's sums run in a fixed order, so the forces are
 //! the same bits for any thread count. The reference path runs the element field's
-//! plain pass, then this term tet by tet ([`PatchVolume::add_forces`]).
+//! plain pass, then this term tet by tet (the grouped term's reference path).
 //!
 //! A runnable example is in the README ("Nearly incompressible tissue"), which is
 //! compiled and run as a doctest of the `heml` crate.
 
-// The lanes are indexed in lock-step on purpose (it is what vectorises).
-#![allow(clippy::needless_range_loop)]
-
-use super::assembly::simd::Isa;
-use super::assembly::LANES;
+use super::assembly::{Layout, LANES};
 use super::field::{check_sizes, selection, BlockPressures};
-use super::nodal_volume::volume_gradient;
-use super::volumetric::Dilation;
-use super::{Assembly, ElasticForces, ForceOptions, Formulation, TetField};
-use crate::error::{HemlError, Result};
+use super::grouped::{different_tets, volume, GroupLaw, TetGroups, VolumeGroups};
+use super::{ElasticForces, ForceOptions, Formulation, TetField};
+use crate::error::Result;
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
 use crate::Vec3;
@@ -60,13 +58,17 @@ use crate::Vec3;
 /// The default patch size k (tets per patch).
 pub const DEFAULT_PATCH_SIZE: usize = 6;
 
-/// The patch volumetric term (1 − β) Σ_P V_P U(J_P) over (a region of) a mesh.
+/// The patch field: the element part and the patch term (see the module doc).
+pub type PatchVolumeField<M, K> = super::GroupedVolumeField<PatchVolume<M>, K>;
+
+/// The tangent of a [`PatchVolumeField`] (see [`super::grouped`]).
+pub type PatchVolumeTangent<M> = super::GroupedVolumeTangent<PatchVolume<M>>;
+
+/// The patch volumetric term (1 − β) Σ_P V_P U(J_P) over (a region of) a mesh: the
+/// patch grouping of [`super::grouped`].
 #[derive(Debug, Clone)]
 pub struct PatchVolume<M> {
-    vol: Dilation<M>,
-    /// 1 − β.
-    c: f64,
-    opts: ForceOptions,
+    law: GroupLaw<M>,
     n_nodes: usize,
     /// Global ids of the field tets, in layout order.
     ids: Vec<usize>,
@@ -84,11 +86,9 @@ pub struct PatchVolume<M> {
     rest: Vec<Vec3>,
     /// Field positions [start, end) of each block of the layout.
     block_ranges: Vec<(usize, usize)>,
-}
-
-/// The signed volume of a tet with corners `p`.
-fn volume(p: &[Vec3; 4]) -> f64 {
-    (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0]))) / 6.0
+    /// The block driver's two-phase path, once attached to an element field whose
+    /// layout is this term's (the same tets in the same order: the usual case).
+    fast: Option<BlockPatches>,
 }
 
 impl<M: InvariantLaw> PatchVolume<M> {
@@ -96,26 +96,19 @@ impl<M: InvariantLaw> PatchVolume<M> {
     /// (all when `None`), patches of about `k` tets inside the blocks of the element
     /// field's layout (the same tets in the same order).
     pub fn new(law: M, c: f64, k: usize, mesh: &TetMesh, tets: Option<&[usize]>, opts: ForceOptions) -> Result<Self> {
-        opts.validate()?;
-        if !(c.is_finite() && (0.0..=1.0).contains(&c)) {
-            return Err(HemlError::Invalid(format!(
-                "patch volume weight 1 - beta = {c} must lie in [0, 1]"
-            )));
-        }
+        let law = GroupLaw::new(law, c, opts, "patch")?;
         // sorted, so that the partition depends on the set of tets only (the force
         // field and the tangent name them in different orders)
         let mut sel = selection(mesh.n_tets(), tets)?;
         sel.sort_unstable();
-        let layout = super::assembly::Layout::new(mesh, &sel, true);
+        let layout = Layout::new(mesh, &sel, true);
         let (patch, n_patches) = super::patch::partition(mesh, &layout, k)?;
         let ids = layout.ids.clone();
         let mut position_of: Vec<(usize, u32)> = ids.iter().enumerate().map(|(k, &t)| (t, k as u32)).collect();
         position_of.sort_unstable();
         let mut pv = PatchVolume {
             position_of,
-            vol: Dilation::new(law),
-            c,
-            opts,
+            law,
             n_nodes: mesh.n_nodes(),
             tets: ids.iter().map(|&t| mesh.tets()[t]).collect(),
             weights: (0..ids.len()).map(|k| layout.weight(k)).collect(),
@@ -124,34 +117,15 @@ impl<M: InvariantLaw> PatchVolume<M> {
             rest_v: vec![0.0; n_patches],
             rest: mesh.nodes().to_vec(),
             block_ranges: layout.block_ranges(),
+            fast: None,
         };
         pv.rest_v = pv.patch_volumes(&pv.rest);
         Ok(pv)
     }
 
-    /// The dilation energy U of the law.
-    pub fn dilation(&self) -> &Dilation<M> {
-        &self.vol
-    }
-
-    /// The weight 1 − β of the patch term.
-    pub fn weight(&self) -> f64 {
-        self.c
-    }
-
-    /// The force options (J0 extension).
-    pub fn options(&self) -> &ForceOptions {
-        &self.opts
-    }
-
     /// Number of patches.
     pub fn n_patches(&self) -> usize {
         self.rest_v.len()
-    }
-
-    /// Rest volume V_P of each patch.
-    pub fn rest_volumes(&self) -> &[f64] {
-        &self.rest_v
     }
 
     /// Global tet ids of each patch (removed tets included).
@@ -163,115 +137,91 @@ impl<M: InvariantLaw> PatchVolume<M> {
         out
     }
 
-    /// (corners, weight, patch) of each field tet, in field order.
-    pub(crate) fn field_tets(&self) -> impl Iterator<Item = ([u32; 4], f64, usize)> + '_ {
-        self.tets
-            .iter()
-            .zip(&self.weights)
-            .zip(&self.patch)
-            .map(|((t, w), p)| (*t, *w, *p as usize))
+    /// Patch volume ratios J_P at `x`.
+    pub fn patch_j(&self, x: &[Vec3]) -> Result<Vec<f64>> {
+        self.group_j(x)
+    }
+
+    /// Adds the patch term's forces −ω_t p̄_t ∇vol_t at `x` to `f` and returns its
+    /// energy (the grouped term's reference path).
+    pub fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
+        self.add_term_forces(x, f, false)
     }
 
     /// Current volumes v_P of the patches at `x` (summed in field order).
     fn patch_volumes(&self, x: &[Vec3]) -> Vec<f64> {
         let mut v = vec![0.0; self.n_patches()];
-        for (t, w, p) in self.field_tets() {
-            if w != 0.0 {
-                v[p] += w * volume(&t.map(|i| x[i as usize]));
+        for ((t, w), p) in self.tets.iter().zip(&self.weights).zip(&self.patch) {
+            if *w != 0.0 {
+                v[*p as usize] += w * volume(&t.map(|i| x[i as usize]));
             }
         }
         v
     }
+}
 
-    /// Patch volume ratios J_P at `x`.
-    pub fn patch_j(&self, x: &[Vec3]) -> Result<Vec<f64>> {
-        check_sizes(self.n_nodes, x, None)?;
-        Ok(self
-            .patch_volumes(x)
-            .iter()
-            .zip(&self.rest_v)
-            .map(|(v, r)| if *r > 0.0 { v / r } else { 1.0 })
-            .collect())
+impl<M: InvariantLaw> VolumeGroups for PatchVolume<M> {
+    type Law = M;
+    const TERM: &'static str = "patch";
+    const GROUP: &'static str = "patch";
+    const SHARE: f64 = 1.0;
+
+    fn law(&self) -> &GroupLaw<M> {
+        &self.law
     }
-
-    /// The energy (1 − β) Σ V_P U(J_P) and the patch pressures (1 − β) U′(J_P) at `x`.
-    pub(crate) fn pressures(&self, x: &[Vec3]) -> (f64, Vec<f64>) {
+    fn n_nodes(&self) -> usize {
+        self.n_nodes
+    }
+    fn n_groups(&self) -> usize {
+        self.n_patches()
+    }
+    /// Rest volume V_P of each patch.
+    fn rest_volumes(&self) -> &[f64] {
+        &self.rest_v
+    }
+    fn volumes(&self, x: &[Vec3], _parallel: bool) -> Vec<f64> {
+        self.patch_volumes(x)
+    }
+    /// Serial, patch by patch, with the law's exact cube root (the batched pass
+    /// takes the fast one per block).
+    fn pressures(&self, x: &[Vec3], _parallel: bool) -> (f64, Vec<f64>) {
         let mut p = self.patch_volumes(x);
+        let (vol, opts, c) = (self.law.dilation(), self.law.options(), self.law.weight());
         let mut e = 0.0;
         for (pp, &vp) in p.iter_mut().zip(&self.rest_v) {
             if vp > 0.0 {
-                let (u, u1) = self.vol.value_slope(*pp / vp, &self.opts, false);
+                let (u, u1) = vol.value_slope(*pp / vp, opts, false);
                 e += vp * u;
-                *pp = self.c * u1;
+                *pp = c * u1;
             } else {
                 *pp = 0.0;
             }
         }
-        (self.c * e, p)
+        (c * e, p)
     }
-
-    /// Adds the patch term's forces −ω_t p̄_t ∇vol_t at `x` to `f` and returns its energy.
-    pub fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        let (e, p) = self.pressures(x);
-        for (t, w, q) in self.field_tets() {
-            if w == 0.0 || p[q] == 0.0 {
-                continue;
-            }
-            let g = volume_gradient(&t.map(|i| x[i as usize]));
-            for a in 0..4 {
-                f[t[a] as usize] -= g[a] * (w * p[q]);
-            }
-        }
-        Ok(e)
+    fn n_positions(&self) -> usize {
+        self.tets.len()
     }
-
-    /// The field position of global tet `t`, if the term holds it.
     fn position(&self, t: usize) -> Option<usize> {
         self.position_of
             .binary_search_by_key(&t, |&(g, _)| g)
             .ok()
             .map(|i| self.position_of[i].1 as usize)
     }
-
-    /// The patch term's share of the forces of global tet `t`: −ω_t p̄_t ∇vol_t.
-    pub fn tet_forces(&self, t: usize, x: &[Vec3]) -> Result<[Vec3; 4]> {
-        check_sizes(self.n_nodes, x, None)?;
-        let k = self
-            .position(t)
-            .ok_or_else(|| HemlError::Invalid(format!("tet {t} is not in this force field")))?;
-        let (_, p) = self.pressures(x);
-        let g = volume_gradient(&self.tets[k].map(|i| x[i as usize]));
-        let s = self.weights[k] * p[self.patch[k] as usize];
-        Ok(g.map(|ga| -ga * s))
+    fn field_tet(&self, k: usize) -> ([u32; 4], f64, TetGroups) {
+        (self.tets[k], self.weights[k], TetGroups::one(self.patch[k]))
     }
-
-    /// Removes the tets `tets` (global ids) and recomputes the patch rest volumes.
-    pub fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
-        let mut pos = Vec::with_capacity(tets.len());
-        for &t in tets {
-            pos.push(
-                self.position(t)
-                    .ok_or_else(|| HemlError::Invalid(format!("tet {t} is not in this force field")))?,
-            );
-        }
+    fn remove_positions(&mut self, pos: &[usize]) -> usize {
         let mut n = 0;
-        for k in pos {
+        for &k in pos {
             if self.weights[k] != 0.0 {
                 self.weights[k] = 0.0;
                 n += 1;
             }
         }
         self.rest_v = self.patch_volumes(&self.rest);
-        Ok(n)
+        n
     }
-
-    /// Whether global tet `t` is in the term.
-    fn holds(&self, t: usize) -> bool {
-        self.position(t).is_some()
-    }
-
-    /// Heap bytes per tet of the patch term.
     fn bytes_per_tet(&self) -> f64 {
         let n = self.tets.len().max(1) as f64;
         (std::mem::size_of_val(self.tets.as_slice())
@@ -283,23 +233,40 @@ impl<M: InvariantLaw> PatchVolume<M> {
             + std::mem::size_of_val(self.rest.as_slice())) as f64
             / n
     }
-}
-
-/// The patch anti-locking field of an invariant law: its isochoric part (plus β of
-/// the element volumetric energy) on an element field, and the patch volumetric
-/// term (see the module doc). Built by [`crate::material::Volumetric::Patch`]
-/// materials.
-pub struct PatchVolumeField<M, K: Formulation> {
-    iso: TetField<K>,
-    patch: PatchVolume<M>,
-    /// The block driver's two-phase path, when the element field's layout is the
-    /// patch term's (the same tets in the same order: the usual case).
-    fast: Option<BlockPatches>,
+    /// The element field must hold the same tets; in the same order (the usual
+    /// case) the batched pass runs in two phases on its blocks.
+    fn attach<K: Formulation>(&mut self, iso: &TetField<K>) -> Result<()> {
+        let sorted = |v: &[usize]| {
+            let mut v = v.to_vec();
+            v.sort_unstable();
+            v
+        };
+        if sorted(iso.layout_ids()) != sorted(&self.ids) || iso.n_nodes() != self.n_nodes {
+            return Err(different_tets(Self::TERM));
+        }
+        self.fast = if iso.layout_ids() == self.ids.as_slice() {
+            BlockPatches::new(&self.patch, &self.block_ranges)
+        } else {
+            None
+        };
+        Ok(())
+    }
+    /// One pass of the block driver, two phases per block (the tets' volumes from
+    /// the gathered positions, the patches' pressures, then the element kernel with
+    /// −p̄_t ∇vol_t on its ∂w/∂J lane).
+    fn add_batched<K: Formulation>(&self, iso: &TetField<K>, x: &[Vec3], f: &mut [Vec3]) -> Option<Result<f64>> {
+        let bp = self.fast.as_ref()?;
+        Some(
+            check_sizes(self.n_nodes, x, Some(f))
+                .and_then(|()| iso.add_forces_two_phase(&Pressures { pv: self, bp }, x, f)),
+        )
+    }
 }
 
 /// The patches of each block of the element field's layout, for the two-phase
 /// pass: the patch of each field tet (padded to whole batches with the block's
 /// first patch) and, per block, its first batch and its patches (contiguous ids).
+#[derive(Debug, Clone)]
 struct BlockPatches {
     patch: Vec<u32>,
     /// (first batch, first patch, number of patches) of each block.
@@ -336,9 +303,6 @@ struct Pressures<'a, M> {
     bp: &'a BlockPatches,
 }
 
-/// Patches per group of the pressure loop (one AVX2 register of `f64`).
-const PATCH_LANES: usize = 4;
-
 impl<M: InvariantLaw> BlockPressures for Pressures<'_, M> {
     /// v_P = Σ ω_t vol_t in field order, then (1 − β) U′(J_P) on each tet and the
     /// energy (1 − β) Σ V_P U(J_P) of the block's patches.
@@ -352,169 +316,15 @@ impl<M: InvariantLaw> BlockPressures for Pressures<'_, M> {
                 v[(p - p0) as usize] += sl;
             }
         }
-        let rest_v = &self.pv.rest_v[p0 as usize..][..n as usize];
-        let e = match Isa::current() {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: the token proves the CPU has avx2 and fma, the features
-            // `law_chunk_avx2` enables.
-            Isa::Avx512(_) | Isa::Avx2(_) => unsafe { self.pv.law_chunk_avx2(&mut v, rest_v) },
-            _ => self.pv.law_chunk(&mut v, rest_v),
-        };
+        let e = self
+            .pv
+            .law
+            .pressures(&mut v, &self.pv.rest_v[p0 as usize..][..n as usize]);
         for (sb, pb) in s.iter_mut().zip(ids.as_chunks::<LANES>().0) {
             for (sl, &p) in sb.iter_mut().zip(pb) {
                 *sl = v[(p - p0) as usize];
             }
         }
         e
-    }
-}
-
-impl<M: InvariantLaw> PatchVolume<M> {
-    /// [`Self::law_chunk`] compiled with AVX2 and FMA (four patches per register,
-    /// the cube root's rounding inline; the same operations, so the same bits, as
-    /// the baseline).
-    ///
-    /// # Safety
-    /// The CPU has avx2 and fma.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn law_chunk_avx2(&self, p: &mut [f64], rest_v: &[f64]) -> f64 {
-        self.law_chunk(p, rest_v)
-    }
-
-    /// Turns the volumes `p` of some patches (rest volumes `rest_v`) into their
-    /// pressures (1 − β) U′(J_P) and returns their energy (1 − β) Σ V_P U(J_P):
-    /// [`PATCH_LANES`] patches at a time in one branch-free loop when none is empty
-    /// or below J0 (the common case, which vectorises), else patch by patch; the
-    /// energy in `PATCH_LANES` partial sums in a fixed order.
-    #[inline(always)]
-    fn law_chunk(&self, p: &mut [f64], rest_v: &[f64]) -> f64 {
-        let (vol, opts, c) = (&self.vol, &self.opts, self.c);
-        let one = |pa: &mut f64, va: f64| -> f64 {
-            if va > 0.0 {
-                let (u, u1) = vol.value_slope(*pa / va, opts, true);
-                *pa = c * u1;
-                va * u
-            } else {
-                *pa = 0.0;
-                0.0
-            }
-        };
-        let mut e = [0.0; PATCH_LANES];
-        let (pg, pt) = p.as_chunks_mut::<PATCH_LANES>();
-        let (vg, vt) = rest_v.as_chunks::<PATCH_LANES>();
-        for (pq, vq) in pg.iter_mut().zip(vg) {
-            let mut j = [0.0; PATCH_LANES];
-            let mut plain = true;
-            for l in 0..PATCH_LANES {
-                j[l] = pq[l] / vq[l];
-                plain &= vq[l] > 0.0 && !opts.extend(M::INVERSION_FIX, j[l]);
-            }
-            if plain {
-                for l in 0..PATCH_LANES {
-                    let (u, u1) = vol.value_slope_plain(j[l]);
-                    e[l] += vq[l] * u;
-                    pq[l] = c * u1;
-                }
-            } else {
-                for l in 0..PATCH_LANES {
-                    e[l] += one(&mut pq[l], vq[l]);
-                }
-            }
-        }
-        for (pa, &va) in pt.iter_mut().zip(vt) {
-            e[0] += one(pa, va);
-        }
-        c * ((e[0] + e[1]) + (e[2] + e[3]))
-    }
-}
-
-impl<M: InvariantLaw, K: Formulation> PatchVolumeField<M, K> {
-    /// The field of element part `iso` (a field of [`super::Isochoric`]`<M>` over the
-    /// same tets, in the same order) and patch term `patch`.
-    pub fn new(iso: TetField<K>, patch: PatchVolume<M>) -> Result<Self> {
-        let sorted = |v: &[usize]| {
-            let mut v = v.to_vec();
-            v.sort_unstable();
-            v
-        };
-        if sorted(iso.layout_ids()) != sorted(&patch.ids) || iso.n_nodes() != patch.n_nodes {
-            return Err(HemlError::Invalid(
-                "patch volume term and element field cover different tets".into(),
-            ));
-        }
-        let fast = if iso.layout_ids() == patch.ids.as_slice() {
-            BlockPatches::new(&patch.patch, &patch.block_ranges)
-        } else {
-            None
-        };
-        Ok(PatchVolumeField { iso, patch, fast })
-    }
-
-    /// The patch term.
-    pub fn patch(&self) -> &PatchVolume<M> {
-        &self.patch
-    }
-}
-
-impl<M: InvariantLaw, K: Formulation> ElasticForces for PatchVolumeField<M, K> {
-    fn n_nodes(&self) -> usize {
-        self.iso.n_nodes()
-    }
-    fn n_tets(&self) -> usize {
-        self.iso.n_tets()
-    }
-    fn tet_ids(&self) -> &[usize] {
-        self.iso.tet_ids()
-    }
-    fn energy(&self, x: &[Vec3]) -> Result<f64> {
-        check_sizes(self.n_nodes(), x, None)?;
-        Ok(self.iso.energy(x)? + self.patch.pressures(x).0)
-    }
-    /// Batched: one pass of the block driver, two phases per block (the tets'
-    /// volumes from the gathered positions, the patches' pressures, then the
-    /// element kernel with −p̄_t ∇vol_t on its ∂w/∂J lane). Reference: the element
-    /// field's plain pass, then the patch term's.
-    fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
-        match &self.fast {
-            Some(bp) if self.iso.assembly() != Assembly::Reference => {
-                check_sizes(self.n_nodes(), x, Some(f))?;
-                self.iso.add_forces_two_phase(&Pressures { pv: &self.patch, bp }, x, f)
-            }
-            _ => {
-                let e = self.iso.add_forces(x, f)?;
-                Ok(e + self.patch.add_forces(x, f)?)
-            }
-        }
-    }
-    /// J and the law's own energy density w = w_iso + U(J_t) of each tet (the element
-    /// view; the patch term redistributes the volumetric part within patches).
-    fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>> {
-        let mut s = self.iso.tet_states(x)?;
-        for (j, w) in &mut s {
-            *w += self.patch.c * self.patch.vol.value_slope(*j, &self.patch.opts, false).0;
-        }
-        Ok(s)
-    }
-    fn set_assembly(&mut self, assembly: Assembly) {
-        ElasticForces::set_assembly(&mut self.iso, assembly);
-    }
-    fn bytes_per_tet(&self) -> Option<f64> {
-        Some(ElasticForces::bytes_per_tet(&self.iso)? + self.patch.bytes_per_tet())
-    }
-    fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
-        if let Some(&t) = tets.iter().find(|&&t| !self.patch.holds(t)) {
-            return Err(HemlError::Invalid(format!("tet {t} is not in this force field")));
-        }
-        let n = self.iso.remove_tets(tets)?;
-        self.patch.remove_tets(tets)?;
-        Ok(n)
-    }
-    fn tet_forces(&self, t: usize, x: &[Vec3]) -> Result<[Vec3; 4]> {
-        let mut f = self.iso.tet_forces(t, x)?;
-        for (a, g) in self.patch.tet_forces(t, x)?.into_iter().enumerate() {
-            f[a] += g;
-        }
-        Ok(f)
     }
 }

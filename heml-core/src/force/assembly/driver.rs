@@ -29,7 +29,7 @@ pub(crate) trait BatchKernel: Sync {
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]);
 
     /// Whether the driver calls [`Self::batch_w`] (with one scalar per node,
-    /// [`Layout::add_batched_w`]) instead of [`Self::batch`].
+    /// [`Layout::add_batched_lumped`]) instead of [`Self::batch`].
     const USES_W: bool = false;
 
     /// As [`Self::batch`], with `w[a][l]` the node scalar of corner `a` of lane `l`,
@@ -119,8 +119,6 @@ impl Scratch {
 enum Gather<'a> {
     /// The positions.
     Positions,
-    /// The positions, and one scalar per node in the padding slots.
-    WithW(&'a [f64]),
     /// One scalar per node in the padding slots only: the positions are there
     /// already (the lumped sweep of the same call put them there).
     WOnly(&'a [f64]),
@@ -140,32 +138,9 @@ impl Layout {
         Ok(self.evaluate(&mut guard, k, x, Gather::Positions, f, parallel))
     }
 
-    /// As [`Self::add_batched`] for a kernel that reads one scalar per node (`w`, one
-    /// per global node: [`BatchKernel::batch_w`]), which rides in the padding slot of
-    /// the block's position buffer.
-    pub(crate) fn add_batched_w<K: BatchKernel>(
-        &self,
-        k: &K,
-        parallel: bool,
-        x: &[Vec3],
-        w: &[f64],
-        f: &mut [Vec3],
-    ) -> Result<f64> {
-        check_sizes(self.n_nodes, x, Some(f))?;
-        if w.len() != self.n_nodes {
-            return Err(crate::error::HemlError::Invalid(format!(
-                "{} node scalars for {} nodes",
-                w.len(),
-                self.n_nodes
-            )));
-        }
-        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        Ok(self.evaluate(&mut guard, k, x, Gather::WithW(w), f, parallel))
-    }
-
     /// The lumped volumes at `x` ([`Self::lumped_volumes`]), turned in place into one
     /// scalar per node by `to_w` (which returns an energy), then the pass of `k`
-    /// with those scalars ([`Self::add_batched_w`]); returns both energies. One
+    /// with those scalars ([`BatchKernel::batch_w`]); returns both energies. One
     /// gather of the positions serves both passes: the sweep leaves them in the
     /// blocks' buffers and the pass only writes the scalars beside them, under one
     /// lock of the scratch (so no other call can move them in between).
@@ -235,11 +210,6 @@ impl Layout {
         let one = |(b, mut bufs, e, lanes): Task| {
             let blk = &blocks[b];
             match gather {
-                Gather::WithW(w) => {
-                    for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
-                        *xi = Node4::with_w(&x[g as usize], w[g as usize]);
-                    }
-                }
                 Gather::WOnly(w) => {
                     for (xi, &g) in bufs.x_mut().iter_mut().zip(&blk.nodes) {
                         xi.set_w(w[g as usize]);

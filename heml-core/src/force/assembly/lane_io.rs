@@ -23,12 +23,8 @@ impl Node4 {
     pub(crate) fn from_vec(v: &Vec3) -> Node4 {
         Node4([v.x, v.y, v.z, 0.0])
     }
-    /// The node `v` with `w` in its padding slot: one scalar per node that the
-    /// gather hands to the kernel with the positions ([`LaneIo::gather_w`]).
-    pub(crate) fn with_w(v: &Vec3, w: f64) -> Node4 {
-        Node4([v.x, v.y, v.z, w])
-    }
-    /// Puts `w` in the padding slot, the position unchanged.
+    /// Puts `w` in the padding slot, the position unchanged: one scalar per node
+    /// that the gather hands to the kernel with the positions ([`LaneIo::gather_w`]).
     pub(crate) fn set_w(&mut self, w: f64) {
         self.0[3] = w;
     }
