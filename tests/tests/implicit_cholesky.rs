@@ -287,15 +287,21 @@ dt = 0.01
 "#
         )
     };
-    let mut sim =
-        heml::scene::Scene::from_toml_str(&scene("linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345"), ".")
-            .unwrap()
-            .build()
-            .unwrap();
+    let mut sim = heml::scene::Scene::from_toml_str(
+        &scene("linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345\ncholesky_ordering = \"nested_dissection\""),
+        ".",
+    )
+    .unwrap()
+    .build()
+    .unwrap();
     let s = *sim.integrator.implicit_settings_mut().unwrap();
     assert_eq!(
-        (s.linear_solver, s.max_factor_nonzeros),
-        (LinearSolver::Cholesky, 12345)
+        (s.linear_solver, s.max_factor_nonzeros, s.cholesky_ordering),
+        (
+            LinearSolver::Cholesky,
+            12345,
+            heml::system::CholeskyOrdering::NestedDissection
+        )
     );
     sim.run(|_| {}).unwrap();
     let sim = heml::scene::Scene::from_toml_str(&scene(""), ".").unwrap().build();
@@ -309,6 +315,11 @@ dt = 0.01
         .unwrap_err()
         .to_string();
     assert!(e.contains("cholesky") && e.contains("lu"), "{e}");
+    let e = heml::scene::Scene::from_toml_str(&scene("linear_solver = \"cholesky\"\ncholesky_ordering = \"rcm\""), ".")
+        .and_then(|s| s.build())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nested_dissection") && e.contains("rcm"), "{e}");
 }
 
 /// Moving a grasp (or a tool, or changing loads) between steps leaves the matrix
