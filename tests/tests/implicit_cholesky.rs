@@ -8,7 +8,8 @@
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
 use heml::system::{
-    ImplicitScheme, ImplicitSettings, ImplicitSolver, LinearSolver, StaticOptions, StepStats, System, SystemBuilder,
+    CholeskyOrdering, ImplicitScheme, ImplicitSettings, ImplicitSolver, LinearSolver, StaticOptions, StepStats, System,
+    SystemBuilder,
 };
 
 use heml_tests::implicit::{link, newmark_energy_drift, plucked_cantilever, relative_error};
@@ -287,15 +288,21 @@ dt = 0.01
 "#
         )
     };
-    let mut sim =
-        heml::scene::Scene::from_toml_str(&scene("linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345"), ".")
-            .unwrap()
-            .build()
-            .unwrap();
+    let mut sim = heml::scene::Scene::from_toml_str(
+        &scene("linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345\ncholesky_ordering = \"nested_dissection\""),
+        ".",
+    )
+    .unwrap()
+    .build()
+    .unwrap();
     let s = *sim.integrator.implicit_settings_mut().unwrap();
     assert_eq!(
-        (s.linear_solver, s.max_factor_nonzeros),
-        (LinearSolver::Cholesky, 12345)
+        (s.linear_solver, s.max_factor_nonzeros, s.cholesky_ordering),
+        (
+            LinearSolver::Cholesky,
+            12345,
+            heml::system::CholeskyOrdering::NestedDissection
+        )
     );
     sim.run(|_| {}).unwrap();
     let sim = heml::scene::Scene::from_toml_str(&scene(""), ".").unwrap().build();
@@ -309,6 +316,11 @@ dt = 0.01
         .unwrap_err()
         .to_string();
     assert!(e.contains("cholesky") && e.contains("lu"), "{e}");
+    let e = heml::scene::Scene::from_toml_str(&scene("linear_solver = \"cholesky\"\ncholesky_ordering = \"rcm\""), ".")
+        .and_then(|s| s.build())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nested_dissection") && e.contains("rcm"), "{e}");
 }
 
 /// Moving a grasp (or a tool, or changing loads) between steps leaves the matrix
@@ -597,6 +609,57 @@ fn cholesky_preset_runs_replay_to_the_same_bits() {
             "{differing} nodes differ between 1 thread and a {threads}-thread rerun"
         );
     }
+}
+
+/// Nested dissection (`cholesky_ordering`, the default from 3000 unknowns, forced
+/// here on the 8 × 6 × 5 block's ~1100) changes the factor's values and so the bits
+/// of a run, not its converged state nor its replay: converged backward Euler ends
+/// on the CG state (bound as in [`assert_matches_cg`]) and on the AMD run's (the
+/// same bound: both meet the same Newton criterion), and the chord preset under the
+/// pressing tool gives the same bits on 1 and 2 threads.
+#[test]
+fn nested_dissection_ends_on_the_converged_state_and_replays() {
+    link();
+    let build = || block(HexSplit::Six, [8, 6, 5], 0.45).build().unwrap();
+    let rest = build().positions().to_vec();
+    let disp = |x: &[Vec3]| x.iter().zip(&rest).map(|(a, b)| a - b).collect::<Vec<_>>();
+    let nd = |s: ImplicitSettings| ImplicitSettings {
+        cholesky_ordering: CholeskyOrdering::NestedDissection,
+        ..s
+    };
+    let (cg, _) = run(&build, converged(LinearSolver::Cg), 20);
+    let (amd, _) = run(
+        &build,
+        ImplicitSettings {
+            cholesky_ordering: CholeskyOrdering::Amd,
+            ..converged(LinearSolver::Cholesky)
+        },
+        20,
+    );
+    let (direct, solver) = run(&build, nd(converged(LinearSolver::Cholesky)), 20);
+    assert!(
+        (1..20).contains(&solver.factorizations()),
+        "{}",
+        solver.factorizations()
+    );
+    for (what, other) in [("cg", &cg), ("amd", &amd)] {
+        let err = relative_error(&disp(&direct), &disp(other));
+        assert!(
+            err < 1e-6,
+            "nested dissection vs {what}: relative displacement difference {err:e}"
+        );
+    }
+    let preset = nd(ImplicitSettings {
+        linear_solver: LinearSolver::Cholesky,
+        ..ImplicitSettings::default()
+    });
+    let in_pool = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| press(preset)).expect("the chord run completes")
+    };
+    let (one, two) = (in_pool(1), in_pool(2));
+    let differing = one.iter().zip(&two).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "{differing} nodes differ between 1 and 2 threads");
 }
 
 /// A body at rest without loads (the viewer's kidney between two interactions)

@@ -6,7 +6,7 @@ use serde::Deserialize;
 use crate::error::{HemlError, Result};
 use crate::mesh::generate::HexSplit;
 use crate::params::Params;
-use crate::system::{CgFailure, Integrator, LinearSolver, PronyTerm, Ramp, TimeStepPolicy};
+use crate::system::{CgFailure, CholeskyOrdering, Integrator, LinearSolver, PronyTerm, Ramp, TimeStepPolicy};
 
 /// Where the body comes from and how its coordinates map to metres.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -331,6 +331,11 @@ pub struct SolverSpec {
     /// Implicit integrators with `linear_solver = "cholesky"`: the most nonzeros the
     /// factor may hold (default 5e7, 400 MB); a larger factor is refused.
     pub max_factor_nonzeros: Option<usize>,
+    /// Implicit integrators with `linear_solver = "cholesky"`: the factor's
+    /// fill-reducing ordering, `"auto"` (default: nested dissection from 3000
+    /// unknowns on, node-graph AMD below), `"amd"`, `"node_amd"` or
+    /// `"nested_dissection"`.
+    pub cholesky_ordering: Option<CholeskyOrdering>,
     /// Volumetric formulation of every material that does not set its own:
     /// `"element"` (default), `"nodal"` or `"patch"` (anti-locking).
     pub volumetric: Option<String>,
@@ -352,6 +357,7 @@ impl SolverSpec {
             ("project_psd", self.project_psd.is_some()),
             ("linear_solver", self.linear_solver.is_some()),
             ("max_factor_nonzeros", self.max_factor_nonzeros.is_some()),
+            ("cholesky_ordering", self.cholesky_ordering.is_some()),
         ];
         let name = integrator.name();
         let Some(settings) = integrator.implicit_settings_mut() else {
@@ -371,6 +377,7 @@ impl SolverSpec {
         s.project_psd = self.project_psd.unwrap_or(s.project_psd);
         s.linear_solver = self.linear_solver.unwrap_or(s.linear_solver);
         s.max_factor_nonzeros = self.max_factor_nonzeros.unwrap_or(s.max_factor_nonzeros);
+        s.cholesky_ordering = self.cholesky_ordering.unwrap_or(s.cholesky_ordering);
         s.validate().map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         *settings = s;
         Ok(true)

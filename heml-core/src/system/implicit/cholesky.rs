@@ -1,5 +1,6 @@
 //! The direct linear solver of [`super::LinearSolver::Cholesky`]: a sparse LLᵀ
-//! factorisation (faer, approximate-minimum-degree fill-reducing ordering) of the
+//! factorisation (faer, with the fill-reducing ordering of a [`CholeskyOrdering`]:
+//! by default nested dissection of the node graph on all but small systems) of the
 //! assembled system matrix restricted to the free coordinates of a [`DofMap`].
 //!
 //! The scalar lower-triangular pattern and, per entry, where its value sits in the
@@ -21,11 +22,15 @@
 //! took 0.48–0.80 ms on 2 threads against 0.27–0.46 ms on one).
 
 use super::matrix::BlockMatrix;
+use super::ordering::CholeskyOrdering;
 use crate::error::{HemlError, Result};
 use crate::system::statics::dofs::DofMap;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky};
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -74,8 +79,14 @@ fn par(fill: usize) -> Par {
 
 impl Cholesky {
     /// The pattern of `matrix` over the free coordinates of `dofs` and its symbolic
-    /// analysis; an error when the factor would hold more than `max_nonzeros` values.
-    pub(in crate::system) fn new(matrix: &BlockMatrix, dofs: &DofMap, max_nonzeros: usize) -> Result<Self> {
+    /// analysis with the fill-reducing `ordering`; an error when the factor would
+    /// hold more than `max_nonzeros` values.
+    pub(in crate::system) fn new(
+        matrix: &BlockMatrix,
+        dofs: &DofMap,
+        max_nonzeros: usize,
+        ordering: CholeskyOrdering,
+    ) -> Result<Self> {
         let n = dofs.len();
         // (column, row, source) of the lower triangle
         let mut entries: Vec<(usize, usize, usize)> = Vec::new();
@@ -107,7 +118,19 @@ impl Cholesky {
             supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
             ..Default::default()
         };
-        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, Default::default(), params)
+        let perm = ordering.permutation(matrix, dofs)?;
+        let inverse = perm.as_ref().map(|p| {
+            let mut inv = vec![0usize; n];
+            for (k, &d) in p.iter().enumerate() {
+                inv[d] = k;
+            }
+            inv
+        });
+        let order = match (&perm, &inverse) {
+            (Some(p), Some(inv)) => SymmetricOrdering::Custom(PermRef::new_checked(p, inv, n)),
+            _ => SymmetricOrdering::Amd,
+        };
+        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, order, params)
             .map_err(|e| HemlError::Numerical(format!("sparse Cholesky: symbolic analysis failed: {e:?}")))?;
         let fill = symbolic.len_val();
         if fill > max_nonzeros {
@@ -221,7 +244,7 @@ mod tests {
         let mesh =
             crate::mesh::generate::box_mesh([3.0, 2.0, 2.0], [3, 2, 2], crate::mesh::generate::HexSplit::Six).unwrap();
         let dofs = DofMap::new(&held, mesh.tets());
-        let mut direct = Cholesky::new(&m, &dofs, usize::MAX).unwrap();
+        let mut direct = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
         assert!(matches!(direct.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)));
         direct.factor(&m).unwrap();
         // the dense matrix over the free coordinates, numbered as the DofMap does

@@ -8,6 +8,7 @@
 use super::cg::{dot, pcg_fused, CgOperator, CgReport};
 use super::cholesky::Cholesky;
 use super::matrix::{BlockMatrix, GsOrdering};
+use super::ordering::CholeskyOrdering;
 use super::problem::REFACTOR_COST_IN_CHORDS;
 use super::settings::{CgPreconditioner, LinearSolver};
 use super::timings::PhaseTimes;
@@ -47,6 +48,8 @@ pub(in crate::system) struct TangentSolve {
     pub contact_corrections: bool,
     /// Cholesky: the most nonzeros the factor may hold.
     pub max_factor_nonzeros: usize,
+    /// Cholesky: the fill-reducing ordering of the factor.
+    pub cholesky_ordering: CholeskyOrdering,
 }
 
 /// What a held factor was made for: c_k, c_m, c_v, the grasps' diagonal terms
@@ -191,16 +194,16 @@ impl SolveCache {
         tets: &[[u32; 4]],
         tangents: &[Box<dyn TangentOperator>],
         dofs: &DofMap,
-        direct: Option<usize>,
+        direct: Option<(usize, CholeskyOrdering)>,
     ) -> Result<()> {
         if !self.matrix.as_ref().is_some_and(|m| m.fits(n, tangents)) {
             self.matrix = Some(BlockMatrix::new(n, tets, tangents));
             self.direct = None;
             self.correction.clear();
         }
-        if let (Some(max_nonzeros), None) = (direct, &self.direct) {
+        if let (Some((max_nonzeros, ordering)), None) = (direct, &self.direct) {
             let matrix = self.matrix.as_ref().expect("built above");
-            self.direct = Some((Cholesky::new(matrix, dofs, max_nonzeros)?, None));
+            self.direct = Some((Cholesky::new(matrix, dofs, max_nonzeros, ordering)?, None));
         }
         Ok(())
     }
@@ -372,7 +375,10 @@ impl TangentSolve {
             let matrix = cache.matrix.as_ref().expect("assembled");
             let (direct, made_for) = match cache.direct.take() {
                 Some(d) => d,
-                None => (Cholesky::new(matrix, dofs, self.max_factor_nonzeros)?, None),
+                None => (
+                    Cholesky::new(matrix, dofs, self.max_factor_nonzeros, self.cholesky_ordering)?,
+                    None,
+                ),
             };
             let (direct, made_for) = cache.direct.insert((direct, made_for));
             *made_for = None;

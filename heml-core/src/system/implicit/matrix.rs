@@ -374,6 +374,28 @@ pub(super) mod tests {
         (*s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     }
 
+    /// The assembled K + M of one operator with a random Gram stiffness on every tet
+    /// of `mesh` and unit masses, the coordinates marked in `held` held: an SPD
+    /// system with the pattern of the mesh's tangent (for the direct solver's tests).
+    pub(in crate::system::implicit) fn random_system(mesh: &crate::mesh::TetMesh, held: &[[bool; 3]]) -> BlockMatrix {
+        let (n, nt) = (mesh.n_nodes(), mesh.n_tets());
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let k = (0..nt)
+            .map(|_| {
+                let g = TetStiffness::from_fn(|_, _| rnd(&mut s));
+                g * g.transpose()
+            })
+            .collect();
+        let ops: Vec<Box<dyn TangentOperator>> = vec![Box::new(Fixed {
+            ids: (0..nt).collect(),
+            k,
+            n,
+        })];
+        let mut m = BlockMatrix::new(n, mesh.tets(), &ops);
+        m.fill(&ops, 1.0, 1.0, &vec![1.0; n], None, |i, a| !held[i][a]);
+        m
+    }
+
     /// Two operators over halves of a 3×2×2 box (every tet once), the dense
     /// c_k K + c_m M they make, masked to the free coordinates (node 0 held, node 1
     /// held in y only), and the assembled matrix.

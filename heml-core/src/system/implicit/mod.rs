@@ -48,12 +48,14 @@ pub mod cg;
 mod cholesky;
 pub(super) mod linear;
 mod matrix;
+mod ordering;
 mod problem;
 mod settings;
 mod solver;
 mod timings;
 mod woodbury;
 
+pub use ordering::{CholeskyOrdering, AUTO_NESTED_DISSECTION};
 pub use settings::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings, LinearSolver};
 pub use solver::ImplicitSolver;
 pub use timings::PhaseTimes;

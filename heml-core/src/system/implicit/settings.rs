@@ -1,5 +1,6 @@
 //! The public settings of the implicit integrators.
 
+use super::ordering::CholeskyOrdering;
 use crate::error::{HemlError, Result};
 
 /// Which implicit scheme an [`super::ImplicitSolver`] steps with.
@@ -61,7 +62,7 @@ pub enum LinearSolver {
     /// mesh, and the interactive preset caps its work per step.
     #[default]
     Cg,
-    /// Sparse Cholesky (LLᵀ, faer, approximate-minimum-degree ordering) of the system
+    /// Sparse Cholesky (LLᵀ, faer, the ordering of [`ImplicitSettings::cholesky_ordering`]) of the system
     /// matrix, factored once and reused across Newton iterations and steps (chord,
     /// or modified, Newton): a stale factor still gives a descent direction (it is
     /// positive definite), only the contraction per iteration drops, so a step
@@ -157,6 +158,11 @@ pub struct ImplicitSettings {
     /// liver's press phase from 28 factorisations to 4. False: every contact
     /// change refactors (the rule before session 16).
     pub contact_corrections: bool,
+    /// [`LinearSolver::Cholesky`]: the fill-reducing ordering of the factor (default
+    /// [`CholeskyOrdering::Auto`]: METIS nested dissection of the node graph from
+    /// 3000 unknowns on, which on gen_kidney_20k's system holds 0.8× the fill of the
+    /// AMD used before session 17 (gen_kidney_100k 0.63×); faer's AMD below).
+    pub cholesky_ordering: CholeskyOrdering,
 }
 
 impl Default for ImplicitSettings {
@@ -174,6 +180,7 @@ impl Default for ImplicitSettings {
             refactor_contraction: 0.2,
             max_factor_nonzeros: 50_000_000,
             contact_corrections: true,
+            cholesky_ordering: CholeskyOrdering::Auto,
         }
     }
 }

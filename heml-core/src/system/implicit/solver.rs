@@ -120,8 +120,8 @@ impl ImplicitSolver {
     pub fn prepare(&mut self, sys: &System) -> Result<()> {
         self.settings.validate()?;
         self.prepare_operators(sys)?;
-        let direct =
-            (self.settings.linear_solver == LinearSolver::Cholesky).then_some(self.settings.max_factor_nonzeros);
+        let direct = (self.settings.linear_solver == LinearSolver::Cholesky)
+            .then_some((self.settings.max_factor_nonzeros, self.settings.cholesky_ordering));
         let dofs = self.dofs.as_ref().expect("prepared");
         self.cache
             .prepare(sys.state.x.len(), sys.model.mesh.tets(), &self.tangents, dofs, direct)

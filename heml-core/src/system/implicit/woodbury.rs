@@ -231,6 +231,7 @@ mod tests {
     use crate::mesh::generate::{box_mesh, HexSplit};
     use crate::system::implicit::matrix::tests::{add_to_diagonal, rnd, setup};
     use crate::system::implicit::matrix::BlockMatrix;
+    use crate::system::implicit::ordering::CholeskyOrdering;
 
     /// The cosine of the tests: the factor's tolerance for a turned normal.
     const COSINE: f64 = 0.995;
@@ -259,7 +260,7 @@ mod tests {
     /// A solve of a fresh factor of [`with_contacts`]`(now)`.
     fn fresh_solve(now: &[ContactTerm], dofs: &DofMap, b: &[f64]) -> Vec<f64> {
         let m = with_contacts(now);
-        let mut fresh = Cholesky::new(&m, dofs, usize::MAX).unwrap();
+        let mut fresh = Cholesky::new(&m, dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
         fresh.factor(&m).unwrap();
         let mut x = b.to_vec();
         fresh.solve(&mut x);
@@ -293,7 +294,7 @@ mod tests {
             .map(|&i| (i, k(&mut s), unit(&mut s)))
             .collect();
         let m0 = with_contacts(&base);
-        let mut factor = Cholesky::new(&m0, &dofs, usize::MAX).unwrap();
+        let mut factor = Cholesky::new(&m0, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
         factor.factor(&m0).unwrap();
         // now: 3 kept, 5 released, 7 turned by ~60°, 9 kept with another stiffness,
         // 1 kept, 0 released, 11, 13 and 1 (a second contact there) made

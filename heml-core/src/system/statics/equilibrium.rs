@@ -98,6 +98,7 @@ impl NewtonProblem for Equilibrium<'_> {
                     reuse_factor: false,
                     contact_corrections: false,
                     max_factor_nonzeros: ImplicitSettings::default().max_factor_nonzeros,
+                    cholesky_ordering: ImplicitSettings::default().cholesky_ordering,
                 };
                 let report = solve.solve(sys, tangents, cache, dofs, rhs, None)?;
                 if self.opts.progress_every > 0 {
