@@ -210,6 +210,7 @@ class System:
         n: int = 1,
         *,
         linear_solver: Literal["cg", "cholesky"] | None = None,
+        cholesky_ordering: Literal["auto", "amd", "node_amd", "nested_dissection"] | None = None,
         newton_iterations: int | None = None,
         newton_tolerance: float | None = None,
         cg_tolerance: float | None = None,
