@@ -291,72 +291,7 @@ mod tests {
             fill(CholeskyOrdering::NodeAmd),
             fill(CholeskyOrdering::NestedDissection),
         );
-        eprintln!(
-            "16³ cube, {} unknowns: fill AMD {amd}, node AMD {node_amd}, nested dissection {nd}",
-            dofs.len()
-        );
         assert!((nd as f64) < 0.87 * amd as f64, "nested dissection {nd} vs AMD {amd}");
         assert_eq!(node_amd, amd, "node AMD vs scalar AMD");
-    }
-
-    /// Measurement, not a test: fill, analysis, numeric factorisation and solve times
-    /// of each ordering on the meshes of `HEML_ORDERING_MESHES` (paths separated by
-    /// `:`), x-min 5 % of the nodes held, on 1 and 2 threads. Run with
-    /// `cargo test --release -p heml-core measure_orderings -- --ignored --nocapture`.
-    #[test]
-    #[ignore = "measurement; needs HEML_ORDERING_MESHES"]
-    fn measure_orderings() {
-        let paths = std::env::var("HEML_ORDERING_MESHES").expect("HEML_ORDERING_MESHES=path[:path]");
-        let median = |mut v: Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            (v[v.len() / 2], v[0], v[v.len() - 1])
-        };
-        for path in paths.split(':') {
-            let (mesh, _) = crate::io::read_mesh(std::path::Path::new(path)).unwrap();
-            let (lo, hi) = mesh.bounding_box();
-            let cut = lo.x + 0.05 * (hi.x - lo.x);
-            let held: Vec<[bool; 3]> = mesh.nodes().iter().map(|p| [p.x <= cut; 3]).collect();
-            let dofs = DofMap::new(&held, mesh.tets());
-            let m = random_system(&mesh, &held);
-            let mut s = 9u64;
-            let b: Vec<f64> = (0..dofs.len()).map(|_| rnd(&mut s)).collect();
-            for ordering in [
-                CholeskyOrdering::Amd,
-                CholeskyOrdering::NodeAmd,
-                CholeskyOrdering::NestedDissection,
-            ] {
-                let t0 = std::time::Instant::now();
-                let mut c = Cholesky::new(&m, &dofs, usize::MAX, ordering).unwrap();
-                let analysis = t0.elapsed().as_secs_f64() * 1e3;
-                for threads in [1, 2] {
-                    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                    let (mut tf, mut ts) = (Vec::new(), Vec::new());
-                    pool.install(|| {
-                        for _ in 0..7 {
-                            let t = std::time::Instant::now();
-                            c.factor(&m).unwrap();
-                            tf.push(t.elapsed().as_secs_f64() * 1e3);
-                            let mut x = b.clone();
-                            let t = std::time::Instant::now();
-                            c.solve(&mut x);
-                            ts.push(t.elapsed().as_secs_f64() * 1e3);
-                        }
-                    });
-                    let (f, s) = (median(tf), median(ts));
-                    eprintln!(
-                        "{path}: {} unknowns, {ordering:?}, {threads} thr: fill {}, analysis {analysis:.1} ms, \
-                         factor {:.2} ms ({:.2}-{:.2}), solve {:.3} ms ({:.3}-{:.3})",
-                        dofs.len(),
-                        c.factor_nonzeros(),
-                        f.0,
-                        f.1,
-                        f.2,
-                        s.0,
-                        s.1,
-                        s.2
-                    );
-                }
-            }
-        }
     }
 }
