@@ -6,7 +6,7 @@
 //!
 //! This crate is the library: `use heml::prelude::*` brings what a program types
 //! (meshes, parameters, systems, scenes, the look-ups by name); the domains are
-//! modules ([`io`], [`mesh`], [`force`], [`system`], [`scene`], [`registry`],
+//! modules ([`io`], [`mesh`], [`force`], [`mod@system`], [`scene`], [`registry`],
 //! [`law`]). The `heml` command is the separate crate `heml-cli`.
 //!
 //! ## From plain data to energy and forces
@@ -84,7 +84,7 @@
 //! ## Crates
 //! - `heml-core`: meshes and mesh I/O, rest precomputation, the force fields (HEML,
 //!   standard P1, link), systems, solvers, scenes, the registry;
-//! - `heml-derive`: the `#[material]` macro ([`material`]);
+//! - `heml-derive`: the `#[material]` macro ([`macro@material`]);
 //! - `heml-materials`: the built-in laws ([`materials`]);
 //! - `heml-integrators`: time integrators ([`integrators`]).
 

@@ -1,9 +1,10 @@
 //! The contract between a declared law and the force kernels.
 //!
 //! A law is written once, as a strain-energy expression, and `#[heml::material]`
-//! generates the impls of these traits. The kernels in [`crate::force`] and
-//! [`crate::fem`] are generic over them, so every law gets its own monomorphised
-//! hot loop and no per-tetrahedron dynamic dispatch.
+//! generates the impls of these traits. The kernels in [`crate::force`] (the
+//! HEML and link fields, and the standard P1 oracle of [`crate::force::p1`]) are
+//! generic over them, so every law gets its own monomorphised hot loop and no
+//! per-tetrahedron dynamic dispatch.
 
 /// One parameter of a law (a field of the declaring struct).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -2,8 +2,9 @@
 //! law kind, or in a small-strain mapping), which functions it may call with how
 //! many arguments, and which Rust types a parameter may have.
 //!
-//! Both the attribute parser ([`crate::attr`]) and the lowering ([`crate::lower`])
-//! ask this module, so neither needs the other and the two cannot disagree.
+//! Both the attribute parser (heml-derive's internal `attr` module) and the
+//! lowering ([`crate::lower`]) ask this module, so neither needs the other and the
+//! two cannot disagree.
 
 use crate::expr::Var;
 

@@ -1,7 +1,7 @@
 //! Standard output for the subcommands' reports.
 //!
 //! Rust ignores SIGPIPE, so `println!` panics when the reader of a pipe has gone
-//! (`heml bench | head -1`). Reports go through [`write`] instead, which treats a
+//! (`heml bench | head -1`). Reports go through [`write()`] instead, which treats a
 //! closed pipe as the reader saying "enough": the command stops at once with
 //! success, as Unix tools do. Output files are written elsewhere, each completed
 //! before it is renamed into place, so stopping here never leaves one half-written.

@@ -167,7 +167,7 @@ pub struct FibreTet {
     pub vol: f64,
     /// tr(C_e), as for invariant laws.
     pub vtr: [f64; 6],
-    /// a_k·C_e·a_k per family: I4_k = c4[k]·l.
+    /// a_k·C_e·a_k per family: I4_k = `c4[k]`·l.
     pub c4: [[f64; 6]; 2],
     /// b_k = V⁻¹a_k per family (for I5).
     pub b: [[f64; 3]; 2],

@@ -299,8 +299,8 @@ impl<K: Formulation> ElasticForces for TetField<K> {
         Ok(f)
     }
 
-    /// Masks the lanes of the removed tets (see [`Layout::remove`]): O(log n) per
-    /// tet after the first call (even with no tet), which sorts the field's ids once; the batches, blocks
+    /// Masks the lanes of the removed tets (see the internal `Layout::remove`):
+    /// O(log n) per tet after the first call (even with no tet), which sorts the field's ids once; the batches, blocks
     /// and merge lists stay, so the forces of the remaining tets are those of a
     /// field built on them, summed in another order (equal to round-off).
     fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {

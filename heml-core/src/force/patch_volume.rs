@@ -4,7 +4,7 @@
 //!
 //! # Energy
 //! The tets are partitioned into disjoint compact patches P of about k tets
-//! ([`super::patch`]), each inside one block of the field's layout. With the split
+//! (the crate-internal module `force::patch`), each inside one block of the field's layout. With the split
 //! w = w_iso + U(J) of [`super::volumetric`], V_P = Σ_{t∈P} ω_t Vol_t and
 //! v_P = Σ_{t∈P} ω_t vol_t,
 //!

@@ -289,9 +289,9 @@ impl<M: InvariantLaw> TetHessian for InvariantHessian<M> {
     }
 
     /// Tets whose analytic spectrum is semi-definite are returned unchanged, the
-    /// others with their negative modes clamped ([`project_blocks`]); a tet whose
-    /// closed-form SVD is not accurate enough goes through the iterative SVD's
-    /// eigensystem (or, failing that, the numerical projection).
+    /// others with their negative modes clamped (the internal `project_blocks`); a
+    /// tet whose closed-form SVD is not accurate enough goes through the iterative
+    /// SVD's eigensystem (or, failing that, the numerical projection).
     fn blocks(&self, k: usize, p: &[Vec3; 4], project: bool) -> TetBlocks {
         let (st, (d, h)) = self.state(k, p);
         let mut blocks = exact_blocks(&st, d, h, Self::USED);

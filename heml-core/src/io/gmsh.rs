@@ -884,7 +884,7 @@ pub fn write(path: &Path, mesh: &TetMesh, version: Version) -> Result<()> {
 }
 
 /// Writes `mesh` as a binary `.msh` (little-endian, as Gmsh and meshio write on
-/// x86 and ARM) of version 2.2 or 4.1, with the same tags as [`write`]; there is
+/// x86 and ARM) of version 2.2 or 4.1, with the same tags as [`write()`]; there is
 /// no binary version 1.
 pub fn write_binary(path: &Path, mesh: &TetMesh, version: Version) -> Result<()> {
     match version {

@@ -67,10 +67,11 @@ static COMPILED: LazyLock<Mutex<Cache>> = LazyLock::new(Mutex::default);
 ///
 /// The text is parsed and differentiated once (by heml-symbolic, the macro's own
 /// engine), and w, its gradient, its Hessian and the J0 inversion extension of each
-/// are compiled into register tapes ([`super::tape`]) that compute exactly what the
-/// macro's generated code computes; the batch kernels run them over a batch of tets
-/// at once. A runtime law is an [`InvariantLaw`], so it works everywhere a compiled
-/// one does (HEML and P1 fields, the tangent, scenes through [`crate::Material`]).
+/// are compiled into register tapes (the internal `runtime_law::tape` module) that
+/// compute exactly what the macro's generated code computes; the batch kernels run
+/// them over a batch of tets at once. A runtime law is an [`InvariantLaw`], so it
+/// works everywhere a compiled one does (HEML and P1 fields, the tangent, scenes
+/// through [`crate::Material`]).
 ///
 /// Compiled forms are kept for the life of the process, one per distinct energy
 /// text and parameter names (a few kB each), which is what lets the law be `Copy`

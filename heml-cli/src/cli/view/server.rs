@@ -3,7 +3,7 @@
 //!
 //! Each connection sends the mesh, then forwards whatever is newest in the hub's
 //! channels (frames, status, mesh changes, replies) and parses the page's commands.
-//! A page that acks its frames ([`Request::Ack`](super::protocol::Request::Ack)) has
+//! A page that acks its frames ([`Request::Ack`]) has
 //! at most one frame in flight: the next one waits for its ack, and by then it is the
 //! newest, so a page that is busy gets fewer, fresher frames instead of a queue in
 //! the sockets.

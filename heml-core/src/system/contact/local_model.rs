@@ -1,51 +1,53 @@
 //! The local model of the tool–tissue interaction that the simulation publishes
-//! for the haptic device (the "intermediate representation" of multirate haptics).
-//!
-//! A 1 kHz device cannot wait for a simulation that advances 1 ms of simulated time
-//! in several milliseconds of wall time. So the simulation publishes, with each
-//! state, a first-order model of the force around the tool's pose — the force F₀ it
-//! computed at the tool's translation x₀ and a stiffness K = ∂F/∂x — and the device
-//! renders F(x) = F₀ + K·(x − x₀) at its own rate, at its current pose, without
-//! waiting (Mark et al. 1996; Çavuşoğlu & Tendick 2000).
-//!
-//! **Which K.** The contact stiffness with the tissue held still
-//! ([`super::ToolSet::translation_stiffness`]) is exact over times too short for the
-//! tissue to move, but over one simulation period the surface nodes yield, and the
-//! force grows far less than the penalty springs alone predict (a soft organ is
-//! some 10–100× more compliant than its contact springs). [`StiffnessEstimator`]
-//! therefore corrects it with the tissue's observed compliance: a Broyden
-//! (secant) update from the force change between successive states along the tool's
-//! motion, bounded between 0 and the contact stiffness.
-//!
-//! **Rendering: bounded and passive.** [`LocalModel::force_at`] renders a
-//! symmetric negative semidefinite K (the estimator projects it so), never pulls (a
-//! contact only pushes: the force is zero where the model would reverse F₀), and
-//! bounds the extrapolation: the model is exact only near x₀, and a device that
-//! runs ahead of a slow or stalled simulation would otherwise render K·(x − x₀)
-//! over centimetres the simulation never computed (measured before this bound: a
-//! 25 ms-old model rendered 1.23 N where the simulation computed 0.10 N). So each
-//! model carries a **reach** r, the tool travel from x₀ the simulation vouches for
-//! (in [`super::run_haptic_loop`], the simulated tool's largest travel in one
-//! iteration: the next state's tool lies within r of x₀), and the rendered force is
-//! clamped to the ball
-//!
-//! |F(x)| ≤ min(F_max, |F₀| + ‖K‖_F · r),
-//!
-//! which leaves F₀ + K·(x − x₀) untouched within r of x₀ (there |K·(x − x₀)| ≤
-//! ‖K‖_F·r) and stops it growing beyond; unloading (the tool backing out to lift-off)
-//! is never clamped. Passivity: the unclamped field F₀ + K·(x − x₀) is the gradient
-//! of a concave potential (K symmetric negative semidefinite), and for an isotropic
-//! K the radial clamp keeps it a gradient (the projection onto a ball of a gradient
-//! map with a scalar Jacobian), so the device gains no energy around a closed path;
-//! a new model can only change the force by what the simulation computed. A device
-//! with virtual coupling adds its own damping on top.
+//! for the haptic device (the "intermediate representation" of multirate haptics):
+//! [`LocalModel`], whose docs give the design (which stiffness, bounded and passive
+//! rendering), and [`StiffnessEstimator`], which builds it.
 
 use crate::Vec3;
 use nalgebra::{Matrix3, SymmetricEigen};
 use std::time::Instant;
 
 /// A first-order model of the force on a tool around a pose, published by the
-/// simulation for a haptic device ([module docs](self)).
+/// simulation for a haptic device.
+///
+/// A 1 kHz device cannot wait for a simulation that advances 1 ms of simulated time
+/// in several milliseconds of wall time. So the simulation publishes, with each
+/// state, a first-order model of the force around the tool's pose — the force F₀ it
+/// computed at the tool's translation x₀ and a stiffness K = ∂F/∂x — and the device
+/// renders F(x) = F₀ + K·(x − x₀) at its own rate, at its current pose, without
+/// waiting (Mark et al. 1996; Çavuşoğlu & Tendick 2000).
+///
+/// **Which K.** The contact stiffness with the tissue held still
+/// ([`super::ToolSet::translation_stiffness`]) is exact over times too short for the
+/// tissue to move, but over one simulation period the surface nodes yield, and the
+/// force grows far less than the penalty springs alone predict (a soft organ is
+/// some 10–100× more compliant than its contact springs). [`StiffnessEstimator`]
+/// therefore corrects it with the tissue's observed compliance: a Broyden
+/// (secant) update from the force change between successive states along the tool's
+/// motion, bounded between 0 and the contact stiffness.
+///
+/// **Rendering: bounded and passive.** [`LocalModel::force_at`] renders a
+/// symmetric negative semidefinite K (the estimator projects it so), never pulls (a
+/// contact only pushes: the force is zero where the model would reverse F₀), and
+/// bounds the extrapolation: the model is exact only near x₀, and a device that
+/// runs ahead of a slow or stalled simulation would otherwise render K·(x − x₀)
+/// over centimetres the simulation never computed (measured before this bound: a
+/// 25 ms-old model rendered 1.23 N where the simulation computed 0.10 N). So each
+/// model carries a **reach** r, the tool travel from x₀ the simulation vouches for
+/// (in [`super::run_haptic_loop`], the simulated tool's largest travel in one
+/// iteration: the next state's tool lies within r of x₀), and the rendered force is
+/// clamped to the ball
+///
+/// |F(x)| ≤ min(F_max, |F₀| + ‖K‖_F · r),
+///
+/// which leaves F₀ + K·(x − x₀) untouched within r of x₀ (there |K·(x − x₀)| ≤
+/// ‖K‖_F·r) and stops it growing beyond; unloading (the tool backing out to lift-off)
+/// is never clamped. Passivity: the unclamped field F₀ + K·(x − x₀) is the gradient
+/// of a concave potential (K symmetric negative semidefinite), and for an isotropic
+/// K the radial clamp keeps it a gradient (the projection onto a ball of a gradient
+/// map with a scalar Jacobian), so the device gains no energy around a closed path;
+/// a new model can only change the force by what the simulation computed. A device
+/// with virtual coupling adds its own damping on top.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LocalModel {
     /// The force the tissue applied to the tool at [`LocalModel::position`] (N).
@@ -56,7 +58,7 @@ pub struct LocalModel {
     pub stiffness: Matrix3<f64>,
     /// The tool travel from [`LocalModel::position`] the simulation vouches for (m):
     /// [`LocalModel::force_at`] renders at most |F₀| + ‖K‖_F × reach
-    /// ([module docs](self)). 0 renders a zero-order hold beyond F₀'s size;
+    /// (see [`LocalModel`]). 0 renders a zero-order hold beyond F₀'s size;
     /// infinity, the unbounded first-order model.
     pub reach: f64,
     /// Simulated time of the state (s).
@@ -141,7 +143,7 @@ fn renderable(k: &Matrix3<f64>, max: f64) -> Matrix3<f64> {
 
 /// Builds [`LocalModel`]s from successive simulation states (on the simulation
 /// thread): the contact stiffness corrected by the tissue's observed compliance
-/// ([module docs](self)).
+/// (see [`LocalModel`], "Which K").
 ///
 /// Per new state (tool at x with force F, contact stiffness K_c): without contact
 /// the model is empty and the history forgotten; on first contact K = K_c (the
