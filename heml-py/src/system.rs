@@ -5,7 +5,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use heml::prelude::{ForceOptions, Integrator, PronyTerm, Ramp as RustRamp, StaticOptions, StepStats, TimeStepPolicy};
-use heml::system::{CholeskyOrdering, Energies, LinearSolver};
+use heml::system::{CholeskyOrdering, Energies, FactorPrecision, LinearSolver};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -262,11 +262,14 @@ impl System {
     /// or `"cholesky"`: a sparse factor reused across steps, the statistics'
     /// `factorizations` count its refreshes), `cholesky_ordering` (its fill-reducing
     /// ordering: `"auto"`, the default — nested dissection from 3000 unknowns, AMD
-    /// below —, `"amd"`, `"node_amd"` or `"nested_dissection"`), `newton_iterations`,
-    /// `newton_tolerance`, `cg_tolerance`, `cg_max_iterations`.
+    /// below —, `"amd"`, `"node_amd"` or `"nested_dissection"`), `factor_precision`
+    /// (its precision: `"auto"`, the default — f32 for time steps from 3000 unknowns,
+    /// f64 below —, `"f64"` or `"f32"`; the factor only preconditions iterations on
+    /// exact residuals, so it changes the speed, not the converged state),
+    /// `newton_iterations`, `newton_tolerance`, `cg_tolerance`, `cg_max_iterations`.
     #[pyo3(signature = (
         integrator = "velocity_verlet", dt = None, n = 1, *, linear_solver = None, cholesky_ordering = None,
-        newton_iterations = None, newton_tolerance = None, cg_tolerance = None, cg_max_iterations = None
+        factor_precision = None, newton_iterations = None, newton_tolerance = None, cg_tolerance = None, cg_max_iterations = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn step<'py>(
@@ -277,6 +280,7 @@ impl System {
         n: u64,
         linear_solver: Option<&str>,
         cholesky_ordering: Option<&str>,
+        factor_precision: Option<&str>,
         newton_iterations: Option<usize>,
         newton_tolerance: Option<f64>,
         cg_tolerance: Option<f64>,
@@ -289,6 +293,7 @@ impl System {
         }
         let given = linear_solver.is_some()
             || cholesky_ordering.is_some()
+            || factor_precision.is_some()
             || newton_iterations.is_some()
             || newton_tolerance.is_some()
             || cg_tolerance.is_some()
@@ -300,8 +305,8 @@ impl System {
                 .implicit_settings_mut()
                 .ok_or_else(|| {
                     PyValueError::new_err(format!(
-                        "integrator {integrator:?} is explicit: linear_solver, cholesky_ordering, newton_iterations, \
-                         newton_tolerance, cg_tolerance and cg_max_iterations apply to backward_euler and newmark"
+                        "integrator {integrator:?} is explicit: linear_solver, cholesky_ordering, factor_precision, \
+                         newton_iterations, newton_tolerance, cg_tolerance and cg_max_iterations apply to backward_euler and newmark"
                     ))
                 })?;
             let mut s = *settings;
@@ -316,18 +321,13 @@ impl System {
                     }
                 };
             }
+            // a misspelt name is a bad argument value: ValueError, with the library's message
+            let bad_value = |e: heml::HemlError| PyValueError::new_err(e.to_string());
             if let Some(name) = cholesky_ordering {
-                s.cholesky_ordering = match name {
-                    "auto" => CholeskyOrdering::Auto,
-                    "amd" => CholeskyOrdering::Amd,
-                    "node_amd" => CholeskyOrdering::NodeAmd,
-                    "nested_dissection" => CholeskyOrdering::NestedDissection,
-                    other => {
-                        return Err(PyValueError::new_err(format!(
-                            "cholesky_ordering must be 'auto', 'amd', 'node_amd' or 'nested_dissection', got {other:?}"
-                        )))
-                    }
-                };
+                s.cholesky_ordering = name.parse::<CholeskyOrdering>().map_err(bad_value)?;
+            }
+            if let Some(name) = factor_precision {
+                s.factor_precision = name.parse::<FactorPrecision>().map_err(bad_value)?;
             }
             s.newton_iterations = newton_iterations.unwrap_or(s.newton_iterations);
             s.newton_tolerance = newton_tolerance.unwrap_or(s.newton_tolerance);

@@ -226,26 +226,32 @@ def test_cholesky_linear_solver_reaches_the_cg_steps_and_reuses_its_factor():
     assert f_chol[0] >= 1 and 1 <= sum(f_chol) < 20, f_chol
 
 
-def test_cholesky_orderings_reach_the_same_steps():
-    """Nested dissection (forced: the block is below the 3000 unknowns where `auto`
-    takes it) and the AMD ordering factor the same matrix in other orders, so with
-    both runs converged each step (Newton to 1e-9) they end on the same state.
+@pytest.mark.parametrize(
+    "keyword, values",
+    [("cholesky_ordering", ("amd", "nested_dissection")), ("factor_precision", ("f64", "f32"))],
+)
+def test_cholesky_options_reach_the_same_steps(keyword, values):
+    """Nested dissection against AMD, and an f32 factor against an f64 one (both
+    forced: the block is below the 3000 unknowns where `auto` takes them), factor
+    the same matrix in other orders or precisions, so with both runs converged each
+    step (Newton to 1e-9 on exact f64 residuals) they end on the same state.
 
     Bound: as in the CG/Cholesky test above, each step meets |r| ≤ 1e-9 of its scale,
-    so the states agree to ~1e-8 of the sag; 1e-6 leaves margin, while an ordering
+    so the states agree to ~1e-8 of the sag; 1e-6 leaves margin, while an option
     that scrambled the unknowns (a wrong permutation) would leave O(1) of the sag."""
     converged = dict(newton_iterations=30, newton_tolerance=1e-9)
     runs = {}
-    for ordering in ("amd", "nested_dissection"):
+    for value in values:
         sys = sagging_block()
-        sys.step("backward_euler", dt=0.01, n=10, linear_solver="cholesky", cholesky_ordering=ordering, **converged)
-        runs[ordering] = sys.displacements
-    sag = np.abs(runs["amd"]).max()
+        sys.step("backward_euler", dt=0.01, n=10, linear_solver="cholesky", **{keyword: value}, **converged)
+        runs[value] = sys.displacements
+    base, other = (runs[v] for v in values)
+    sag = np.abs(base).max()
     assert sag > 1e-3, sag
-    assert np.abs(runs["nested_dissection"] - runs["amd"]).max() < 1e-6 * sag
-    # the keyword reached the factor: other elimination orders round differently, so
-    # the two (each deterministic) runs cannot be the same bits
-    assert not np.array_equal(runs["nested_dissection"], runs["amd"])
+    assert np.abs(other - base).max() < 1e-6 * sag
+    # the keyword reached the factor: other elimination orders (or an f32 factor)
+    # round differently, so the two (each deterministic) runs cannot be the same bits
+    assert not np.array_equal(other, base)
 
 
 def test_implicit_settings_are_refused_for_explicit_integrators_and_bad_values():
@@ -256,6 +262,8 @@ def test_implicit_settings_are_refused_for_explicit_integrators_and_bad_values()
         sys.step("backward_euler", dt=0.01, linear_solver="lu")
     with pytest.raises(ValueError, match="'nested_dissection', got \"metis\""):
         sys.step("backward_euler", dt=0.01, linear_solver="cholesky", cholesky_ordering="metis")
+    with pytest.raises(ValueError, match="'f32', got \"double\""):
+        sys.step("backward_euler", dt=0.01, linear_solver="cholesky", factor_precision="double")
     with pytest.raises(heml.HemlError, match="newton_tolerance"):
         sys.step("backward_euler", dt=0.01, newton_tolerance=2.0)
     assert sys.step_count == 0

@@ -8,8 +8,8 @@
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
 use heml::system::{
-    CholeskyOrdering, ImplicitScheme, ImplicitSettings, ImplicitSolver, LinearSolver, StaticOptions, StepStats, System,
-    SystemBuilder,
+    CholeskyOrdering, FactorPrecision, ImplicitScheme, ImplicitSettings, ImplicitSolver, LinearSolver, StaticOptions,
+    StepStats, System, SystemBuilder,
 };
 
 use heml_tests::implicit::{link, newmark_energy_drift, plucked_cantilever, relative_error};
@@ -289,7 +289,10 @@ dt = 0.01
         )
     };
     let mut sim = heml::scene::Scene::from_toml_str(
-        &scene("linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345\ncholesky_ordering = \"nested_dissection\""),
+        &scene(
+            "linear_solver = \"cholesky\"\nmax_factor_nonzeros = 12345\ncholesky_ordering = \"nested_dissection\"\n\
+             factor_precision = \"f32\"",
+        ),
         ".",
     )
     .unwrap()
@@ -297,11 +300,17 @@ dt = 0.01
     .unwrap();
     let s = *sim.integrator.implicit_settings_mut().unwrap();
     assert_eq!(
-        (s.linear_solver, s.max_factor_nonzeros, s.cholesky_ordering),
+        (
+            s.linear_solver,
+            s.max_factor_nonzeros,
+            s.cholesky_ordering,
+            s.factor_precision
+        ),
         (
             LinearSolver::Cholesky,
             12345,
-            heml::system::CholeskyOrdering::NestedDissection
+            heml::system::CholeskyOrdering::NestedDissection,
+            FactorPrecision::Single
         )
     );
     sim.run(|_| {}).unwrap();
@@ -321,6 +330,14 @@ dt = 0.01
         .unwrap_err()
         .to_string();
     assert!(e.contains("nested_dissection") && e.contains("rcm"), "{e}");
+    let e = heml::scene::Scene::from_toml_str(
+        &scene("linear_solver = \"cholesky\"\nfactor_precision = \"double\""),
+        ".",
+    )
+    .and_then(|s| s.build())
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("f32") && e.contains("double"), "{e}");
 }
 
 /// Moving a grasp (or a tool, or changing loads) between steps leaves the matrix
@@ -660,6 +677,71 @@ fn nested_dissection_ends_on_the_converged_state_and_replays() {
     let (one, two) = (in_pool(1), in_pool(2));
     let differing = one.iter().zip(&two).filter(|(a, b)| a != b).count();
     assert_eq!(differing, 0, "{differing} nodes differ between 1 and 2 threads");
+}
+
+/// An f32 factor (`factor_precision`, the default for time steps from 3000
+/// unknowns, forced here on the 8 × 6 × 5 block's ~1100) changes the bits of a
+/// run, not its converged state nor its replay: converged backward Euler ends on
+/// the f64 factor's state (bound as in [`assert_matches_cg`]: both meet the same
+/// Newton criterion on exact residuals), the chord preset under the pressing tool
+/// gives the same bits on 1 and 2 threads, and below the threshold the default
+/// keeps the f64 factor's bits.
+#[test]
+fn single_precision_factor_ends_on_the_converged_state_and_replays() {
+    link();
+    let build = || block(HexSplit::Six, [8, 6, 5], 0.45).build().unwrap();
+    let rest = build().positions().to_vec();
+    let disp = |x: &[Vec3]| x.iter().zip(&rest).map(|(a, b)| a - b).collect::<Vec<_>>();
+    let with = |p: FactorPrecision, s: ImplicitSettings| ImplicitSettings {
+        factor_precision: p,
+        ..s
+    };
+    let (double, _) = run(
+        &build,
+        with(FactorPrecision::Double, converged(LinearSolver::Cholesky)),
+        20,
+    );
+    let (single, solver) = run(
+        &build,
+        with(FactorPrecision::Single, converged(LinearSolver::Cholesky)),
+        20,
+    );
+    assert!(solver.factor_is_single(), "the factor held should be the f32 one");
+    assert!(
+        (1..20).contains(&solver.factorizations()),
+        "{}",
+        solver.factorizations()
+    );
+    let err = relative_error(&disp(&single), &disp(&double));
+    assert!(
+        err < 1e-6,
+        "f32 vs f64 factor: relative displacement difference {err:e}"
+    );
+    assert!(
+        single != double,
+        "the f32 factor left every bit unchanged: was it used?"
+    );
+    let preset = |p: FactorPrecision| {
+        with(
+            p,
+            ImplicitSettings {
+                linear_solver: LinearSolver::Cholesky,
+                ..ImplicitSettings::default()
+            },
+        )
+    };
+    let in_pool = |threads: usize, p: FactorPrecision| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| press(preset(p))).expect("the chord run completes")
+    };
+    let (one, two) = (in_pool(1, FactorPrecision::Single), in_pool(2, FactorPrecision::Single));
+    let differing = one.iter().zip(&two).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "{differing} nodes differ between 1 and 2 threads");
+    let (auto, double) = (in_pool(1, FactorPrecision::Auto), in_pool(1, FactorPrecision::Double));
+    assert!(
+        auto == double,
+        "below 3000 unknowns the default must keep the f64 factor's bits"
+    );
 }
 
 /// A body at rest without loads (the viewer's kidney between two interactions)

@@ -74,6 +74,15 @@ pub struct BenchArgs {
     /// the default), parallel_gauss_seidel or block_jacobi.
     #[arg(long, default_value = "symmetric_gauss_seidel", value_name = "NAME")]
     pub preconditioner: String,
+    /// Fill-reducing ordering of the --implicit runs' Cholesky factor: auto (the
+    /// default), amd, node_amd or nested_dissection.
+    #[arg(long, default_value = "auto", value_name = "NAME")]
+    pub cholesky_ordering: String,
+    /// Precision of the --implicit runs' Cholesky factor: auto (the default), f64 or
+    /// f32; several, comma-separated (`f64,f32`), run each Cholesky case once per
+    /// precision, side by side in the same run.
+    #[arg(long, default_value = "auto", value_name = "NAMES", value_delimiter = ',')]
+    pub factor_precision: Vec<String>,
     /// Instead of the usual table: this energy declared at run time against the
     /// compiled --law, one thread, timed round-robin (same energy: same forces).
     #[arg(long, value_name = "TEXT")]
@@ -254,7 +263,8 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     if let Some(meshes) = &args.implicit {
         let meshes = super::bench_implicit::meshes(meshes, args.implicit_scale)?;
         let preconditioner = super::bench_implicit::preconditioner(&args.preconditioner)?;
-        return super::bench_implicit::run(&meshes, preconditioner, threads, placement);
+        let direct = super::bench_implicit::Direct::parse(&args.cholesky_ordering, &args.factor_precision)?;
+        return super::bench_implicit::run(&meshes, preconditioner, &direct, threads, placement);
     }
     if let Some(energy) = &args.energy {
         return super::bench_energy::run(&args, energy, &pool(1)?);

@@ -14,7 +14,8 @@
 use crate::threads::{thread_pool, Placement};
 use heml::prelude::*;
 use heml::system::{
-    CgPreconditioner, ImplicitScheme, ImplicitSettings, ImplicitSolver, LinearSolver, PhaseTimes, System,
+    CgPreconditioner, CholeskyOrdering, FactorPrecision, ImplicitScheme, ImplicitSettings, ImplicitSolver,
+    LinearSolver, PhaseTimes, System,
 };
 use heml_validation::fixtures::renumbered_at_load;
 use std::path::{Path, PathBuf};
@@ -57,6 +58,53 @@ pub fn preconditioner(name: &str) -> heml::Result<CgPreconditioner> {
         _ => Err(HemlError::Invalid(format!(
             "--preconditioner {name}: expected parallel_gauss_seidel, symmetric_gauss_seidel or block_jacobi"
         ))),
+    }
+}
+
+/// The Cholesky factor's options of the runs: its ordering and the precisions to
+/// run side by side.
+pub struct Direct {
+    ordering: CholeskyOrdering,
+    precisions: Vec<FactorPrecision>,
+}
+
+impl Direct {
+    /// The options named on the command line (`--cholesky-ordering`,
+    /// `--factor-precision`, comma-separated values already split).
+    pub fn parse(ordering: &str, precisions: &[String]) -> heml::Result<Self> {
+        let precisions = precisions
+            .iter()
+            .map(|p| p.parse())
+            .collect::<heml::Result<Vec<FactorPrecision>>>()?;
+        if precisions.is_empty() {
+            return Err(HemlError::Invalid(
+                "--factor-precision: give at least one of auto, f64, f32".into(),
+            ));
+        }
+        Ok(Direct {
+            ordering: ordering.parse()?,
+            precisions,
+        })
+    }
+
+    /// `settings` with Cholesky and these options at `precision`.
+    fn settings(&self, settings: ImplicitSettings, precision: FactorPrecision) -> ImplicitSettings {
+        ImplicitSettings {
+            linear_solver: LinearSolver::Cholesky,
+            cholesky_ordering: self.ordering,
+            factor_precision: precision,
+            ..settings
+        }
+    }
+}
+
+/// The solver column of a run: `cg`, `cholesky` (the default precision) or
+/// `chol/f32` and the like.
+fn solver_label(settings: &ImplicitSettings) -> String {
+    match (settings.linear_solver, settings.factor_precision) {
+        (LinearSolver::Cg, _) => "cg".into(),
+        (LinearSolver::Cholesky, FactorPrecision::Auto) => "cholesky".into(),
+        (LinearSolver::Cholesky, p) => format!("chol/{}", p.name()),
     }
 }
 
@@ -109,6 +157,8 @@ struct ImplicitRun {
     phases: Vec<PhaseTimes>,
     /// Nonzeros of the Cholesky factor at the end (0 with CG).
     factor_nonzeros: usize,
+    /// Whether that factor is in f32.
+    factor_single: bool,
     /// Wall time of [`ImplicitSolver::prepare`] before the first step (operators,
     /// pattern, symbolic analysis: not in the step times).
     prepare: f64,
@@ -137,6 +187,7 @@ fn implicit_case(mesh: &TetMesh, settings: ImplicitSettings, pool: &rayon::Threa
             newtons,
             phases,
             factor_nonzeros: solver.factor_nonzeros(),
+            factor_single: solver.factor_is_single(),
             prepare,
         })
     })
@@ -168,6 +219,7 @@ fn long_case(
         newtons: Vec::new(),
         phases: Vec::new(),
         factor_nonzeros: 0,
+        factor_single: false,
         prepare: 0.0,
     };
     let out = pool.install(|| -> heml::Result<()> {
@@ -182,6 +234,7 @@ fn long_case(
             run.newtons.push(s.newton_iterations as f64);
             run.phases.push(solver.last_phase_times());
             run.factor_nonzeros = solver.factor_nonzeros();
+            run.factor_single = solver.factor_is_single();
             Ok(())
         };
         let [(_, fall), (_, press), (_, grasp)] = LONG_PHASES;
@@ -221,7 +274,7 @@ fn percentiles(v: &[f64]) -> (f64, f64, f64, f64) {
 /// Prints the long run of the default preset with the Cholesky factor on `mesh` at
 /// each thread count of `counts`: per phase and over the whole run, p50, p90, max
 /// and mean wall time per step and the factorisations.
-fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement) -> heml::Result<()> {
+fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, placement: Placement) -> heml::Result<()> {
     let total: usize = LONG_PHASES.iter().map(|p| p.1).sum();
     outln!();
     outln!(
@@ -232,16 +285,12 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement
     );
     for &n in counts {
         let (pool, _) = thread_pool(n, placement)?;
-        for linear_solver in [LinearSolver::Cholesky, LinearSolver::Cg] {
-            let settings = ImplicitSettings {
-                linear_solver,
-                ..ImplicitSettings::default()
-            };
-            let solver = if linear_solver == LinearSolver::Cg {
-                "cg"
-            } else {
-                "cholesky"
-            };
+        let cholesky = direct
+            .precisions
+            .iter()
+            .map(|&p| direct.settings(ImplicitSettings::default(), p));
+        for settings in cholesky.chain([ImplicitSettings::default()]) {
+            let solver = solver_label(&settings);
             let (run, failed) = long_case(mesh, settings, &pool)?;
             if let Some(e) = &failed {
                 outln!(
@@ -291,7 +340,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], placement: Placement
 /// Euler step. Each with CG and with the reused Cholesky factor, except the
 /// interactive preset, whose CG cap does not concern the factor (its Cholesky row
 /// would repeat the default's).
-fn rows(preconditioner: CgPreconditioner) -> Vec<(&'static str, ImplicitSettings)> {
+fn rows(preconditioner: CgPreconditioner, direct: &Direct) -> Vec<(&'static str, ImplicitSettings)> {
     let converged = ImplicitSettings {
         newton_iterations: 20,
         ..ImplicitSettings::default()
@@ -304,8 +353,7 @@ fn rows(preconditioner: CgPreconditioner) -> Vec<(&'static str, ImplicitSettings
     ] {
         out.push((label, ImplicitSettings { preconditioner, ..s }));
         if label != "interactive" {
-            let linear_solver = LinearSolver::Cholesky;
-            out.push((label, ImplicitSettings { linear_solver, ..s }));
+            out.extend(direct.precisions.iter().map(|&p| (label, direct.settings(s, p))));
         }
     }
     out
@@ -344,6 +392,7 @@ fn explicit_case(mesh: &TetMesh, pool: &rayon::ThreadPool) -> heml::Result<(Stri
 pub fn run(
     meshes: &[(PathBuf, f64)],
     preconditioner: CgPreconditioner,
+    direct: &Direct,
     threads: usize,
     placement: Placement,
 ) -> heml::Result<()> {
@@ -351,6 +400,7 @@ pub fn run(
     if threads != 1 {
         counts.push(threads);
     }
+    let ordering = direct.ordering.name();
     outln!(
         "backward Euler at dt = {} ms vs the best explicit integrator at 0.9× its stable dt; \
          neo-Hookean E = 3 kPa, ν = 0.49, ρ = 1000, gravity, α = 15/s, 10 % clamped",
@@ -358,7 +408,8 @@ pub fn run(
     );
     outln!(
         "implicit: {IMPLICIT_STEPS} steps from rest per case after `prepare` (median [min–max]); linear solver: cg \
-         (preconditioner {preconditioner:?}) or cholesky (sparse LLᵀ kept while chord iterations on it reach \
+         (preconditioner {preconditioner:?}) or cholesky ({ordering} ordering, factor precision `auto` unless \
+         `chol/f64`, `chol/f32`; sparse LLᵀ kept while chord iterations on it reach \
          0.2 + 0.8 c_fresh, at most 0.25, of the step's residual cheaper than a refactorisation; `Newton` counts them, \
          `fact.` = factorisations over the {IMPLICIT_STEPS} steps, fill = factor nonzeros); explicit: \
          {EXPLICIT_STEPS} steps; ratio = implicit ÷ explicit sim s per wall s by the median step (by the \
@@ -394,9 +445,9 @@ pub fn run(
             let (name, edt, et) = explicit_case(&mesh, &pool)?;
             let (em, emin, emax) = stats(&et);
             let explicit_rate = edt / em;
-            for (sname, settings) in rows(preconditioner) {
+            for (sname, settings) in rows(preconditioner, direct) {
+                let solver = solver_label(&settings);
                 let direct = settings.linear_solver == LinearSolver::Cholesky;
-                let solver = if direct { "cholesky" } else { "cg" };
                 let run = match implicit_case(&mesh, settings, &pool) {
                     Ok(run) => run,
                     Err(e) => {
@@ -427,7 +478,8 @@ pub fn run(
                     cg_hi,
                     median(|p| p.cg_residual),
                     if direct {
-                        format!("{factorizations} ({:.1e})", run.factor_nonzeros as f64)
+                        let single = if run.factor_single { " f32" } else { "" };
+                        format!("{factorizations} ({:.1e}{single})", run.factor_nonzeros as f64)
                     } else {
                         "-".into()
                     },
@@ -448,7 +500,7 @@ pub fn run(
                 );
             }
         }
-        long_runs(&mesh, &label, &counts, placement)?;
+        long_runs(&mesh, &label, &counts, direct, placement)?;
     }
     outln!("(wall-clock medians on a shared machine: other processes' load widens the ranges)");
     Ok(())

@@ -6,7 +6,9 @@ use serde::Deserialize;
 use crate::error::{HemlError, Result};
 use crate::mesh::generate::HexSplit;
 use crate::params::Params;
-use crate::system::{CgFailure, CholeskyOrdering, Integrator, LinearSolver, PronyTerm, Ramp, TimeStepPolicy};
+use crate::system::{
+    CgFailure, CholeskyOrdering, FactorPrecision, Integrator, LinearSolver, PronyTerm, Ramp, TimeStepPolicy,
+};
 
 /// Where the body comes from and how its coordinates map to metres.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -336,6 +338,10 @@ pub struct SolverSpec {
     /// unknowns on, node-graph AMD below), `"amd"`, `"node_amd"` or
     /// `"nested_dissection"`.
     pub cholesky_ordering: Option<CholeskyOrdering>,
+    /// Implicit integrators with `linear_solver = "cholesky"`: the factor's
+    /// precision, `"auto"` (default: f32 for time steps from 3000 unknowns on, f64
+    /// otherwise), `"f64"` or `"f32"`.
+    pub factor_precision: Option<FactorPrecision>,
     /// Volumetric formulation of every material that does not set its own:
     /// `"element"` (default), `"nodal"` or `"patch"` (anti-locking).
     pub volumetric: Option<String>,
@@ -358,6 +364,7 @@ impl SolverSpec {
             ("linear_solver", self.linear_solver.is_some()),
             ("max_factor_nonzeros", self.max_factor_nonzeros.is_some()),
             ("cholesky_ordering", self.cholesky_ordering.is_some()),
+            ("factor_precision", self.factor_precision.is_some()),
         ];
         let name = integrator.name();
         let Some(settings) = integrator.implicit_settings_mut() else {
@@ -378,6 +385,7 @@ impl SolverSpec {
         s.linear_solver = self.linear_solver.unwrap_or(s.linear_solver);
         s.max_factor_nonzeros = self.max_factor_nonzeros.unwrap_or(s.max_factor_nonzeros);
         s.cholesky_ordering = self.cholesky_ordering.unwrap_or(s.cholesky_ordering);
+        s.factor_precision = self.factor_precision.unwrap_or(s.factor_precision);
         s.validate().map_err(|e| HemlError::Invalid(format!("{what}: {e}")))?;
         *settings = s;
         Ok(true)

@@ -88,8 +88,8 @@ pub use builder::SystemBuilder;
 pub use constraints::{Constraints, Prescribed, Ramp};
 pub use energy::{Energies, StepStats};
 pub use implicit::{
-    CgFailure, CgPreconditioner, CholeskyOrdering, ImplicitScheme, ImplicitSettings, ImplicitSolver, LinearSolver,
-    PhaseTimes,
+    CgFailure, CgPreconditioner, CholeskyOrdering, FactorPrecision, ImplicitScheme, ImplicitSettings, ImplicitSolver,
+    LinearSolver, PhaseTimes,
 };
 pub use integrator::{find_integrator, integrators, Integrator, IntegratorEntry};
 pub use passes::{parallel_pass_threshold, set_parallel_pass_threshold, DEFAULT_PARALLEL_PASS_THRESHOLD};

@@ -211,6 +211,7 @@ class System:
         *,
         linear_solver: Literal["cg", "cholesky"] | None = None,
         cholesky_ordering: Literal["auto", "amd", "node_amd", "nested_dissection"] | None = None,
+        factor_precision: Literal["auto", "f64", "f32"] | None = None,
         newton_iterations: int | None = None,
         newton_tolerance: float | None = None,
         cg_tolerance: float | None = None,

@@ -20,6 +20,12 @@
 //! nonzeros run faer's kernels sequentially whatever the thread pool: at that size
 //! the fork-join costs more than it saves (the liver's supernodal factorisation
 //! took 0.48–0.80 ms on 2 threads against 0.27–0.46 ms on one).
+//!
+//! The numeric factor is held in f64 or, when the caller asks for it
+//! ([`super::FactorPrecision`]), in f32: the same analysis and pattern, half the
+//! bytes per factor value, the right-hand side rounded to f32 for the solves and
+//! the solution widened back. An f32 factorisation that meets a non-positive pivot
+//! is redone in f64.
 
 use super::matrix::BlockMatrix;
 use super::ordering::CholeskyOrdering;
@@ -33,6 +39,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::traits::RealField;
 use faer::{Conj, MatMut, Par, Side};
 
 /// A sparse Cholesky factorisation of the system matrix over the free coordinates,
@@ -46,10 +53,25 @@ pub(in crate::system) struct Cholesky {
     /// The entries' values at the last factorisation.
     values: Vec<f64>,
     symbolic: SymbolicCholesky<usize>,
-    /// The factor's values (empty until the first factorisation).
-    factor: Vec<f64>,
-    /// Scratch of the numeric factorisation and of the solves.
+    /// The factor's values, in the precision it was made in.
+    factor: Factor,
+    /// Scratch of the numeric factorisation and of the solves (either precision).
     stack: MemBuffer,
+}
+
+/// A numeric factor and, for f32, the matrix values and right-hand side rounded to
+/// it (buffers kept across factorisations).
+#[derive(Default)]
+enum Factor {
+    /// None yet, or the last factorisation failed.
+    #[default]
+    Empty,
+    Double(Vec<f64>),
+    Single {
+        factor: Vec<f32>,
+        values: Vec<f32>,
+        rhs: Vec<f32>,
+    },
 }
 
 impl std::fmt::Debug for Cholesky {
@@ -58,6 +80,7 @@ impl std::fmt::Debug for Cholesky {
             .field("unknowns", &(self.col_ptr.len() - 1))
             .field("matrix_nonzeros", &self.row_idx.len())
             .field("factor_nonzeros", &self.symbolic.len_val())
+            .field("single", &matches!(self.factor, Factor::Single { .. }))
             .finish_non_exhaustive()
     }
 }
@@ -145,6 +168,8 @@ impl Cholesky {
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par(fill), Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, par(fill)),
+            symbolic.factorize_numeric_llt_scratch::<f32>(par(fill), Default::default()),
+            symbolic.solve_in_place_scratch::<f32>(1, par(fill)),
         ]);
         let stack = MemBuffer::try_new(req).map_err(|_| {
             HemlError::Invalid(format!(
@@ -158,7 +183,7 @@ impl Cholesky {
             row_idx,
             src,
             symbolic,
-            factor: Vec::new(),
+            factor: Factor::Empty,
             stack,
         })
     }
@@ -169,58 +194,110 @@ impl Cholesky {
     }
 
     /// Factors the current values of `matrix` (the pattern the analysis was built
-    /// for). An error when the matrix is not numerically positive definite (an
+    /// for), in f32 when `single` (in f64 if that meets a non-positive pivot). An
+    /// error when the matrix is not numerically positive definite in f64 (an
     /// unprojected, indefinite tangent) or holds a non-finite value; the previous
     /// factor is then gone.
-    pub(in crate::system) fn factor(&mut self, matrix: &BlockMatrix) -> Result<()> {
+    pub(in crate::system) fn factor(&mut self, matrix: &BlockMatrix, single: bool) -> Result<()> {
         let blocks = matrix.blocks();
         for (v, &s) in self.values.iter_mut().zip(&self.src) {
             *v = blocks[s / 9][(s % 9 / 3, s % 3)];
         }
-        self.factor.clear();
-        self.factor.resize(self.symbolic.len_val(), 0.0);
-        let n = self.col_ptr.len() - 1;
-        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let a = SparseColMatRef::new(pattern, &self.values);
-        let out = self.symbolic.factorize_numeric_llt(
-            &mut self.factor,
-            a,
-            Side::Lower,
-            LltRegularization::default(),
-            par(self.symbolic.len_val()),
-            MemStack::new(&mut self.stack),
-            Default::default(),
-        );
-        match out {
-            Ok(_) => Ok(()),
-            Err(e) => {
-                self.factor.clear();
-                let LltError::NonPositivePivot { index } = e;
-                Err(HemlError::Numerical(format!(
-                    "sparse Cholesky: the system matrix ({n} unknowns) is not positive definite (pivot {index} \
-                     of the reordered matrix; an unprojected tangent or a non-finite value: set \
-                     project_psd = true, or use linear_solver = \"cg\")"
-                )))
+        let (mut f64s, mut f32s) = match std::mem::take(&mut self.factor) {
+            Factor::Double(f) => (f, None),
+            Factor::Single { factor, values, rhs } => (Vec::new(), Some((factor, values, rhs))),
+            Factor::Empty => (Vec::new(), None),
+        };
+        if single {
+            let (mut factor, mut values, rhs) = f32s.take().unwrap_or_default();
+            values.clear();
+            // rounding to nearest: each entry within half an f32 ulp of the matrix's
+            values.extend(self.values.iter().map(|&v| v as f32));
+            if self.numeric(&values, &mut factor).is_ok() {
+                self.factor = Factor::Single { factor, values, rhs };
+                return Ok(());
             }
         }
+        let values = std::mem::take(&mut self.values);
+        let out = self.numeric(&values, &mut f64s);
+        self.values = values;
+        match out {
+            Ok(()) => {
+                self.factor = Factor::Double(f64s);
+                Ok(())
+            }
+            Err(LltError::NonPositivePivot { index }) => Err(HemlError::Numerical(format!(
+                "sparse Cholesky: the system matrix ({} unknowns) is not positive definite (pivot {index} \
+                 of the reordered matrix; an unprojected tangent or a non-finite value: set \
+                 project_psd = true, or use linear_solver = \"cg\")",
+                self.col_ptr.len() - 1
+            ))),
+        }
+    }
+
+    /// The numeric factorisation of the lower triangle `values` (in the analysed
+    /// pattern) into `out`, resized to the factor's nonzeros.
+    fn numeric<T: RealField + Copy + Default>(
+        &mut self,
+        values: &[T],
+        out: &mut Vec<T>,
+    ) -> std::result::Result<(), LltError> {
+        out.clear();
+        out.resize(self.symbolic.len_val(), T::default());
+        let n = self.col_ptr.len() - 1;
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(pattern, values);
+        self.symbolic
+            .factorize_numeric_llt(
+                out,
+                a,
+                Side::Lower,
+                LltRegularization::default(),
+                par(self.symbolic.len_val()),
+                MemStack::new(&mut self.stack),
+                Default::default(),
+            )
+            .map(|_| ())
     }
 
     /// Whether a factor is held.
     pub(in crate::system) fn is_factored(&self) -> bool {
-        !self.factor.is_empty()
+        !matches!(self.factor, Factor::Empty)
     }
 
-    /// Solves A x = `rhs` in place with the held factor (`rhs` by free coordinate).
+    /// Whether the held factor is in f32.
+    pub(in crate::system) fn is_single(&self) -> bool {
+        matches!(self.factor, Factor::Single { .. })
+    }
+
+    /// Solves A x = `rhs` in place with the held factor (`rhs` by free coordinate;
+    /// through f32 when the factor is).
     pub(in crate::system) fn solve(&mut self, rhs: &mut [f64]) {
-        assert!(self.is_factored(), "solve before a factorisation");
         let n = self.col_ptr.len() - 1;
-        let llt = LltRef::new(&self.symbolic, &self.factor);
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            par(self.symbolic.len_val()),
-            MemStack::new(&mut self.stack),
-        );
+        let par = par(self.symbolic.len_val());
+        let stack = MemStack::new(&mut self.stack);
+        match &mut self.factor {
+            Factor::Empty => panic!("solve before a factorisation"),
+            Factor::Double(factor) => LltRef::new(&self.symbolic, factor).solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(rhs, n, 1),
+                par,
+                stack,
+            ),
+            Factor::Single { factor, rhs: r32, .. } => {
+                r32.clear();
+                r32.extend(rhs.iter().map(|&v| v as f32));
+                LltRef::new(&self.symbolic, factor).solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(r32, n, 1),
+                    par,
+                    stack,
+                );
+                for (v, &w) in rhs.iter_mut().zip(r32.iter()) {
+                    *v = f64::from(w);
+                }
+            }
+        }
     }
 }
 
@@ -239,14 +316,24 @@ mod tests {
     /// relative; 1e-12 leaves 100× margin, a wrong entry or ordering errs by O(1).
     #[test]
     fn supernodal_factor_solves_like_the_dense_cholesky() {
+        let (m, dofs, a) = free_system();
+        let mut direct = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
+        assert!(matches!(direct.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)));
+        direct.factor(&m, false).unwrap();
+        assert!(!direct.is_single());
+        let (x, want) = solve_random(&mut direct, &a);
+        let err = (DVector::from_column_slice(&x) - &want).amax() / want.amax();
+        assert!(err < 1e-12, "relative error {err:e}");
+    }
+
+    /// The test system ([`setup`]: a 3×2×2 box, two nodes partly held), its
+    /// numbering of the free coordinates and the dense matrix over them.
+    fn free_system() -> (BlockMatrix, DofMap, DMatrix<f64>) {
         let (m, dense, mask) = setup();
         let held: Vec<[bool; 3]> = mask.chunks_exact(3).map(|c| [!c[0], !c[1], !c[2]]).collect();
         let mesh =
             crate::mesh::generate::box_mesh([3.0, 2.0, 2.0], [3, 2, 2], crate::mesh::generate::HexSplit::Six).unwrap();
         let dofs = DofMap::new(&held, mesh.tets());
-        let mut direct = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
-        assert!(matches!(direct.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)));
-        direct.factor(&m).unwrap();
         // the dense matrix over the free coordinates, numbered as the DofMap does
         let n = dofs.len();
         let mut a = DMatrix::zeros(n, n);
@@ -261,11 +348,69 @@ mod tests {
                 }
             }
         }
+        (m, dofs, a)
+    }
+
+    /// `direct`'s solution of a x = b for a random b, and the dense LLᵀ one.
+    fn solve_random(direct: &mut Cholesky, a: &DMatrix<f64>) -> (Vec<f64>, DVector<f64>) {
         let mut s = 5u64;
-        let b: Vec<f64> = (0..n).map(|_| rnd(&mut s)).collect();
+        let b: Vec<f64> = (0..a.nrows()).map(|_| rnd(&mut s)).collect();
         let mut x = b.clone();
         direct.solve(&mut x);
-        let want = a.cholesky().expect("SPD").solve(&DVector::from_column_slice(&b));
+        (
+            x,
+            a.clone()
+                .cholesky()
+                .expect("SPD")
+                .solve(&DVector::from_column_slice(&b)),
+        )
+    }
+
+    /// An f32 factor solves to f32 accuracy, and iterating on it (x += A32⁻¹(b − A x),
+    /// the residual in f64, as the chord iterations do) reaches the f64 solution.
+    /// Bounds: a backward-stable f32 solve errs by ≲ κ·ε32 relative (κ the
+    /// condition number, computed here; ε32 = 1.2·10⁻⁷), so 10·κ·ε32 leaves margin
+    /// and 10⁻¹⁰ below it shows the solve was not f64's; each refinement step
+    /// contracts the error by ~κ·ε32, so 5 steps reach the f64 round-off (10⁻¹² as
+    /// in the f64 test).
+    #[test]
+    fn single_factor_solves_to_f32_accuracy_and_refines_to_f64() {
+        let (m, dofs, a) = free_system();
+        let mut direct = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
+        direct.factor(&m, true).unwrap();
+        assert!(direct.is_single());
+        let (mut x, want) = solve_random(&mut direct, &a);
+        let eig = a.clone().symmetric_eigenvalues();
+        let kappa = eig.max() / eig.min();
+        let err = (DVector::from_column_slice(&x) - &want).amax() / want.amax();
+        let bound = 10.0 * kappa * f64::from(f32::EPSILON);
+        assert!(
+            err > 1e-10 && err < bound,
+            "relative error {err:e}, bound {bound:e} (κ {kappa:.1})"
+        );
+        let b = &a * &want;
+        for _ in 0..5 {
+            let r = &b - &a * DVector::from_column_slice(&x);
+            let mut dx = r.as_slice().to_vec();
+            direct.solve(&mut dx);
+            x.iter_mut().zip(&dx).for_each(|(x, d)| *x += d);
+        }
+        let err = (DVector::from_column_slice(&x) - &want).amax() / want.amax();
+        assert!(err < 1e-12, "refined: relative error {err:e}");
+    }
+
+    /// A matrix whose entries underflow in f32 (here all of them, scaled by 10⁻⁵⁰:
+    /// SPD in f64, zero in f32) is factored in f64 instead, and solves as f64 does.
+    /// Bound: as in the f64 test, on the scaled system (relative errors are
+    /// scale-free).
+    #[test]
+    fn single_factor_falls_back_to_f64_on_a_non_positive_pivot() {
+        let (mut m, dofs, a) = free_system();
+        crate::system::implicit::matrix::tests::scale(&mut m, 1e-50);
+        let mut direct = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
+        direct.factor(&m, true).unwrap();
+        assert!(!direct.is_single());
+        let (x, want) = solve_random(&mut direct, &(a * 1e-50));
         let err = (DVector::from_column_slice(&x) - &want).amax() / want.amax();
         assert!(err < 1e-12, "relative error {err:e}");
     }

@@ -9,6 +9,7 @@ use super::cg::{dot, pcg_fused, CgOperator, CgReport};
 use super::cholesky::Cholesky;
 use super::matrix::{BlockMatrix, GsOrdering};
 use super::ordering::CholeskyOrdering;
+use super::precision::FactorPrecision;
 use super::problem::REFACTOR_COST_IN_CHORDS;
 use super::settings::{CgPreconditioner, LinearSolver};
 use super::timings::PhaseTimes;
@@ -50,6 +51,9 @@ pub(in crate::system) struct TangentSolve {
     pub max_factor_nonzeros: usize,
     /// Cholesky: the fill-reducing ordering of the factor.
     pub cholesky_ordering: CholeskyOrdering,
+    /// Cholesky: the precision of the factor (f32 only with a mass term, `cm > 0`,
+    /// under [`FactorPrecision::Auto`]).
+    pub factor_precision: FactorPrecision,
 }
 
 /// What a held factor was made for: c_k, c_m, c_v, the grasps' diagonal terms
@@ -211,6 +215,13 @@ impl SolveCache {
     /// Nonzeros of the Cholesky factor held (0 without one).
     pub(in crate::system) fn factor_nonzeros(&self) -> usize {
         self.direct.as_ref().map_or(0, |(c, _)| c.factor_nonzeros())
+    }
+
+    /// Whether the Cholesky factor held is in f32 (false without one).
+    pub(in crate::system) fn factor_is_single(&self) -> bool {
+        self.direct
+            .as_ref()
+            .is_some_and(|(c, _)| c.is_factored() && c.is_single())
     }
 }
 
@@ -383,7 +394,8 @@ impl TangentSolve {
             let (direct, made_for) = cache.direct.insert((direct, made_for));
             *made_for = None;
             cache.correction.clear();
-            direct.factor(matrix)?;
+            let single = self.factor_precision.single(dofs.len(), self.cm > 0.0);
+            direct.factor(matrix, single)?;
             *made_for = Some(key);
             cache.factorizations += 1;
             cache.times.factor += t0.elapsed().as_secs_f64();

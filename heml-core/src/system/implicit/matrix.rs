@@ -489,6 +489,11 @@ pub(super) mod tests {
         m.val[d] += block;
     }
 
+    /// Multiplies every stored block of `m` by `s` (the same pattern).
+    pub(in crate::system::implicit) fn scale(m: &mut BlockMatrix, s: f64) {
+        m.val.iter_mut().for_each(|b| *b *= s);
+    }
+
     /// Asserts z = P⁻¹ r on the free coordinates and z = 0 on the held ones, with
     /// P = (D + L) D⁻¹ (D + U) built densely from `dense` with the nodes in the
     /// order `order` (L: the blocks (i, j) with j before i). Bound: the sweeps are

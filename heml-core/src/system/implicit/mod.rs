@@ -49,6 +49,7 @@ mod cholesky;
 pub(super) mod linear;
 mod matrix;
 mod ordering;
+mod precision;
 mod problem;
 mod settings;
 mod solver;
@@ -56,6 +57,7 @@ mod timings;
 mod woodbury;
 
 pub use ordering::{CholeskyOrdering, AUTO_NESTED_DISSECTION};
+pub use precision::{FactorPrecision, AUTO_SINGLE};
 pub use settings::{CgFailure, CgPreconditioner, ImplicitScheme, ImplicitSettings, LinearSolver};
 pub use solver::ImplicitSolver;
 pub use timings::PhaseTimes;

@@ -55,6 +55,22 @@ pub enum CholeskyOrdering {
 pub const AUTO_NESTED_DISSECTION: usize = 3000;
 
 impl CholeskyOrdering {
+    /// The scene-file name of the ordering.
+    ///
+    /// ```
+    /// use heml_core::system::CholeskyOrdering;
+    /// assert_eq!(CholeskyOrdering::NestedDissection.name(), "nested_dissection");
+    /// assert_eq!("amd".parse::<CholeskyOrdering>().unwrap(), CholeskyOrdering::Amd);
+    /// ```
+    pub fn name(self) -> &'static str {
+        match self {
+            CholeskyOrdering::Auto => "auto",
+            CholeskyOrdering::Amd => "amd",
+            CholeskyOrdering::NodeAmd => "node_amd",
+            CholeskyOrdering::NestedDissection => "nested_dissection",
+        }
+    }
+
     /// The permutation (new position → free coordinate) of the system over the free
     /// coordinates of `dofs`, or `None` for faer's own AMD on the scalar pattern.
     pub(in crate::system) fn permutation(self, matrix: &BlockMatrix, dofs: &DofMap) -> Result<Option<Vec<usize>>> {
@@ -67,6 +83,23 @@ impl CholeskyOrdering {
             CholeskyOrdering::Auto => graph().nested_dissection()?,
         };
         Ok(Some(nodes))
+    }
+}
+
+impl std::str::FromStr for CholeskyOrdering {
+    type Err = HemlError;
+
+    /// The ordering named as in scene files.
+    fn from_str(s: &str) -> Result<Self> {
+        use CholeskyOrdering::*;
+        [Auto, Amd, NodeAmd, NestedDissection]
+            .into_iter()
+            .find(|o| o.name() == s)
+            .ok_or_else(|| {
+                HemlError::Invalid(format!(
+                    "cholesky_ordering must be 'auto', 'amd', 'node_amd' or 'nested_dissection', got {s:?}"
+                ))
+            })
     }
 }
 
@@ -258,12 +291,12 @@ mod tests {
         let b: Vec<f64> = (0..n).map(|_| rnd(&mut s)).collect();
         let mut want = b.clone();
         let mut amd = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Amd).unwrap();
-        amd.factor(&m).unwrap();
+        amd.factor(&m, false).unwrap();
         amd.solve(&mut want);
         let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         for ordering in [CholeskyOrdering::NodeAmd, CholeskyOrdering::NestedDissection] {
             let mut c = Cholesky::new(&m, &dofs, usize::MAX, ordering).unwrap();
-            c.factor(&m).unwrap();
+            c.factor(&m, false).unwrap();
             let mut x = b.clone();
             c.solve(&mut x);
             let err = x.iter().zip(&want).fold(0.0f64, |a, (x, w)| a.max((x - w).abs())) / scale;

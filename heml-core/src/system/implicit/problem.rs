@@ -324,6 +324,7 @@ impl NewtonProblem for ImplicitStep<'_> {
             contact_corrections: s.contact_corrections,
             max_factor_nonzeros: s.max_factor_nonzeros,
             cholesky_ordering: s.cholesky_ordering,
+            factor_precision: s.factor_precision,
         };
         let guess = self.guess.take().filter(|g| first && g.len() == rhs.len());
         let (factorizations, corrections) = (self.cache.factorizations, self.cache.corrections);

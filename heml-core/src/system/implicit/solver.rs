@@ -93,6 +93,14 @@ impl ImplicitSolver {
         self.cache.factor_nonzeros()
     }
 
+    /// Whether the Cholesky factor currently held is in f32 (see
+    /// [`super::FactorPrecision`]: `auto` takes it for time steps from 3000 unknowns,
+    /// and an f32 factorisation that meets a non-positive pivot is redone in f64);
+    /// false without a factor.
+    pub fn factor_is_single(&self) -> bool {
+        self.cache.factor_is_single()
+    }
+
     /// The scheme.
     pub fn scheme(&self) -> ImplicitScheme {
         self.scheme

@@ -261,7 +261,7 @@ mod tests {
     fn fresh_solve(now: &[ContactTerm], dofs: &DofMap, b: &[f64]) -> Vec<f64> {
         let m = with_contacts(now);
         let mut fresh = Cholesky::new(&m, dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
-        fresh.factor(&m).unwrap();
+        fresh.factor(&m, false).unwrap();
         let mut x = b.to_vec();
         fresh.solve(&mut x);
         x
@@ -295,7 +295,7 @@ mod tests {
             .collect();
         let m0 = with_contacts(&base);
         let mut factor = Cholesky::new(&m0, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
-        factor.factor(&m0).unwrap();
+        factor.factor(&m0, false).unwrap();
         // now: 3 kept, 5 released, 7 turned by ~60°, 9 kept with another stiffness,
         // 1 kept, 0 released, 11, 13 and 1 (a second contact there) made
         let turned = (base[2].2 + unit(&mut s) * 1.5).normalize();

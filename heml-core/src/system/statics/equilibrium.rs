@@ -99,6 +99,8 @@ impl NewtonProblem for Equilibrium<'_> {
                     contact_corrections: false,
                     max_factor_nonzeros: ImplicitSettings::default().max_factor_nonzeros,
                     cholesky_ordering: ImplicitSettings::default().cholesky_ordering,
+                    // f64: K alone has no mass term bounding its conditioning
+                    factor_precision: ImplicitSettings::default().factor_precision,
                 };
                 let report = solve.solve(sys, tangents, cache, dofs, rhs, None)?;
                 if self.opts.progress_every > 0 {
