@@ -402,12 +402,16 @@ impl ImplicitStep<'_> {
         sys.invalidate();
         // no rollback here: a failed line-search trial must leave the step going
         sys.compute_forces_inner()?;
-        let a = self.accelerations(sys);
-        for (i, r) in self.r.iter_mut().enumerate() {
-            *r = sys.eval.force[i] - a[i] * sys.model.mass[i];
-            if sys.model.inv_mass[i] == 0.0 {
-                *r = Vec3::zeros();
-            }
+        // r = f − M a⁺ with a⁺ of [`Self::accelerations`] computed in place (the
+        // same operations per node, so the same bits): no vector allocated and one
+        // pass over the nodes less per evaluation (a chord step evaluates twice)
+        for i in 0..self.r.len() {
+            self.r[i] = if sys.model.inv_mass[i] > 0.0 {
+                let a = self.d(sys, i) * self.ca - self.a0[i];
+                sys.eval.force[i] - a * sys.model.mass[i]
+            } else {
+                Vec3::zeros()
+            };
         }
         Ok(())
     }
