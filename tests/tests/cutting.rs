@@ -277,7 +277,15 @@ fn bad_cuts_are_errors_and_change_nothing() {
         Vec3::new(2.0, 0.0, 0.0),
         Vec3::new(1.0, 1.0, 0.0),
     ]);
-    assert!(err(sys.cut(&away)).contains("meets no tet"));
+    // the message says where the blade and the body (at rest here: the 4 × 1 × 1 cm
+    // bar) are, in metres
+    let e = err(sys.cut(&away));
+    assert!(e.contains("meets no tet"), "{e}");
+    assert!(e.contains("the blade spans x 1.000–2.000, y 0–1.000, z 0–0 m"), "{e}");
+    assert!(
+        e.contains("the body now spans x 0–0.04000, y 0–0.01000, z 0–0.01000 m"),
+        "{e}"
+    );
     // a blade in the grid plane z = 5 mm touches every tet (each spans a cell
     // layer, whose top or bottom lies in that plane): refused
     let huge = Blade::Triangle([

@@ -855,3 +855,128 @@ fn cholesky_preset_follows_the_cg_preset_through_a_fast_sag_with_chord_iteration
         solver.factorizations()
     );
 }
+
+/// A grasp whose dampers dominate its nodes (a finely meshed bar, nodes of
+/// ~10⁻⁸ kg: m/h² ≈ 10⁻⁴ N/m against c·c_v = 50 N/m per grasped node) moved along
+/// a 3 mm circle, backward Euler with one Newton iteration per step: no line
+/// search stalls, and the end state is within 15 % of the circle's radius of the
+/// converged run's. Bound: with the Cholesky factor a step may leave a quarter of
+/// its residual (`MAX_STEP_LEFTOVER`), carried into the next, so errors of ~10 %
+/// of the motion are what the preset gives: measured 12 % (3.5·10⁻⁴ m) with the
+/// dampers' dissipation potential in the line search's merit, 22 % without it
+/// (the Newton step, which solves for the dampers' forces, was then no descent
+/// direction of the merit and the line search cut it short); CG, whose
+/// iterations are full Newton steps on a fresh tangent, 1.5 % either way.
+#[test]
+fn a_damper_dominated_grasp_moves_without_stalling_the_line_search() {
+    use heml::system::control::Pose;
+    link();
+    let run = |settings: ImplicitSettings| {
+        let mesh = box_mesh([0.03, 0.006, 0.006], [20, 4, 4], HexSplit::Six).unwrap();
+        let mut sys = System::builder(mesh)
+            .material("neo_hookean", Params::from([("E", 3e3), ("nu", 0.49)]))
+            .unwrap()
+            .density(1000.0)
+            .gravity(Vec3::new(0.0, 0.0, -9.81))
+            .fix_where(|p| p.x < 1e-9)
+            .rayleigh(15.0, 0.0)
+            .energy_every(0)
+            .build()
+            .unwrap();
+        let end: Vec<usize> = (0..sys.mesh().n_nodes())
+            .filter(|&i| sys.mesh().nodes()[i].x > 0.03 - 1e-9)
+            .collect();
+        let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, settings);
+        let id = sys.grasp(&end, Pose::identity(), 50.0, 0.5).unwrap();
+        for k in 1..=40 {
+            let phase = std::f64::consts::TAU * k as f64 / 40.0;
+            let offset = Vec3::new(0.003 * phase.sin(), 0.0, 0.003 * (1.0 - phase.cos()));
+            sys.move_grasp(id, Pose::translation(offset)).unwrap();
+            solver.step(&mut sys, 0.01).unwrap();
+        }
+        (sys.positions().to_vec(), sys.warnings().to_vec())
+    };
+    for linear_solver in [LinearSolver::Cholesky, LinearSolver::Cg] {
+        let (x, warnings) = run(ImplicitSettings {
+            linear_solver,
+            ..ImplicitSettings::default()
+        });
+        assert!(warnings.is_empty(), "{linear_solver:?}: {warnings:?}");
+        let (want, _) = run(converged(linear_solver));
+        let err = x.iter().zip(&want).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        assert!(
+            err < 0.15 * 0.003,
+            "{linear_solver:?}: end positions {err:e} m off the converged run's"
+        );
+    }
+}
+
+/// A corner node thrown into the body (2.5 m/s: the predictor x + h v puts it
+/// 1.4 cells deep along the diagonal, through its tets' opposite faces) inverts no
+/// tet, with either linear solver, one Newton iteration per step or converged:
+/// the predictor is cut back until it inverts nothing, and the Newton iterations'
+/// line search never inverts a tet (the laws' J0 extension keeps the energy finite
+/// through J = 0, so without both the steps folded tets over). Converged, the
+/// tissue also stops the node and pushes it back: it ends within a cell (1 cm) of
+/// its rest place. (One CG iteration per step leaves too much of this violent
+/// step's residual for that: the node swung 3 cm out, uninverted.)
+#[test]
+fn a_node_thrown_into_the_body_inverts_no_tet() {
+    const SPEED: f64 = 2.5;
+    link();
+    let signed_volumes = |sys: &System| -> Vec<f64> {
+        let x = sys.positions();
+        sys.mesh()
+            .tets()
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| x[i as usize]);
+                (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(p[3] - p[0]))
+            })
+            .collect()
+    };
+    let min = |v: Vec<f64>| v.into_iter().fold(f64::INFINITY, f64::min);
+    for linear_solver in [LinearSolver::Cholesky, LinearSolver::Cg] {
+        for settings in [ImplicitSettings::default(), converged(linear_solver)] {
+            let settings = ImplicitSettings {
+                linear_solver,
+                ..settings
+            };
+            let mesh = box_mesh([0.02, 0.02, 0.02], [2, 2, 2], HexSplit::Six).unwrap();
+            let mut sys = System::builder(mesh)
+                .material("neo_hookean", Params::from([("E", 3e3), ("nu", 0.49)]))
+                .unwrap()
+                .density(1000.0)
+                .fix_where(|p| p.x < 1e-9)
+                .energy_every(0)
+                .build()
+                .unwrap();
+            let rest = Vec3::new(0.02, 0.02, 0.02);
+            let corner = (0..sys.mesh().n_nodes())
+                .find(|&i| sys.mesh().nodes()[i] == rest)
+                .unwrap();
+            let v = Vec3::new(-1.0, -1.0, -1.0).normalize() * SPEED;
+            // the predictor alone inverts tets
+            sys.positions_mut()[corner] += v * 0.01;
+            assert!(
+                min(signed_volumes(&sys)) <= 0.0,
+                "the test needs an inverting predictor"
+            );
+            sys.positions_mut()[corner] = rest;
+            sys.velocities_mut()[corner] = v;
+            let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, settings);
+            for step in 0..10 {
+                solver.step(&mut sys, 0.01).unwrap();
+                let m = min(signed_volumes(&sys));
+                assert!(m > 0.0, "{linear_solver:?}: step {step}: a tet inverted ({m:e})");
+            }
+            let moved = (sys.positions()[corner] - rest).norm();
+            if settings.newton_iterations > 1 {
+                assert!(
+                    moved < 0.01,
+                    "{linear_solver:?}: the node ended {moved:e} m off its rest place"
+                );
+            }
+        }
+    }
+}

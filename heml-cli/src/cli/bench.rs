@@ -83,6 +83,10 @@ pub struct BenchArgs {
     /// precision, side by side in the same run.
     #[arg(long, default_value = "auto", value_name = "NAMES", value_delimiter = ',')]
     pub factor_precision: Vec<String>,
+    /// Skip the CG rows and long runs of --implicit, keeping the Cholesky ones (CG's
+    /// long run on gen_kidney_100k takes ~15 minutes per thread count).
+    #[arg(long)]
+    pub no_cg: bool,
     /// Instead of the usual table: this energy declared at run time against the
     /// compiled --law, one thread, timed round-robin (same energy: same forces).
     #[arg(long, value_name = "TEXT")]
@@ -263,7 +267,8 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     if let Some(meshes) = &args.implicit {
         let meshes = super::bench_implicit::meshes(meshes, args.implicit_scale)?;
         let preconditioner = super::bench_implicit::preconditioner(&args.preconditioner)?;
-        let direct = super::bench_implicit::Direct::parse(&args.cholesky_ordering, &args.factor_precision)?;
+        let direct =
+            super::bench_implicit::Direct::parse(&args.cholesky_ordering, &args.factor_precision, !args.no_cg)?;
         return super::bench_implicit::run(&meshes, preconditioner, &direct, threads, placement);
     }
     if let Some(energy) = &args.energy {

@@ -61,17 +61,19 @@ pub fn preconditioner(name: &str) -> heml::Result<CgPreconditioner> {
     }
 }
 
-/// The Cholesky factor's options of the runs: its ordering and the precisions to
-/// run side by side.
+/// The linear solvers of the runs: the Cholesky factor's ordering and the
+/// precisions to run side by side, and whether CG runs too.
 pub struct Direct {
     ordering: CholeskyOrdering,
     precisions: Vec<FactorPrecision>,
+    cg: bool,
 }
 
 impl Direct {
     /// The options named on the command line (`--cholesky-ordering`,
-    /// `--factor-precision`, comma-separated values already split).
-    pub fn parse(ordering: &str, precisions: &[String]) -> heml::Result<Self> {
+    /// `--factor-precision`, comma-separated values already split; `cg` unless
+    /// `--no-cg`).
+    pub fn parse(ordering: &str, precisions: &[String], cg: bool) -> heml::Result<Self> {
         let precisions = precisions
             .iter()
             .map(|p| p.parse())
@@ -84,6 +86,7 @@ impl Direct {
         Ok(Direct {
             ordering: ordering.parse()?,
             precisions,
+            cg,
         })
     }
 
@@ -289,7 +292,8 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
             .precisions
             .iter()
             .map(|&p| direct.settings(ImplicitSettings::default(), p));
-        for settings in cholesky.chain([ImplicitSettings::default()]) {
+        let cg = direct.cg.then(ImplicitSettings::default);
+        for settings in cholesky.chain(cg) {
             let solver = solver_label(&settings);
             let (run, failed) = long_case(mesh, settings, &pool)?;
             if let Some(e) = &failed {
@@ -351,7 +355,9 @@ fn rows(preconditioner: CgPreconditioner, direct: &Direct) -> Vec<(&'static str,
         ("interactive", ImplicitSettings::interactive()),
         ("converged", converged),
     ] {
-        out.push((label, ImplicitSettings { preconditioner, ..s }));
+        if direct.cg {
+            out.push((label, ImplicitSettings { preconditioner, ..s }));
+        }
         if label != "interactive" {
             out.extend(direct.precisions.iter().map(|&p| (label, direct.settings(s, p))));
         }

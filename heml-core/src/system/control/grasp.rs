@@ -122,6 +122,22 @@ impl Grasps {
         self.list.iter().map(|(_, g)| g.energy(x)).sum()
     }
 
+    /// Σ over the grasped nodes of c/(2·`cv`)·|v⁺_i|², with v⁺_i = `velocity(i)`
+    /// the end-of-step velocity of an implicit step (v⁺ = v + c_v d): the
+    /// dissipation potential of the dampers, whose gradient with respect to the
+    /// end-of-step positions is c·v⁺, minus their force. The implicit step's
+    /// line-search merit needs it: without it the Newton step (which solves for
+    /// the dampers' force too) is no descent direction of the merit where the
+    /// dampers dominate, as on a grasped patch of small nodes (c·c_v = 50 N/m
+    /// against m/h² ≈ 0.003 N/m on gen_kidney_100k's end: the line search stalled
+    /// at every step and the motion diverged).
+    pub(crate) fn damper_potential(&self, velocity: impl Fn(usize) -> Vec3, cv: f64) -> f64 {
+        self.list
+            .iter()
+            .map(|(_, g)| 0.5 * g.damping / cv * g.nodes.iter().map(|&i| velocity(i).norm_squared()).sum::<f64>())
+            .sum()
+    }
+
     /// Per node, Σ over the grasps holding it of k + c·`cv`: what the springs and
     /// dampers add to the diagonal of an implicit step's operator when the
     /// end-of-step velocity is v⁺ = v + c_v d. `None` without grasps.

@@ -135,6 +135,21 @@ pub(crate) fn bounds<'a>(pts: impl IntoIterator<Item = &'a Vec3>) -> (Vec3, Vec3
     )
 }
 
+/// The box `lo`–`hi` as "x a–b, y c–d, z e–f m" (4 significant digits), for
+/// error messages that say where a blade and the body are.
+pub(crate) fn span(lo: Vec3, hi: Vec3) -> String {
+    let sig = |v: f64| {
+        let decimals = if v == 0.0 || !v.is_finite() {
+            0
+        } else {
+            (3 - v.abs().log10().floor() as i32).max(0) as usize
+        };
+        format!("{v:.decimals$}")
+    };
+    let axis = |d: usize, name: &str| format!("{name} {}–{}", sig(lo[d]), sig(hi[d]));
+    format!("{}, {}, {} m", axis(0, "x"), axis(1, "y"), axis(2, "z"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

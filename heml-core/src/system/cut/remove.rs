@@ -1,7 +1,7 @@
 //! [`System::remove_tets`] and [`System::cut`]: the tet set shrinks between steps,
 //! and everything built on it follows, locally.
 
-use super::blade::{bounds, triangle_meets_tet, Blade};
+use super::blade::{bounds, span, triangle_meets_tet, Blade};
 use super::topology::Topology;
 use crate::error::{HemlError, Result};
 use crate::system::{Prescribed, Ramp, System};
@@ -128,9 +128,18 @@ impl System {
             })
             .collect();
         if hit.is_empty() {
-            return Err(HemlError::Invalid(
-                "the blade meets no tet of the body: nothing to cut".into(),
-            ));
+            // where the body is now, so that a blade placed from the rest shape (a
+            // body that has since sagged or been pushed away) can be moved onto it
+            let body = bounds(
+                (0..tets.len())
+                    .filter(|&t| alive.get(t).copied().unwrap_or(false))
+                    .flat_map(|t| tets[t].map(|i| &x[i as usize])),
+            );
+            return Err(HemlError::Invalid(format!(
+                "the blade meets no tet of the body: nothing to cut (the blade spans {}; the body now spans {})",
+                span(lo, hi),
+                span(body.0, body.1)
+            )));
         }
         self.remove_tets(&hit)
     }

@@ -90,8 +90,9 @@ impl std::fmt::Debug for Cholesky {
 /// than two; gen_kidney_20k's (4.5·10⁶) stays parallel.
 const SEQUENTIAL_FILL: usize = 200_000;
 
-/// The parallelism of faer's kernels for a factor of `fill` nonzeros: the calling
-/// rayon pool's threads, or sequential for a small factor.
+/// The parallelism of faer's factorisation kernels for a factor of `fill` nonzeros:
+/// the calling rayon pool's threads, or sequential for a small factor (the solves
+/// are always sequential, see [`Cholesky::solve`]).
 fn par(fill: usize) -> Par {
     match rayon::current_num_threads() {
         _ if fill < SEQUENTIAL_FILL => Par::Seq,
@@ -159,7 +160,7 @@ impl Cholesky {
         if fill > max_nonzeros {
             return Err(HemlError::Invalid(format!(
                 "sparse Cholesky: the factor of this system ({n} unknowns, {} matrix nonzeros in the lower \
-                 triangle) would hold {fill} nonzeros ({} MB), above the limit max_factor_nonzeros = \
+                 triangle) would hold {fill} nonzeros ({} MB in f64, half that in f32), above the limit max_factor_nonzeros = \
                  {max_nonzeros}; raise the limit or use linear_solver = \"cg\"",
                 row_idx.len(),
                 fill * 8 / 1_000_000
@@ -167,9 +168,9 @@ impl Cholesky {
         }
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par(fill), Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, par(fill)),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
             symbolic.factorize_numeric_llt_scratch::<f32>(par(fill), Default::default()),
-            symbolic.solve_in_place_scratch::<f32>(1, par(fill)),
+            symbolic.solve_in_place_scratch::<f32>(1, Par::Seq),
         ]);
         let stack = MemBuffer::try_new(req).map_err(|_| {
             HemlError::Invalid(format!(
@@ -272,9 +273,18 @@ impl Cholesky {
 
     /// Solves A x = `rhs` in place with the held factor (`rhs` by free coordinate;
     /// through f32 when the factor is).
+    ///
+    /// Always sequential: faer's parallel supernodal solve sums in an order that
+    /// depends on the thread count (a 6084-unknown system solved on 2 threads
+    /// differed from 1 thread in the last bits of 803 coordinates), which broke the
+    /// same-bits-for-any-thread-count rule on large meshes (gen_kidney_100k took
+    /// different numbers of refactorisations on 1 and 2 threads), and it saved
+    /// nothing measurable on one right-hand side (1.07–1.30 ms on 2 threads against
+    /// 1.19–1.27 ms on 1, factor 1.7·10⁶ nonzeros). The factorisation stays parallel:
+    /// its bits do not depend on the thread count (tested below).
     pub(in crate::system) fn solve(&mut self, rhs: &mut [f64]) {
         let n = self.col_ptr.len() - 1;
-        let par = par(self.symbolic.len_val());
+        let par = Par::Seq;
         let stack = MemStack::new(&mut self.stack);
         match &mut self.factor {
             Factor::Empty => panic!("solve before a factorisation"),
@@ -413,5 +423,45 @@ mod tests {
         let (x, want) = solve_random(&mut direct, &(a * 1e-50));
         let err = (DVector::from_column_slice(&x) - &want).amax() / want.amax();
         assert!(err < 1e-12, "relative error {err:e}");
+    }
+
+    /// A factor above [`SEQUENTIAL_FILL`] (faer's kernels parallel) is made and used
+    /// with the same bits on 1 and 2 threads: the rule every replay test relies on,
+    /// which the small test systems (sequential kernels) cannot check. Exact
+    /// comparison: any reordering of a sum changes last bits somewhere among
+    /// 1.7·10⁶ factor values and 6084 solution coordinates.
+    #[test]
+    fn parallel_factor_and_solve_have_the_same_bits_on_1_and_2_threads() {
+        use crate::mesh::generate::{box_mesh, HexSplit};
+        let mesh = box_mesh([1.0, 1.0, 1.0], [12, 12, 12], HexSplit::Six).unwrap();
+        let held: Vec<[bool; 3]> = mesh.nodes().iter().map(|p| [p.x == 0.0; 3]).collect();
+        let m = crate::system::implicit::matrix::tests::random_system(&mesh, &held);
+        let dofs = DofMap::new(&held, mesh.tets());
+        let run = |threads: usize, single: bool| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut direct = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
+                assert!(direct.factor_nonzeros() > SEQUENTIAL_FILL);
+                direct.factor(&m, single).unwrap();
+                let bits: Vec<u64> = match &direct.factor {
+                    Factor::Double(f) => f.iter().map(|v| v.to_bits()).collect(),
+                    Factor::Single { factor, .. } => factor.iter().map(|v| u64::from(v.to_bits())).collect(),
+                    Factor::Empty => unreachable!("factored"),
+                };
+                let mut x: Vec<f64> = (0..dofs.len()).map(|i| (i as f64).sin()).collect();
+                direct.solve(&mut x);
+                (bits, x.iter().map(|v| v.to_bits()).collect::<Vec<u64>>())
+            })
+        };
+        for single in [false, true] {
+            let (f1, x1) = run(1, single);
+            let (f2, x2) = run(2, single);
+            assert!(f1 == f2, "factor bits differ (single = {single})");
+            let differ = x1.iter().zip(&x2).filter(|(a, b)| a != b).count();
+            assert_eq!(
+                differ, 0,
+                "solution bits differ in {differ} coordinates (single = {single})"
+            );
+        }
     }
 }

@@ -2,7 +2,7 @@
 //! operators, numbering of the unknowns, Newmark's acceleration) and its step.
 
 use super::linear::SolveCache;
-use super::problem::ImplicitStep;
+use super::problem::{inverted_tets, ImplicitStep};
 use super::settings::{ImplicitScheme, ImplicitSettings, LinearSolver};
 use super::timings::PhaseTimes;
 use crate::error::{HemlError, Result};
@@ -187,6 +187,9 @@ impl ImplicitSolver {
     /// statistics count the Newton and CG iterations; a CG solve that missed its
     /// tolerance or a stalled line search adds a warning to
     /// [`System::warnings`] (or, with [`super::CgFailure::Refuse`], fails the step).
+    /// A step never ends with more inverted tets than it started with: its
+    /// predictor and its Newton iterations are cut back short of inverting one
+    /// (the laws' J0 extension would let them, its energy being finite at J ≤ 0).
     pub fn step(&mut self, sys: &mut System, dt: f64) -> Result<StepStats> {
         self.settings.validate()?;
         sys.begin_step_with(dt, false)?;
@@ -228,15 +231,9 @@ impl ImplicitSolver {
         };
         let x0 = sys.state.x.clone();
         let v0 = sys.state.v.clone();
+        let inverted = inverted_tets(sys);
         sys.advance_time()?;
-        // predictor a⁺ = â (d = 2â/c_a): x⁺ = x + h v for backward Euler, the
-        // constant-acceleration guess for Newmark
-        for i in 0..n {
-            if sys.model.inv_mass[i] > 0.0 {
-                sys.state.x[i] = x0[i] + v0[i] * h + a0[i] * (2.0 / ca);
-            }
-        }
-        sys.invalidate();
+        predict(sys, &x0, &v0, &a0, h, ca, inverted);
         let load_norm = {
             let mut ext: Vec<Vec3> = sys.model.mass.iter().map(|m| sys.model.gravity * *m).collect();
             for &(i, f) in &sys.model.nodal {
@@ -286,12 +283,7 @@ impl ImplicitSolver {
         // contact) must not decide the step — left to the next one, the imbalance
         // piles up (on gen_kidney_20k's sag the motion diverged within 22 steps)
         if problem.reused && outcome.is_none() {
-            for i in 0..n {
-                if sys.model.inv_mass[i] > 0.0 {
-                    sys.state.x[i] = x0[i] + v0[i] * h + a0[i] * (2.0 / ca);
-                }
-            }
-            sys.invalidate();
+            predict(sys, &x0, &v0, &a0, h, ca, inverted);
             problem.restart();
             problem.cache.refactor = true;
             outcome = newton(sys, dofs, &mut problem)?;
@@ -330,5 +322,35 @@ impl ImplicitSolver {
             ..self.cache.times
         };
         Ok(stats)
+    }
+}
+
+/// Sets the free nodes of `sys` to the predictor a⁺ = â (d = 2â/c_a): x⁺ = x + h v
+/// for backward Euler, the constant-acceleration guess for Newmark — or, when that
+/// inverts more tets than the `inverted` ones at the start of the step, to a
+/// fraction ½, ¼, … of its displacement from `x0` (at worst x0 itself) that does
+/// not. Why: the Newton iterations never invert a tet (their line search halves
+/// such trials, [`super::problem`]), so the step must start from positions where
+/// the law is physical; a fast node's h v can fold a small tet over (on
+/// gen_kidney_100k's grasp after a press, the J0 extension's finite energy then let
+/// the motion diverge).
+fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: f64, inverted: usize) {
+    /// Halvings of the predictor's displacement before starting from x0.
+    const MAX_HALVINGS: usize = 8;
+    let mut scale = 1.0;
+    for k in 0..=MAX_HALVINGS {
+        if k == MAX_HALVINGS {
+            scale = 0.0;
+        }
+        for i in 0..x0.len() {
+            if sys.model.inv_mass[i] > 0.0 {
+                sys.state.x[i] = x0[i] + (v0[i] * h + a0[i] * (2.0 / ca)) * scale;
+            }
+        }
+        sys.invalidate();
+        if scale == 0.0 || inverted_tets(sys) <= inverted {
+            return;
+        }
+        scale *= 0.5;
     }
 }

@@ -6,7 +6,8 @@
 //! tangent K + c M, merit the incremental potential, conjugate gradients) is another.
 //!
 //! Each iteration solves the tangent system for the full step and backtracks (halving, at most [`MAX_HALVINGS`] times) until the merit does not
-//! increase or the residual norm decreases. A vanishing pivot, a failed line search
+//! increase or the residual norm decreases, on trial points no less feasible than
+//! the iterate (no more inverted tets, for the implicit steps). A vanishing pivot, a failed line search
 //! or [`MAX_ITERATIONS`] without convergence ends the iteration without an error, so
 //! that the caller can go on with a more robust method from the current iterate.
 
@@ -54,6 +55,13 @@ pub(in crate::system) trait NewtonProblem {
     /// The merit the line search must not increase (e.g. the total potential), at
     /// the current positions.
     fn merit(&self, sys: &System) -> Result<f64>;
+
+    /// A count the line search must not increase (checked on every trial point,
+    /// compared with the iterate the iteration starts from): e.g. the inverted
+    /// tets. `None` (the default): no such check.
+    fn infeasibility(&self, _sys: &System) -> Option<usize> {
+        None
+    }
 }
 
 /// Runs damped Newton iterations from the system's current positions.
@@ -91,12 +99,16 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
             Some(e) => e,
             None => problem.merit(sys)?,
         };
+        let infeasible = problem.infeasibility(sys);
         let mut step = 1.0;
         let mut accepted = false;
         for _ in 0..MAX_HALVINGS {
             dofs.step(&mut sys.state.x, &x0, &dx, step);
             sys.invalidate();
-            if problem.evaluate(sys).is_ok() {
+            // a trial that makes things less feasible (say, inverts a tet) is
+            // halved before its forces are computed
+            let feasible = infeasible.is_none_or(|base| problem.infeasibility(sys).is_none_or(|n| n <= base));
+            if feasible && problem.evaluate(sys).is_ok() {
                 // the merit descends along the Newton step when K is positive
                 // definite; else a smaller residual norm is progress too
                 let e = problem.merit(sys)?;
