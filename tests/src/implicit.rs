@@ -3,7 +3,7 @@
 use heml::integrators::Newmark;
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::prelude::*;
-use heml::system::{ImplicitSettings, System};
+use heml::system::{ImplicitSettings, System, SystemBuilder};
 
 /// Forces the registries' link sections into the test binary.
 pub fn link() {
@@ -14,6 +14,22 @@ pub fn link() {
 pub fn relative_error(a: &[Vec3], b: &[Vec3]) -> f64 {
     let scale = b.iter().map(|v| v.norm()).fold(0.0, f64::max);
     a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max) / scale
+}
+
+/// Soft tissue on a `size` box of `cells` (six-tet split): neo-Hookean (Young's
+/// modulus `e`, Poisson ratio `nu`), ρ = 1000, gravity, clamped at x = 0, mass
+/// damping α = 15/s, no energy bookkeeping — the implicit tests' common scene.
+pub fn tissue(size: [f64; 3], cells: [usize; 3], split: HexSplit, e: f64, nu: f64) -> SystemBuilder {
+    link();
+    let mesh = box_mesh(size, cells, split).unwrap();
+    System::builder(mesh)
+        .material("neo_hookean", Params::from([("E", e), ("nu", nu)]))
+        .unwrap()
+        .density(1000.0)
+        .gravity(Vec3::new(0.0, 0.0, -9.81))
+        .fix_where(|p| p.x < 1e-9)
+        .rayleigh(15.0, 0.0)
+        .energy_every(0)
 }
 
 /// A 10 × 2 × 2 cm neo-Hookean cantilever (E = 100 kPa, ν = 0.3) clamped at x = 0,

@@ -16,15 +16,7 @@ use heml_tests::implicit::{link, newmark_energy_drift, plucked_cantilever, relat
 /// The demo scene, coarser: an 8 × 6 × 5 cm block of soft tissue (E = 5 kPa,
 /// ν = 0.45) clamped at x = 0, sagging under gravity, with the demo's mass damping.
 fn soft_block() -> SystemBuilder {
-    let mesh = box_mesh([0.08, 0.06, 0.05], [8, 6, 5], HexSplit::Six).unwrap();
-    System::builder(mesh)
-        .material("neo_hookean", Params::from([("E", 5e3), ("nu", 0.45)]))
-        .unwrap()
-        .density(1000.0)
-        .gravity(Vec3::new(0.0, 0.0, -9.81))
-        .fix_where(|p| p.x < 1e-9)
-        .rayleigh(15.0, 0.0)
-        .energy_every(0)
+    heml_tests::implicit::tissue([0.08, 0.06, 0.05], [8, 6, 5], HexSplit::Six, 5e3, 0.45)
 }
 
 /// Steps `sys` with backward Euler at `dt` for `steps` steps; returns the largest

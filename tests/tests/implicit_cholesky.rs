@@ -12,20 +12,12 @@ use heml::system::{
     StepStats, System, SystemBuilder,
 };
 
-use heml_tests::implicit::{link, newmark_energy_drift, plucked_cantilever, relative_error};
+use heml_tests::implicit::{link, newmark_energy_drift, plucked_cantilever, relative_error, tissue};
 
 /// An 8 × 6 × 5 cm block of soft tissue clamped at x = 0 under gravity (the
 /// coarsened demo scene of `implicit.rs`), split `split`, Poisson ratio `nu`.
 fn block(split: HexSplit, cells: [usize; 3], nu: f64) -> SystemBuilder {
-    let mesh = box_mesh([0.08, 0.06, 0.05], cells, split).unwrap();
-    System::builder(mesh)
-        .material("neo_hookean", Params::from([("E", 5e3), ("nu", nu)]))
-        .unwrap()
-        .density(1000.0)
-        .gravity(Vec3::new(0.0, 0.0, -9.81))
-        .fix_where(|p| p.x < 1e-9)
-        .rayleigh(15.0, 0.0)
-        .energy_every(0)
+    tissue([0.08, 0.06, 0.05], cells, split, 5e3, nu)
 }
 
 /// Newton to 1e-9 (at most 30 iterations), CG to 1e-12: both solvers then end each
@@ -872,15 +864,7 @@ fn a_damper_dominated_grasp_moves_without_stalling_the_line_search() {
     use heml::system::control::Pose;
     link();
     let run = |settings: ImplicitSettings| {
-        let mesh = box_mesh([0.03, 0.006, 0.006], [20, 4, 4], HexSplit::Six).unwrap();
-        let mut sys = System::builder(mesh)
-            .material("neo_hookean", Params::from([("E", 3e3), ("nu", 0.49)]))
-            .unwrap()
-            .density(1000.0)
-            .gravity(Vec3::new(0.0, 0.0, -9.81))
-            .fix_where(|p| p.x < 1e-9)
-            .rayleigh(15.0, 0.0)
-            .energy_every(0)
+        let mut sys = tissue([0.03, 0.006, 0.006], [20, 4, 4], HexSplit::Six, 3e3, 0.49)
             .build()
             .unwrap();
         let end: Vec<usize> = (0..sys.mesh().n_nodes())
