@@ -284,14 +284,13 @@ impl Cholesky {
     /// its bits do not depend on the thread count (tested below).
     pub(in crate::system) fn solve(&mut self, rhs: &mut [f64]) {
         let n = self.col_ptr.len() - 1;
-        let par = Par::Seq;
         let stack = MemStack::new(&mut self.stack);
         match &mut self.factor {
             Factor::Empty => panic!("solve before a factorisation"),
             Factor::Double(factor) => LltRef::new(&self.symbolic, factor).solve_in_place_with_conj(
                 Conj::No,
                 MatMut::from_column_major_slice_mut(rhs, n, 1),
-                par,
+                Par::Seq,
                 stack,
             ),
             Factor::Single { factor, rhs: r32, .. } => {
@@ -300,7 +299,7 @@ impl Cholesky {
                 LltRef::new(&self.symbolic, factor).solve_in_place_with_conj(
                     Conj::No,
                     MatMut::from_column_major_slice_mut(r32, n, 1),
-                    par,
+                    Par::Seq,
                     stack,
                 );
                 for (v, &w) in rhs.iter_mut().zip(r32.iter()) {

@@ -125,6 +125,11 @@ impl ImplicitStep<'_> {
         sys.state.x[i] - self.x0[i] - self.v0[i] * self.h
     }
 
+    /// v⁺_i = v0_i + c_v d_i on a free node.
+    fn v(&self, sys: &System, i: usize) -> Vec3 {
+        self.v0[i] + self.d(sys, i) * self.cv
+    }
+
     /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
     /// velocity). The forces held stay current when no velocity changed: at the end
     /// of a step whose last evaluation was at the final iterate (the usual case),
@@ -134,7 +139,7 @@ impl ImplicitStep<'_> {
         let mut changed = false;
         for i in 0..sys.state.x.len() {
             if sys.model.inv_mass[i] > 0.0 {
-                let v = self.v0[i] + self.d(sys, i) * self.cv;
+                let v = self.v(sys, i);
                 // `!=` is true for NaN, so a non-finite velocity always counts as new
                 changed |= v != sys.state.v[i];
                 sys.state.v[i] = v;
@@ -390,7 +395,7 @@ impl NewtonProblem for ImplicitStep<'_> {
                 let d = self.d(sys, i);
                 let a = d * self.ca - self.a0[i];
                 // mass damping −α M v⁺ is the gradient of α/(2 c_v)·|v⁺|²_M too
-                let v = self.v0[i] + d * self.cv;
+                let v = self.v(sys, i);
                 0.5 * sys.model.mass[i] * (a.norm_squared() / self.ca + alpha * v.norm_squared() / self.cv)
             })
             .sum();
@@ -398,7 +403,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         // node's imposed velocity does not depend on x⁺: a constant there)
         let v_plus = |i: usize| {
             if sys.model.inv_mass[i] > 0.0 {
-                self.v0[i] + self.d(sys, i) * self.cv
+                self.v(sys, i)
             } else {
                 sys.state.v[i]
             }

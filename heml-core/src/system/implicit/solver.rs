@@ -336,21 +336,18 @@ impl ImplicitSolver {
 /// the motion diverge).
 fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: f64, inverted: usize) {
     /// Halvings of the predictor's displacement before starting from x0.
-    const MAX_HALVINGS: usize = 8;
-    let mut scale = 1.0;
-    for k in 0..=MAX_HALVINGS {
-        if k == MAX_HALVINGS {
-            scale = 0.0;
-        }
+    const MAX_HALVINGS: i32 = 8;
+    let scales = (0..MAX_HALVINGS).map(|k| 0.5f64.powi(k)).chain([0.0]);
+    for scale in scales {
         for i in 0..x0.len() {
             if sys.model.inv_mass[i] > 0.0 {
                 sys.state.x[i] = x0[i] + (v0[i] * h + a0[i] * (2.0 / ca)) * scale;
             }
         }
         sys.invalidate();
+        // x0 itself (scale 0) has the start's inverted tets
         if scale == 0.0 || inverted_tets(sys) <= inverted {
             return;
         }
-        scale *= 0.5;
     }
 }

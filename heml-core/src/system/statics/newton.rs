@@ -81,6 +81,8 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
     // starts there (the linear solve changes no position), so it is not evaluated
     // again (same value, one merit less per iteration)
     let mut accepted_merit: Option<f64> = None;
+    // likewise the infeasibility count of the accepted trial
+    let mut accepted_infeasibility: Option<Option<usize>> = None;
     let max_iterations = problem.max_iterations();
     for it in 0..=max_iterations {
         if let Some(report) = problem.converged(sys, it, step_taken) {
@@ -99,7 +101,10 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
             Some(e) => e,
             None => problem.merit(sys)?,
         };
-        let infeasible = problem.infeasibility(sys);
+        let infeasible = match accepted_infeasibility.take() {
+            Some(n) => n,
+            None => problem.infeasibility(sys),
+        };
         let mut step = 1.0;
         let mut accepted = false;
         for _ in 0..MAX_HALVINGS {
@@ -107,7 +112,8 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
             sys.invalidate();
             // a trial that makes things less feasible (say, inverts a tet) is
             // halved before its forces are computed
-            let feasible = infeasible.is_none_or(|base| problem.infeasibility(sys).is_none_or(|n| n <= base));
+            let trial = infeasible.and_then(|_| problem.infeasibility(sys));
+            let feasible = infeasible.is_none_or(|base| trial.is_none_or(|n| n <= base));
             if feasible && problem.evaluate(sys).is_ok() {
                 // the merit descends along the Newton step when K is positive
                 // definite; else a smaller residual norm is progress too
@@ -115,6 +121,7 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
                 if e <= e0 + 1e-13 * e0.abs() || norm2(problem.residual(sys)) < r0 {
                     accepted = true;
                     accepted_merit = Some(e);
+                    accepted_infeasibility = Some(trial);
                     step_taken = step;
                     break;
                 }
