@@ -54,6 +54,7 @@ mod problem;
 mod settings;
 mod solver;
 mod timings;
+mod trisolve;
 mod woodbury;
 
 pub use ordering::{CholeskyOrdering, AUTO_NESTED_DISSECTION};

@@ -1,0 +1,183 @@
+//! The two triangular solves with a supernodal Cholesky factor held in faer's
+//! storage (`cholesky.rs`), written out as plain loops over each supernode's dense
+//! column block.
+//!
+//! Why not faer's own `solve_in_place`: it hands every supernode to its general
+//! dense kernels (a triangular solve and a matrix product each way, with their
+//! dispatch, shape checks and scratch), which is right for the wide supernodes of
+//! large 3-D factors but dominates on small ones — the node-sized supernodes (3 to
+//! a few tens of columns) of an organ mesh with a few hundred nodes, where the
+//! triangular solves were ~40 % of a chord iteration (sofa_liver, session 18) and
+//! ~27 % of the whole long run (session 20). Here each supernode is two short loops
+//! whose inner loops run over contiguous values (vectorised by the compiler), in a
+//! fixed order: the result does not depend on the thread count.
+//!
+//! Storage (faer's supernodal layout): supernode s owns columns
+//! `begin[s]..end[s]` (w columns) and a column-major block of w + p rows — its
+//! dense lower-triangular diagonal block, then the p rows of its off-diagonal
+//! pattern `row_idx[...]` — starting at `col_ptr_for_val[s]`.
+
+use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
+
+/// The arithmetic the solves need, for both factor precisions.
+pub(super) trait Real:
+    Copy
+    + Default
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::SubAssign
+    + std::ops::AddAssign
+{
+}
+
+impl Real for f64 {}
+impl Real for f32 {}
+
+/// One supernode's place in the factor.
+#[derive(Debug, Clone, Copy)]
+struct Supernode {
+    /// First column.
+    start: usize,
+    /// Columns (w).
+    width: usize,
+    /// Offset of its value block in the factor's values.
+    values: usize,
+    /// Its off-diagonal rows: `rows[pattern..pattern + len]`.
+    pattern: usize,
+    len: usize,
+}
+
+/// The supernodes of a symbolic factorisation and its fill-reducing permutation,
+/// copied out once per analysis.
+#[derive(Debug)]
+pub(super) struct SupernodalSolve {
+    nodes: Vec<Supernode>,
+    rows: Vec<usize>,
+    /// x_perm[i] = rhs[forward[i]]; rhs[i] = x_perm[inverse[i]].
+    forward: Option<Vec<usize>>,
+    inverse: Option<Vec<usize>>,
+    /// Factor values expected (faer's `len_val`).
+    len_val: usize,
+}
+
+impl SupernodalSolve {
+    /// The layout of `symbolic`; `None` for a simplicial factorisation (not made
+    /// here: `cholesky.rs` always asks for the supernodal one).
+    pub(super) fn new(symbolic: &SymbolicCholesky<usize>) -> Option<Self> {
+        let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+            return None;
+        };
+        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+        let (row_ptr, val_ptr) = (sn.col_ptr_for_row_idx(), sn.col_ptr_for_val());
+        let nodes = (0..sn.n_supernodes())
+            .map(|s| {
+                let width = end[s] - begin[s];
+                // the value block is (w + p) × w
+                let len = (val_ptr[s + 1] - val_ptr[s]) / width - width;
+                Supernode {
+                    start: begin[s],
+                    width,
+                    values: val_ptr[s],
+                    pattern: row_ptr[s],
+                    len,
+                }
+            })
+            .collect();
+        let perm = symbolic.perm();
+        Some(SupernodalSolve {
+            nodes,
+            rows: sn.row_idx().to_vec(),
+            forward: perm.map(|p| p.arrays().0.to_vec()),
+            inverse: perm.map(|p| p.arrays().1.to_vec()),
+            len_val: symbolic.len_val(),
+        })
+    }
+
+    /// Solves L Lᵀ x = P `rhs` Pᵀ-wise (A x = rhs for A = Pᵀ L Lᵀ P) in place, with
+    /// the factor `values` in faer's supernodal layout; `x` and `tmp` are scratch
+    /// (resized here).
+    pub(super) fn solve<T: Real>(&self, values: &[T], rhs: &mut [T], x: &mut Vec<T>, tmp: &mut Vec<T>) {
+        assert_eq!(values.len(), self.len_val, "factor of another analysis");
+        let n = rhs.len();
+        x.clear();
+        match &self.forward {
+            Some(f) => x.extend(f.iter().map(|&i| rhs[i])),
+            None => x.extend_from_slice(rhs),
+        }
+        let longest = self.nodes.iter().map(|s| s.len).max().unwrap_or(0);
+        tmp.clear();
+        tmp.resize(longest, T::default());
+        for s in &self.nodes {
+            forward(s, values, &self.rows, x, tmp);
+        }
+        for s in self.nodes.iter().rev() {
+            backward(s, values, &self.rows, x, tmp);
+        }
+        match &self.inverse {
+            Some(inv) => (0..n).for_each(|i| rhs[i] = x[inv[i]]),
+            None => rhs.copy_from_slice(x),
+        }
+    }
+}
+
+/// x_s ← L_ss⁻¹ x_s, then x_pattern −= L_ps x_s (summed into `tmp` column by
+/// column: contiguous, vectorisable, then scattered once).
+fn forward<T: Real>(s: &Supernode, values: &[T], rows: &[usize], x: &mut [T], tmp: &mut [T]) {
+    let (w, p) = (s.width, s.len);
+    let ld = w + p;
+    let block = &values[s.values..s.values + ld * w];
+    let top = &mut x[s.start..s.start + w];
+    let acc = &mut tmp[..p];
+    acc.fill(T::default());
+    for c in 0..w {
+        let col = &block[c * ld..(c + 1) * ld];
+        let xc = top[c] / col[c];
+        top[c] = xc;
+        for (xr, &l) in top[c + 1..].iter_mut().zip(&col[c + 1..w]) {
+            *xr -= l * xc;
+        }
+        for (a, &l) in acc.iter_mut().zip(&col[w..]) {
+            *a += l * xc;
+        }
+    }
+    for (&r, &a) in rows[s.pattern..s.pattern + p].iter().zip(acc.iter()) {
+        x[r] -= a;
+    }
+}
+
+/// x_s −= L_psᵀ x_pattern, then x_s ← L_ss⁻ᵀ x_s, column by column from the last
+/// (each a contiguous dot product).
+fn backward<T: Real>(s: &Supernode, values: &[T], rows: &[usize], x: &mut [T], tmp: &mut [T]) {
+    let (w, p) = (s.width, s.len);
+    let ld = w + p;
+    let block = &values[s.values..s.values + ld * w];
+    let below = &mut tmp[..p];
+    for (b, &r) in below.iter_mut().zip(&rows[s.pattern..s.pattern + p]) {
+        *b = x[r];
+    }
+    let top = &mut x[s.start..s.start + w];
+    for c in (0..w).rev() {
+        let col = &block[c * ld..(c + 1) * ld];
+        let xc = top[c] - dot(&col[w..], below) - dot(&col[c + 1..w], &top[c + 1..]);
+        top[c] = xc / col[c];
+    }
+}
+
+/// Σ aᵢ bᵢ in four interleaved partial sums (a vectorisable order; fixed, so the
+/// same bits on every run).
+fn dot<T: Real>(a: &[T], b: &[T]) -> T {
+    let mut s = [T::default(); 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (a4.remainder(), b4.remainder());
+    for (ca, cb) in a4.zip(b4) {
+        for k in 0..4 {
+            s[k] += ca[k] * cb[k];
+        }
+    }
+    for (k, (&x, &y)) in ra.iter().zip(rb).enumerate() {
+        s[k] += x * y;
+    }
+    (s[0] + s[1]) + (s[2] + s[3])
+}
