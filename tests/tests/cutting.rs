@@ -286,6 +286,12 @@ fn bad_cuts_are_errors_and_change_nothing() {
         e.contains("the body now spans x 0–0.04000, y 0–0.01000, z 0–0.01000 m"),
         "{e}"
     );
+    // and how far its nearest point is: the bar's end x = 4 cm, 0.96 m from the
+    // blade's box (x ≥ 1 m), with y and z inside it
+    assert!(
+        e.contains("its nearest point, (0.0400, ") && e.contains("is 9.600e-1 m from the blade's box"),
+        "{e}"
+    );
     // a blade in the grid plane z = 5 mm touches every tet (each spans a cell
     // layer, whose top or bottom lies in that plane): refused
     let huge = Blade::Triangle([
