@@ -228,7 +228,7 @@ impl<K: Formulation> TetField<K> {
     /// Field tet `k`'s rest batch, lane and corner positions at `x`.
     #[inline(always)]
     fn tet_at(&self, k: usize, x: &[Vec3]) -> (&K::Batch, usize, [Vec3; 4]) {
-        let p = self.layout.global_tet(k).map(|i| x[i as usize]);
+        let p = crate::mesh::corners(x, &self.layout.global_tet(k));
         (&self.rest[k / LANES], k % LANES, p)
     }
 }

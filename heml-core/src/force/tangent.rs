@@ -606,7 +606,7 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
         check_sizes(self.n_nodes, x, None)?;
         let (kernel, tets, project, weights) = (&self.kernel, &self.tets, self.project, &self.weights);
         self.k.par_iter_mut().enumerate().with_min_len(64).for_each(|(k, out)| {
-            let p = tets[k].map(|i| x[i as usize]);
+            let p = crate::mesh::corners(x, &tets[k]);
             *out = kernel.blocks(k, &p, project);
             // a weighted tet's stiffness is its weight times the unweighted one (the
             // projection commutes with a positive factor)

@@ -168,7 +168,7 @@ impl Layout {
         let mut energy = 0.0;
         for t in self.live_positions() {
             let idx = self.global_tet(t);
-            let p = idx.map(|i| x[i as usize]);
+            let p = crate::mesh::corners(x, &idx);
             // the tet's weight (1 unless tets overlap; ×1 is exact)
             let w = self.weight(t);
             energy += w * k.tet(t, &p, |a, fa| f[idx[a] as usize] += w * fa);

@@ -112,7 +112,7 @@ pub trait VolumeGroups: Send + Sync {
             if w == 0.0 || pbar == 0.0 {
                 continue;
             }
-            let g = volume_gradient(&t.map(|i| x[i as usize]));
+            let g = volume_gradient(&crate::mesh::corners(x, &t));
             for a in 0..4 {
                 f[t[a] as usize] -= g[a] * (w * pbar);
             }
@@ -129,7 +129,7 @@ pub trait VolumeGroups: Send + Sync {
         let (_, p) = self.pressures(x, true);
         let (idx, w, groups) = self.field_tet(k);
         let pbar = Self::mean_pressure(&groups, &p);
-        let g = volume_gradient(&idx.map(|i| x[i as usize]));
+        let g = volume_gradient(&crate::mesh::corners(x, &idx));
         Ok(g.map(|ga| -ga * (w * pbar)))
     }
 

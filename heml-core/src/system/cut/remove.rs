@@ -115,7 +115,7 @@ impl System {
                 if !alive.get(t).copied().unwrap_or(false) {
                     return false;
                 }
-                let p = tets[t].map(|i| x[i as usize]);
+                let p = crate::mesh::corners(x, &tets[t]);
                 for d in 0..3 {
                     let (a, b) = p.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), q| {
                         (a.min(q[d]), b.max(q[d]))
