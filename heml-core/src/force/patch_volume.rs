@@ -153,7 +153,7 @@ impl<M: InvariantLaw> PatchVolume<M> {
         let mut v = vec![0.0; self.n_patches()];
         for ((t, w), p) in self.tets.iter().zip(&self.weights).zip(&self.patch) {
             if *w != 0.0 {
-                v[*p as usize] += w * volume(&crate::mesh::corners(x, &t));
+                v[*p as usize] += w * volume(&crate::mesh::corners(x, t));
             }
         }
         v

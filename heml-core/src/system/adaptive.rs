@@ -173,7 +173,7 @@ impl DeformedEstimate {
             .fold(
                 || Stretches::REST,
                 |acc, (t, m)| {
-                    let [a, b, c, d] = crate::mesh::corners(x, &t);
+                    let [a, b, c, d] = crate::mesh::corners(x, t);
                     let (e1, e2, e3) = (b - a, c - a, d - a);
                     // the columns of F = D_s D_m⁻¹
                     let col = |j: usize| e1 * m[(0, j)] + e2 * m[(1, j)] + e3 * m[(2, j)];

@@ -196,7 +196,7 @@ impl<G: VolumeGroups> TangentOperator for GroupedVolumeTangent<G> {
             }
         }
         for (k, t) in self.tets.iter().enumerate() {
-            self.pts[k] = crate::mesh::corners(x, &t);
+            self.pts[k] = crate::mesh::corners(x, t);
             // the tet's weight on its volume terms: ω_t ∇vol_t and ω_t p̄_t ∇²vol_t
             self.pbar[k] = if self.project {
                 0.0
