@@ -321,13 +321,8 @@ impl Cholesky {
                 plan.solve(factor, rhs, x, tmp);
             }
             Factor::Single { factor, rhs: r32, .. } => {
-                r32.clear();
-                r32.extend(rhs.iter().map(|&v| v as f32));
                 let (x, tmp) = &mut self.work32;
-                plan.solve(factor, r32, x, tmp);
-                for (v, &w) in rhs.iter_mut().zip(r32.iter()) {
-                    *v = f64::from(w);
-                }
+                through_f32(rhs, r32, |r| plan.solve(factor, r, x, tmp));
             }
         }
         true
@@ -346,20 +341,26 @@ impl Cholesky {
                 Par::Seq,
                 stack,
             ),
-            Factor::Single { factor, rhs: r32, .. } => {
-                r32.clear();
-                r32.extend(rhs.iter().map(|&v| v as f32));
+            Factor::Single { factor, rhs: r32, .. } => through_f32(rhs, r32, |r| {
                 LltRef::new(&self.symbolic, factor).solve_in_place_with_conj(
                     Conj::No,
-                    MatMut::from_column_major_slice_mut(r32, n, 1),
+                    MatMut::from_column_major_slice_mut(r, n, 1),
                     Par::Seq,
                     stack,
-                );
-                for (v, &w) in rhs.iter_mut().zip(r32.iter()) {
-                    *v = f64::from(w);
-                }
-            }
+                )
+            }),
         }
+    }
+}
+
+/// Runs the f32 `solve` on `rhs` rounded to f32 (in the buffer `r32`) and widens
+/// its solution back into `rhs`.
+fn through_f32(rhs: &mut [f64], r32: &mut Vec<f32>, solve: impl FnOnce(&mut [f32])) {
+    r32.clear();
+    r32.extend(rhs.iter().map(|&v| v as f32));
+    solve(r32);
+    for (v, &w) in rhs.iter_mut().zip(r32.iter()) {
+        *v = f64::from(w);
     }
 }
 
@@ -397,11 +398,7 @@ mod tests {
     /// leave 100× margin); a wrong index or a missed block errs by O(1).
     #[test]
     fn our_triangular_solves_match_faers() {
-        use crate::mesh::generate::{box_mesh, HexSplit};
-        let mesh = box_mesh([1.0, 1.0, 1.0], [12, 12, 12], HexSplit::Six).unwrap();
-        let held: Vec<[bool; 3]> = mesh.nodes().iter().map(|p| [p.x == 0.0; 3]).collect();
-        let big = crate::system::implicit::matrix::tests::random_system(&mesh, &held);
-        let big_dofs = DofMap::new(&held, mesh.tets());
+        let (big, big_dofs) = box_system();
         let (small, small_dofs, _) = free_system();
         for (m, dofs) in [(&small, &small_dofs), (&big, &big_dofs)] {
             for (single, bound) in [(false, 1e-13), (true, 1e-5)] {
@@ -422,6 +419,16 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A random SPD system on a 12³-cell box held at x = 0 (6084 unknowns, factor
+    /// fill 1.7·10⁶: faer's kernels parallel, supernodes tens of columns wide).
+    fn box_system() -> (BlockMatrix, DofMap) {
+        use crate::mesh::generate::{box_mesh, HexSplit};
+        let mesh = box_mesh([1.0, 1.0, 1.0], [12, 12, 12], HexSplit::Six).unwrap();
+        let held: Vec<[bool; 3]> = mesh.nodes().iter().map(|p| [p.x == 0.0; 3]).collect();
+        let m = crate::system::implicit::matrix::tests::random_system(&mesh, &held);
+        (m, DofMap::new(&held, mesh.tets()))
     }
 
     /// The test system ([`setup`]: a 3×2×2 box, two nodes partly held), its
@@ -520,11 +527,7 @@ mod tests {
     /// 1.7·10⁶ factor values and 6084 solution coordinates.
     #[test]
     fn parallel_factor_and_solve_have_the_same_bits_on_1_and_2_threads() {
-        use crate::mesh::generate::{box_mesh, HexSplit};
-        let mesh = box_mesh([1.0, 1.0, 1.0], [12, 12, 12], HexSplit::Six).unwrap();
-        let held: Vec<[bool; 3]> = mesh.nodes().iter().map(|p| [p.x == 0.0; 3]).collect();
-        let m = crate::system::implicit::matrix::tests::random_system(&mesh, &held);
-        let dofs = DofMap::new(&held, mesh.tets());
+        let (m, dofs) = box_system();
         let run = |threads: usize, single: bool| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| {
