@@ -62,8 +62,8 @@ pub(in crate::system) struct Cholesky {
     factor: Factor,
     /// Scratch of the numeric factorisation and of faer's solves (either precision).
     stack: MemBuffer,
-    /// Our triangular solves on the supernodal factor (`trisolve.rs`) and their
-    /// scratch per precision.
+    /// Our triangular solves on the supernodal factor (`trisolve.rs`; factors below
+    /// [`OWN_SOLVE_FILL`] nonzeros only) and their scratch per precision.
     trisolve: Option<SupernodalSolve>,
     work64: (Vec<f64>, Vec<f64>),
     work32: (Vec<f32>, Vec<f32>),
@@ -195,7 +195,9 @@ impl Cholesky {
             ))
         })?;
         Ok(Cholesky {
-            trisolve: SupernodalSolve::new(&symbolic),
+            trisolve: (fill < OWN_SOLVE_FILL)
+                .then(|| SupernodalSolve::new(&symbolic))
+                .flatten(),
             work64: Default::default(),
             work32: Default::default(),
             values: vec![0.0; row_idx.len()],
@@ -303,13 +305,13 @@ impl Cholesky {
     /// 1.19–1.27 ms on 1, factor 1.7·10⁶ nonzeros). The factorisation stays parallel:
     /// its bits do not depend on the thread count (tested below).
     pub(in crate::system) fn solve(&mut self, rhs: &mut [f64]) {
-        if self.symbolic.len_val() >= OWN_SOLVE_FILL || !self.solve_own(rhs) {
+        if !self.solve_own(rhs) {
             self.solve_faer(rhs);
         }
     }
 
     /// [`Self::solve`] by our supernodal solves (`trisolve.rs`); false (nothing
-    /// done) without their plan (a simplicial analysis, which `new` does not make).
+    /// done) without their plan (made by `new` below [`OWN_SOLVE_FILL`] only).
     fn solve_own(&mut self, rhs: &mut [f64]) -> bool {
         let Some(plan) = &self.trisolve else {
             return false;
@@ -403,6 +405,8 @@ mod tests {
         for (m, dofs) in [(&small, &small_dofs), (&big, &big_dofs)] {
             for (single, bound) in [(false, 1e-13), (true, 1e-5)] {
                 let mut direct = Cholesky::new(m, dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
+                // the plan is made for small factors only: made here for the large one
+                direct.trisolve = SupernodalSolve::new(&direct.symbolic);
                 assert!(direct.trisolve.is_some());
                 direct.factor(m, single).unwrap();
                 assert_eq!(direct.is_single(), single);
