@@ -130,12 +130,12 @@ impl System {
         if hit.is_empty() {
             // where the body is now, so that a blade placed from the rest shape (a
             // body that has since sagged or been pushed away) can be moved onto it
-            let corners = || {
+            let live_points = || {
                 (0..tets.len())
                     .filter(|&t| alive.get(t).copied().unwrap_or(false))
                     .flat_map(|t| tets[t].map(|i| &x[i as usize]))
             };
-            let body = bounds(corners());
+            let body = bounds(live_points());
             // and the body's point nearest the blade's box: how far to move it (the
             // body's box alone can overlap the blade's while the body misses it,
             // e.g. a sagged strip's tip below a blade placed at rest)
@@ -144,7 +144,7 @@ impl System {
                     .map(|d| (lo[d] - q[d]).max(q[d] - hi[d]).max(0.0).powi(2))
                     .sum::<f64>()
             };
-            let nearest = corners().min_by(|a, b| outside(a).total_cmp(&outside(b)));
+            let nearest = live_points().min_by(|a, b| outside(a).total_cmp(&outside(b)));
             let near = nearest.map_or(String::new(), |q| {
                 format!(
                     "; its nearest point, ({}) m, is {:.3e} m from the blade's box",

@@ -46,6 +46,7 @@ struct Supernode {
     values: usize,
     /// Its off-diagonal rows: `rows[pattern..pattern + len]`.
     pattern: usize,
+    /// Its off-diagonal rows' count (p).
     len: usize,
 }
 
@@ -60,6 +61,8 @@ pub(super) struct SupernodalSolve {
     inverse: Option<Vec<usize>>,
     /// Factor values expected (faer's `len_val`).
     len_val: usize,
+    /// The longest off-diagonal pattern: the scratch the solves need.
+    longest: usize,
 }
 
 impl SupernodalSolve {
@@ -71,7 +74,7 @@ impl SupernodalSolve {
         };
         let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
         let (row_ptr, val_ptr) = (sn.col_ptr_for_row_idx(), sn.col_ptr_for_val());
-        let nodes = (0..sn.n_supernodes())
+        let nodes: Vec<Supernode> = (0..sn.n_supernodes())
             .map(|s| {
                 let width = end[s] - begin[s];
                 // the value block is (w + p) × w
@@ -87,11 +90,12 @@ impl SupernodalSolve {
             .collect();
         let perm = symbolic.perm();
         Some(SupernodalSolve {
-            nodes,
             rows: sn.row_idx().to_vec(),
             forward: perm.map(|p| p.arrays().0.to_vec()),
             inverse: perm.map(|p| p.arrays().1.to_vec()),
             len_val: symbolic.len_val(),
+            longest: nodes.iter().map(|s| s.len).max().unwrap_or(0),
+            nodes,
         })
     }
 
@@ -106,9 +110,8 @@ impl SupernodalSolve {
             Some(f) => x.extend(f.iter().map(|&i| rhs[i])),
             None => x.extend_from_slice(rhs),
         }
-        let longest = self.nodes.iter().map(|s| s.len).max().unwrap_or(0);
         tmp.clear();
-        tmp.resize(longest, T::default());
+        tmp.resize(self.longest, T::default());
         for s in &self.nodes {
             forward(s, values, &self.rows, x, tmp);
         }
