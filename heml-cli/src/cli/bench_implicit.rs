@@ -266,6 +266,22 @@ fn long_case(
     Ok((run, out.err()))
 }
 
+/// " | phases: …" — the summed phase times of a run's steps in ms, the
+/// unitemised rest last: where a long run's time goes.
+fn phase_totals(phases: &[heml::system::implicit::PhaseTimes]) -> String {
+    let sum = |f: fn(&heml::system::implicit::PhaseTimes) -> f64| phases.iter().map(f).sum::<f64>() * 1e3;
+    let parts = [
+        ("forces", sum(|p| p.forces)),
+        ("tangent", sum(|p| p.tangent)),
+        ("asm", sum(|p| p.assembly)),
+        ("fact", sum(|p| p.factor)),
+        ("solve", sum(|p| p.cg)),
+    ];
+    let rest = sum(|p| p.total) - parts.iter().map(|p| p.1).sum::<f64>();
+    let listed: Vec<String> = parts.iter().map(|(n, v)| format!("{n} {v:.1}")).collect();
+    format!(" | phases: {}, rest {rest:.1}", listed.join(", "))
+}
+
 /// (p50, p90, max, mean) of `v`.
 fn percentiles(v: &[f64]) -> (f64, f64, f64, f64) {
     let mut s = v.to_vec();
@@ -282,7 +298,9 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
     outln!();
     outln!(
         "long run, default preset: {} ({total} steps of {} ms; ms per step p50 / p90 / max / mean, \
-         factorisations (+ low-rank contact correction columns); `prepare`: operators, pattern and symbolic analysis before the first step)",
+         factorisations (+ low-rank contact correction columns); `prepare`: operators, pattern and symbolic analysis before the first step; \
+         `phases`: the whole run's wall time in ms by phase — force evaluations with line-search merits, tangent updates, assembly, \
+         factorisations, triangular solves, and the rest: predictor, inverted-tet counts, bookkeeping)",
         LONG_PHASES.map(|(name, n)| format!("{name} {n}")).join(", "),
         DT * 1e3
     );
@@ -332,6 +350,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
                     mean * 1e3
                 );
             }
+            line += &phase_totals(&run.phases);
             outln!("{line}");
         }
     }

@@ -40,12 +40,32 @@ use nalgebra::Matrix3;
 const MARGIN: f64 = 1e-10;
 
 /// Whether `m` (symmetric) is positive definite with margin [`MARGIN`] relative to
-/// `scale`: a Cholesky factorisation of m − MARGIN·scale·I succeeds (backward
-/// stable, so its smallest eigenvalue is then above MARGIN·scale less round-off).
+/// `scale`: m − MARGIN·scale·I passes [`shifted_definite`], so its smallest
+/// eigenvalue is above MARGIN·scale less round-off.
+#[inline(always)]
 fn definite(m: &Matrix3<f64>, scale: f64) -> bool {
-    (m - Matrix3::from_diagonal_element(MARGIN * scale))
-        .cholesky()
-        .is_some()
+    shifted_definite(m, -MARGIN * scale)
+}
+
+/// Whether the symmetric `m` + `shift`·I is positive definite: every pivot of its
+/// LDLᵀ factorisation (the squares of a Cholesky factor's diagonal; backward
+/// stable) is positive, as nalgebra's Cholesky decides it, written out for 3×3
+/// (the general one costs several times as much, and these tests run for every tet
+/// of every tangent update). False for non-finite entries.
+#[inline(always)]
+pub(crate) fn shifted_definite(m: &Matrix3<f64>, shift: f64) -> bool {
+    let d0 = m[(0, 0)] + shift;
+    if d0.is_nan() || d0 <= 0.0 {
+        return false;
+    }
+    let (l1, l2) = (m[(1, 0)] / d0, m[(2, 0)] / d0);
+    let d1 = m[(1, 1)] + shift - l1 * m[(1, 0)];
+    if d1.is_nan() || d1 <= 0.0 {
+        return false;
+    }
+    let e21 = m[(2, 1)] - l2 * m[(1, 0)];
+    let d2 = m[(2, 2)] + shift - l2 * m[(2, 0)] - e21 * e21 / d1;
+    d2 > 0.0
 }
 
 /// Whether ∂²Ψ/∂F² at right Cauchy–Green tensor `c` and J = det F = `j` is positive
@@ -99,6 +119,38 @@ mod tests {
         let wj = (lambda * lj - mu) / j;
         let hjj = (lambda + mu - lambda * lj) / (j * j);
         ([0.5 * mu, 0.0, wj], [[0.0; 3], [0.0; 3], [0.0, 0.0, hjj]])
+    }
+
+    /// [`shifted_definite`] decides as nalgebra's Cholesky factorisation does on
+    /// random symmetric matrices of every inertia, rotated off the axes, wherever
+    /// the smallest eigenvalue of m + shift·I is not within 1e-12 of the largest of
+    /// zero (the band where round-off may tip either), and is false for NaN.
+    #[test]
+    fn written_out_pivots_decide_as_cholesky() {
+        let mut s = 0x6a09_e667_f3bc_c908u64;
+        let (mut yes, mut no) = (0, 0);
+        for n in 0..20_000 {
+            let e = nalgebra::Vector3::new(rnd(&mut s), rnd(&mut s), rnd(&mut s)) * 2.0;
+            let r = rotation(&mut s);
+            let m = r * Matrix3::from_diagonal(&e) * r.transpose();
+            let m = (m + m.transpose()) * 0.5;
+            let shift = if n % 2 == 0 { 0.0 } else { rnd(&mut s) * 0.5 };
+            let shifted = m + Matrix3::identity() * shift;
+            let eig = shifted.symmetric_eigenvalues();
+            if eig.min().abs() <= 1e-12 * eig.amax() {
+                continue;
+            }
+            let want = shifted.cholesky().is_some();
+            assert_eq!(shifted_definite(&m, shift), want, "case {n}: eigenvalues {eig:?}");
+            if want {
+                yes += 1;
+            } else {
+                no += 1;
+            }
+        }
+        assert!(yes >= 1000 && no >= 1000, "{yes} definite, {no} not");
+        assert!(!shifted_definite(&Matrix3::from_element(f64::NAN), 0.0));
+        assert!(!shifted_definite(&Matrix3::identity(), f64::NAN));
     }
 
     /// A rotation from three random angles.

@@ -22,6 +22,7 @@
 //! (Sylvester's law of inertia), and clamping the λ at 0 gives a semi-definite K₉
 //! that differs from the exact one by Vol·Σ_{λ<0} |λ| g gᵀ, itself semi-definite.
 
+use super::definite::shifted_definite;
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// The 9×9 translation-free Hessian of one tet (rows and columns: edge vector
@@ -62,7 +63,7 @@ impl Spectrum {
     pub fn is_semi_definite(&self) -> bool {
         let scale = self.pairs.iter().fold(self.scaling.amax(), |m, l| m.max(l.abs()));
         let tol = 1e-12 * scale;
-        self.pairs.iter().all(|&l| l >= -tol) && (self.scaling + Matrix3::identity() * tol).cholesky().is_some()
+        self.pairs.iter().all(|&l| l >= -tol) && shifted_definite(&self.scaling, tol)
     }
 }
 
@@ -184,7 +185,7 @@ pub(crate) fn eigensystem(f: &Matrix3<f64>, d: [f64; 3], h: [[f64; 3]; 3]) -> Op
 /// eigen-decomposition then).
 fn clamped_scaling(a: &Matrix3<f64>) -> Matrix3<f64> {
     let shift = 1e-12 * a.diagonal().amax();
-    if (a + Matrix3::identity() * shift).cholesky().is_some() {
+    if shifted_definite(a, shift) {
         return *a;
     }
     let eig = a.symmetric_eigen();

@@ -12,7 +12,9 @@ pub enum Assembly {
     Reference,
     /// Batches of [`super::assembly::LANES`] tets, vectorised, serial.
     Batched,
-    /// Batches on blocks of tets in parallel (rayon), deterministic (the default).
+    /// Batches on blocks of tets in parallel (rayon), deterministic (the default);
+    /// fields of fewer than [`super::assembly::PARALLEL_MIN_TETS`] tets run as
+    /// `Batched` (where rayon cost more than it saved; same bits).
     #[default]
     Parallel,
 }

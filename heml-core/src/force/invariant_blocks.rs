@@ -24,7 +24,7 @@
 //! closed-form eigen-decomposition of C = FᵀF ([`svd_from_eigen`]): the clamped
 //! eigen-projection, exactly, in a few rank-one updates.
 
-use super::definite::semi_definite_without_svd;
+use super::definite::{semi_definite_without_svd, shifted_definite};
 use super::eigensystem::{spectrum, svd_from_eigen, PAIRS};
 use super::spectral::sym_eigen;
 use super::tangent::{TetBlocks as NodeBlocks, BLOCK_PAIRS};
@@ -39,60 +39,96 @@ pub(crate) struct TetState {
     pub n: [Vec3; 4],
     /// ∇_a J per node (zero when the law does not use J).
     pub gj: [Vec3; 4],
+    /// The current edge vectors x₁ − x₀, x₂ − x₀, x₃ − x₀ (= F times their rest
+    /// values): the J-curvature term's F(n_a × n_b), see [`exact_blocks`].
+    pub edges: [Vec3; 3],
     /// I1 = tr FᵀF.
     pub i1: f64,
     /// Rest volume.
     pub vol: f64,
 }
 
+/// Vol·F(n_a × n_b) = d/6 of the pairs a < b of [`BLOCK_PAIRS`] with a ≠ b, from the
+/// current edge vectors d_i = x_i − x₀: the rows n_1..n_3 of D_m⁻¹ satisfy
+/// n_i × n_j = e_k/det D_m for (i, j, k) cyclic (e_k the rest edges, the columns of
+/// D_m, and det D_m = 6·Vol), and n_0 = −(n_1 + n_2 + n_3); F e_k = d_k. So the term
+/// costs a difference of edge vectors instead of a cross product and a
+/// matrix–vector product per pair.
+#[inline(always)]
+fn volume_crosses(d: &[Vec3; 3]) -> [Vec3; 6] {
+    let s = 1.0 / 6.0;
+    [
+        (d[2] - d[1]) * s, // (0, 1)
+        (d[0] - d[2]) * s, // (0, 2)
+        (d[1] - d[0]) * s, // (0, 3)
+        d[2] * s,          // (1, 2)
+        -d[1] * s,         // (1, 3)
+        d[0] * s,          // (2, 3)
+    ]
+}
+
 /// The exact blocks for law derivatives `d` = (w₁, w₂, w_J) and `h` = ∂²w/∂(I1, I2,
 /// J)², entries of unused invariants zero (`used`: whether the law uses I1, I2, J).
+///
+/// Written as plain sums over the nodes' vectors with the rest volume folded into
+/// the law's derivatives once (the tangent update of an implicit step runs it for
+/// every tet at every factorisation: it was ~1 900 instructions per tet through
+/// nalgebra's generic products, session 21's profile of the liver).
+#[inline(always)]
 pub(crate) fn exact_blocks(s: &TetState, d: [f64; 3], h: [[f64; 3]; 3], used: [bool; 3]) -> NodeBlocks {
-    let (f, n) = (&s.f, &s.n);
+    let (f, n, vol) = (&s.f, &s.n, s.vol);
     let fa = n.map(|x| f * x);
-    let b = if used[1] { f * f.transpose() } else { Matrix3::zeros() };
+    let (w1, w2) = (d[0] * vol, d[1] * vol);
     // ∇_a I_p per node
-    let mut g = [[Vec3::zeros(); 4]; 3];
-    g[0] = fa.map(|x| x * 2.0);
-    if used[1] {
-        g[1] = fa.map(|x| (x * s.i1 - b * x) * 2.0);
-    }
-    if used[2] {
-        g[2] = s.gj;
-    }
-    // q_p,a = Σ_q h_pq ∇_a I_q (only the rows with a non-zero entry)
-    let mut q = [[Vec3::zeros(); 4]; 3];
-    let mut active = [false; 3];
-    for p in 0..3 {
-        for r in 0..3 {
-            if used[p] && used[r] && h[p][r] != 0.0 {
-                active[p] = true;
-                for a in 0..4 {
-                    q[p][a] += g[r][a] * h[p][r];
+    let g1 = fa.map(|x| x * 2.0);
+    let b = if used[1] { f * f.transpose() } else { Matrix3::zeros() };
+    let g2 = if used[1] {
+        fa.map(|x| (x * s.i1 - b * x) * 2.0)
+    } else {
+        [Vec3::zeros(); 4]
+    };
+    let g = [g1, g2, s.gj];
+    // q_p,a = Vol·Σ_r h_pr ∇_a I_r over the used invariants
+    let q: [[Vec3; 4]; 3] = std::array::from_fn(|p| {
+        std::array::from_fn(|a| {
+            let mut v = Vec3::zeros();
+            for r in 0..3 {
+                if used[p] && used[r] {
+                    v += g[r][a] * (h[p][r] * vol);
                 }
             }
-        }
-    }
-    let [w1, w2, wj] = d;
-    BLOCK_PAIRS.map(|(a, c)| {
+            v
+        })
+    });
+    let crosses = volume_crosses(&s.edges);
+    std::array::from_fn(|m| {
+        let (a, c) = BLOCK_PAIRS[m];
         let nn = n[a].dot(&n[c]);
         let mut k = Matrix3::from_diagonal_element(2.0 * w1 * nn);
         for p in 0..3 {
-            if active[p] {
+            if used[p] {
                 k += g[p][a] * q[p][c].transpose();
             }
         }
-        if used[2] && wj != 0.0 && a != c {
-            k += (f * n[a].cross(&n[c]) * wj).cross_matrix().transpose();
+        if used[2] && a != c {
+            // + w_J [F(n_a × n_c)]ₓᵀ: the pair's index among the six a < c is m − a − 1
+            // (BLOCK_PAIRS lists each a's diagonal block first)
+            let u = crosses[m - a - 1] * d[2];
+            k[(0, 1)] += u.z;
+            k[(1, 0)] -= u.z;
+            k[(0, 2)] -= u.y;
+            k[(2, 0)] += u.y;
+            k[(1, 2)] += u.x;
+            k[(2, 1)] -= u.x;
         }
-        if used[1] && w2 != 0.0 {
+        if used[1] {
             let (x, y) = (fa[a], fa[c]);
             k += (x * y.transpose() * 4.0 - y * x.transpose() * 2.0
                 + Matrix3::from_diagonal_element(2.0 * (s.i1 * nn - x.dot(&y)))
                 - b * (2.0 * nn))
                 * w2;
         }
-        k * s.vol
+        k
     })
 }
 
@@ -151,7 +187,7 @@ fn project_blocks_spectral_c(
     }
     let a = &sp.scaling;
     let shift = 1e-12 * a.amax();
-    if (a + Matrix3::identity() * shift).cholesky().is_none() {
+    if !shifted_definite(a, shift) {
         let (mu, evec) = sym_eigen(a);
         for c in 0..3 {
             if mu[c] < 0.0 {
@@ -208,6 +244,7 @@ pub(crate) mod tests {
             f,
             n,
             gj: n.map(|x| cof * x),
+            edges: std::array::from_fn(|i| f * dm.column(i)),
             i1: inv[0],
             vol: dm.determinant() / 6.0,
         };
@@ -316,6 +353,7 @@ pub(crate) mod tests {
             f,
             n,
             gj: n.map(|x| cof * x),
+            edges: std::array::from_fn(|i| f * dm.column(i)),
             i1: invariants(&f)[0],
             vol: dm.determinant() / 6.0,
         }

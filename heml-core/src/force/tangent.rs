@@ -347,6 +347,7 @@ impl<M: InvariantLaw> InvariantHessian<M> {
             f,
             n: [-(n1 + n2 + n3), n1, n2, n3],
             gj: [-(gj[0] + gj[1] + gj[2]), gj[0], gj[1], gj[2]],
+            edges: [v[0], v[1], v[2]],
             i1,
             vol,
         };

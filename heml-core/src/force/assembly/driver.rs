@@ -186,6 +186,7 @@ impl Layout {
         parallel: bool,
     ) -> f64 {
         let isa = Isa::current();
+        let parallel = self.runs_parallel(parallel);
         let blocks = self.blocks.list();
         s.ensure(self.n_slots, blocks.len(), false);
         if K::TWO_PHASE && s.lanes.len() != self.n_batches() {

@@ -188,6 +188,19 @@ impl Clone for Layout {
     }
 }
 
+/// Fewest tets for which the block driver's passes run on rayon when asked to: below
+/// it (two blocks of the smallest size) a parallel pass cost more than it saved —
+/// forces of a 600-tet box at 2 threads 18.4 ns/tet against 16.5 on the calling
+/// thread (its blocks of 512 and 88 tets cannot balance), 1 296 tets 15.2 against
+/// 16.3, 2 352 tets 13.0 against 16.9 (`heml bench --tets N --threads 2`,
+/// 2026-11-25). The same bits either way: the blocks and the merge do the same sums.
+///
+/// ```
+/// // a field needs at least this many tets for `Assembly::Parallel` to use rayon
+/// assert!(heml::force::assembly::PARALLEL_MIN_TETS >= 2 * heml::force::assembly::LANES);
+/// ```
+pub const PARALLEL_MIN_TETS: usize = 1024;
+
 /// Most tets in a block: its at most 4 × this many local nodes fit in a `u16`.
 const MAX_BLOCK: usize = 4096;
 
@@ -358,6 +371,12 @@ impl Layout {
     /// Number of tets.
     pub(crate) fn n_tets(&self) -> usize {
         self.n_tets
+    }
+
+    /// Whether a pass asked to run `parallel` goes to rayon: only with at least
+    /// [`PARALLEL_MIN_TETS`] tets.
+    pub(crate) fn runs_parallel(&self, parallel: bool) -> bool {
+        parallel && self.n_tets >= PARALLEL_MIN_TETS
     }
 
     /// Number of batches (`n_tets` rounded up to `LANES`).

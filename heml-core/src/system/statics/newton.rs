@@ -62,6 +62,14 @@ pub(in crate::system) trait NewtonProblem {
     fn infeasibility(&self, _sys: &System) -> Option<usize> {
         None
     }
+
+    /// [`NewtonProblem::infeasibility`] at the starting positions when the problem
+    /// already knows it (the implicit step's predictor counted its inverted tets),
+    /// so that the first iteration does not count again. `None` (the default): it
+    /// is computed.
+    fn starting_infeasibility(&self) -> Option<Option<usize>> {
+        None
+    }
 }
 
 /// Runs damped Newton iterations from the system's current positions.
@@ -82,7 +90,7 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
     // again (same value, one merit less per iteration)
     let mut accepted_merit: Option<f64> = None;
     // likewise the infeasibility count of the accepted trial
-    let mut accepted_infeasibility: Option<Option<usize>> = None;
+    let mut accepted_infeasibility: Option<Option<usize>> = problem.starting_infeasibility();
     let max_iterations = problem.max_iterations();
     for it in 0..=max_iterations {
         if let Some(report) = problem.converged(sys, it, step_taken) {
