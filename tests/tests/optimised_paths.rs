@@ -29,13 +29,13 @@ fn pool(n: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap()
 }
 
-/// A jittered box of 1 050 tets (three blocks, enough for the block driver to go
+/// A jittered box of 1 134 tets (three blocks, enough for the block driver to go
 /// parallel, `PARALLEL_MIN_TETS`; not a multiple of the batch width: the
 /// padded last batch is exercised), deformed with a few
 /// compressed and inverted tets.
 fn setup(seed: u64) -> (TetMesh, Vec<Vec3>) {
     let mut rng = rng(seed);
-    let mesh = jittered_box(&mut rng, [7, 5, 5]);
+    let mesh = jittered_box(&mut rng, [9, 7, 3]);
     assert!(mesh.n_tets() >= heml::force::assembly::PARALLEL_MIN_TETS);
     assert_ne!(mesh.n_tets() % heml::force::assembly::LANES, 0);
     let mut x = random_deformation(&mut rng, &mesh, 0.8, 1.25, 0.02);

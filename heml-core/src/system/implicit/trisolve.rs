@@ -17,6 +17,9 @@
 //! dense lower-triangular diagonal block, then the p rows of its off-diagonal
 //! pattern `row_idx[...]` — starting at `col_ptr_for_val[s]`.
 
+#[cfg(target_arch = "x86_64")]
+use crate::force::assembly::simd::Avx2Token;
+use crate::force::assembly::simd::Isa;
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 
 /// The arithmetic the solves need, for both factor precisions.
@@ -30,10 +33,16 @@ pub(super) trait Real:
     + std::ops::SubAssign
     + std::ops::AddAssign
 {
+    /// 1.
+    const ONE: Self;
 }
 
-impl Real for f64 {}
-impl Real for f32 {}
+impl Real for f64 {
+    const ONE: Self = 1.0;
+}
+impl Real for f32 {
+    const ONE: Self = 1.0;
+}
 
 /// One supernode's place in the factor.
 #[derive(Debug, Clone, Copy)]
@@ -112,11 +121,15 @@ impl SupernodalSolve {
         }
         tmp.clear();
         tmp.resize(self.longest, T::default());
-        for s in &self.nodes {
-            forward(s, values, &self.rows, x, tmp);
-        }
-        for s in self.nodes.iter().rev() {
-            backward(s, values, &self.rows, x, tmp);
+        match Isa::current() {
+            // SAFETY: the token proves the CPU has avx2 and fma, the features
+            // `sweeps_avx2` enables (it does the same safe, bounds-checked work as
+            // `sweeps`)
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(t) => unsafe { sweeps_avx2(t.avx2(), self, values, x, tmp) },
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(t) => unsafe { sweeps_avx2(t, self, values, x, tmp) },
+            _ => sweeps(self, values, x, tmp),
         }
         match &self.inverse {
             Some(inv) => (0..n).for_each(|i| rhs[i] = x[inv[i]]),
@@ -125,8 +138,33 @@ impl SupernodalSolve {
     }
 }
 
+/// The forward sweep over the supernodes, then the backward one.
+#[inline(always)]
+fn sweeps<T: Real>(plan: &SupernodalSolve, values: &[T], x: &mut [T], tmp: &mut [T]) {
+    for s in &plan.nodes {
+        forward(s, values, &plan.rows, x, tmp);
+    }
+    for s in plan.nodes.iter().rev() {
+        backward(s, values, &plan.rows, x, tmp);
+    }
+}
+
+/// [`sweeps`] compiled with AVX2 enabled: its contiguous loops run four f64 (eight
+/// f32) per instruction instead of the baseline target's two (SSE2), the same
+/// operations in the same order (no fused multiply-add: Rust does not contract), so
+/// the same bits on every instruction set. The solves are mostly latency-bound (each
+/// column waits on the last), so this gained 7 % on a 648-unknown system (29.1 →
+/// 27.2 µs), the pivots' reciprocals off the chain 7 % more and two dot-product
+/// chains instead of one 5 % more (23.9 µs in all; session 21).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn sweeps_avx2<T: Real>(_: Avx2Token, plan: &SupernodalSolve, values: &[T], x: &mut [T], tmp: &mut [T]) {
+    sweeps(plan, values, x, tmp);
+}
+
 /// x_s ← L_ss⁻¹ x_s, then x_pattern −= L_ps x_s (summed into `tmp` column by
 /// column: contiguous, vectorisable, then scattered once).
+#[inline(always)]
 fn forward<T: Real>(s: &Supernode, values: &[T], rows: &[usize], x: &mut [T], tmp: &mut [T]) {
     let (w, p) = (s.width, s.len);
     let ld = w + p;
@@ -136,7 +174,9 @@ fn forward<T: Real>(s: &Supernode, values: &[T], rows: &[usize], x: &mut [T], tm
     acc.fill(T::default());
     for c in 0..w {
         let col = &block[c * ld..(c + 1) * ld];
-        let xc = top[c] / col[c];
+        // times the pivot's reciprocal: its division does not wait on x (the
+        // out-of-order core runs it ahead), a product is all the chain waits for
+        let xc = top[c] * (T::ONE / col[c]);
         top[c] = xc;
         for (xr, &l) in top[c + 1..].iter_mut().zip(&col[c + 1..w]) {
             *xr -= l * xc;
@@ -152,6 +192,7 @@ fn forward<T: Real>(s: &Supernode, values: &[T], rows: &[usize], x: &mut [T], tm
 
 /// x_s −= L_psᵀ x_pattern, then x_s ← L_ss⁻ᵀ x_s, column by column from the last
 /// (each a contiguous dot product).
+#[inline(always)]
 fn backward<T: Real>(s: &Supernode, values: &[T], rows: &[usize], x: &mut [T], tmp: &mut [T]) {
     let (w, p) = (s.width, s.len);
     let ld = w + p;
@@ -164,23 +205,25 @@ fn backward<T: Real>(s: &Supernode, values: &[T], rows: &[usize], x: &mut [T], t
     for c in (0..w).rev() {
         let col = &block[c * ld..(c + 1) * ld];
         let xc = top[c] - dot(&col[w..], below) - dot(&col[c + 1..w], &top[c + 1..]);
-        top[c] = xc / col[c];
+        top[c] = xc * (T::ONE / col[c]);
     }
 }
 
-/// Σ aᵢ bᵢ in four interleaved partial sums (a vectorisable order; fixed, so the
-/// same bits on every run).
+/// Σ aᵢ bᵢ in eight interleaved partial sums (two AVX vectors: two add chains
+/// instead of one; a fixed order, so the same bits on every run and instruction
+/// set).
+#[inline(always)]
 fn dot<T: Real>(a: &[T], b: &[T]) -> T {
-    let mut s = [T::default(); 4];
-    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
-    let (ra, rb) = (a4.remainder(), b4.remainder());
-    for (ca, cb) in a4.zip(b4) {
-        for k in 0..4 {
+    let mut s = [T::default(); 8];
+    let (a8, b8) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (a8.remainder(), b8.remainder());
+    for (ca, cb) in a8.zip(b8) {
+        for k in 0..8 {
             s[k] += ca[k] * cb[k];
         }
     }
     for (k, (&x, &y)) in ra.iter().zip(rb).enumerate() {
         s[k] += x * y;
     }
-    (s[0] + s[1]) + (s[2] + s[3])
+    ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7]))
 }
