@@ -197,7 +197,8 @@ impl Clone for Layout {
 ///
 /// ```
 /// // a field needs at least this many tets for `Assembly::Parallel` to use rayon
-/// assert!(heml::force::assembly::PARALLEL_MIN_TETS >= 2 * heml::force::assembly::LANES);
+/// use heml_core::force::assembly::{LANES, PARALLEL_MIN_TETS};
+/// assert!(PARALLEL_MIN_TETS >= 2 * LANES);
 /// ```
 pub const PARALLEL_MIN_TETS: usize = 1024;
 
