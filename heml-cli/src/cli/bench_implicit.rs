@@ -300,7 +300,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
         "long run, default preset: {} ({total} steps of {} ms; ms per step p50 / p90 / max / mean, \
          factorisations (+ low-rank contact correction columns); `prepare`: operators, pattern and symbolic analysis before the first step; \
          `phases`: the whole run's wall time in ms by phase — force evaluations with line-search merits, tangent updates, assembly, \
-         factorisations, triangular solves, and the rest: predictor, inverted-tet counts, bookkeeping)",
+         factorisations, triangular solves, and the rest: predictor, inverted-tet counts, bookkeeping; and the run's Newton iterations)",
         LONG_PHASES.map(|(name, n)| format!("{name} {n}")).join(", "),
         DT * 1e3
     );
@@ -351,6 +351,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
                 );
             }
             line += &phase_totals(&run.phases);
+            line += &format!(", Newton iterations {}", run.newtons.iter().sum::<f64>());
             outln!("{line}");
         }
     }
