@@ -21,9 +21,15 @@
 //! the fork-join costs more than it saves (the liver's supernodal factorisation
 //! took 0.48–0.80 ms on 2 threads against 0.27–0.46 ms on one).
 //!
-//! The triangular solves of small factors are ours (`trisolve.rs`: plain loops
-//! over faer's supernodal storage, ~25 % faster than faer's general kernels on
-//! node-sized supernodes); large factors use faer's.
+//! The triangular solves are ours (`trisolve.rs`: plain loops over faer's
+//! supernodal storage, compiled for AVX2 where the CPU has it) below
+//! [`OWN_SOLVE_FILL`] factor nonzeros. Against faer's sequential solve of the same
+//! factor (random SPD systems on boxes, median of 9, 2026-11-25): 0.64× its time at
+//! 648 unknowns (fill 6.6·10⁴), 0.69× at 1 944 (3.6·10⁵), 0.73× at 3 630 (8.4·10⁵),
+//! 0.83–0.85× at 6 084 (1.7·10⁶), 0.92× at 13 872 (6.3·10⁶), 0.94× at 26 460
+//! (1.5·10⁷) in f64; 0.50–0.98× in f32. Above, faer's (1.09× faster on
+//! gen_kidney_100k's f32 factor, fill 3.0·10⁷). (Before session 21 the threshold
+//! was 2·10⁵: ours was then ~5 % slower than faer's from 3.6·10⁵ up.)
 //!
 //! The numeric factor is held in f64 or, when the caller asks for it
 //! ([`super::FactorPrecision`]), in f32: the same analysis and pattern, half the
@@ -101,10 +107,12 @@ impl std::fmt::Debug for Cholesky {
 const SEQUENTIAL_FILL: usize = 200_000;
 
 /// Factor nonzeros below which the solves are ours (`trisolve.rs`) rather than
-/// faer's: ~25 % faster on a 6×5×5-cell box (648 unknowns, fill 6.6·10⁴: 41–61 µs
-/// against 51–82 µs), up to ~5 % slower from fill 3.6·10⁵ (8³ cells: equal) to
-/// 1.7·10⁶ (12³ cells), where faer's dense kernels on wide supernodes pay.
-const OWN_SOLVE_FILL: usize = 200_000;
+/// faer's (see the module doc): ours took 0.64–0.98× faer's time on random SPD
+/// systems on boxes up to fill 1.5·10⁷, and 1.09× on gen_kidney_100k's f32 factor
+/// (fill 3.0·10⁷; solve time per step of `heml bench --implicit`'s default preset,
+/// 49.8 against 45.8 ms), where faer's blocked dense kernels on the widest
+/// supernodes pay.
+const OWN_SOLVE_FILL: usize = 16_000_000;
 
 /// The parallelism of faer's factorisation kernels for a factor of `fill` nonzeros:
 /// the calling rayon pool's threads, or sequential for a small factor (the solves
@@ -405,8 +413,6 @@ mod tests {
         for (m, dofs) in [(&small, &small_dofs), (&big, &big_dofs)] {
             for (single, bound) in [(false, 1e-13), (true, 1e-5)] {
                 let mut direct = Cholesky::new(m, dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
-                // the plan is made for small factors only: made here for the large one
-                direct.trisolve = SupernodalSolve::new(&direct.symbolic);
                 assert!(direct.trisolve.is_some());
                 direct.factor(m, single).unwrap();
                 assert_eq!(direct.is_single(), single);
@@ -435,7 +441,6 @@ mod tests {
         let (m, dofs) = box_system();
         for single in [false, true] {
             let mut direct = Cholesky::new(&m, &dofs, usize::MAX, CholeskyOrdering::Auto).unwrap();
-            direct.trisolve = SupernodalSolve::new(&direct.symbolic);
             direct.factor(&m, single).unwrap();
             let b: Vec<f64> = (0..dofs.len()).map(|i| (i as f64 * 0.3).cos()).collect();
             let mut first: Option<Vec<u64>> = None;
