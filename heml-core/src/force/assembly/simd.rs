@@ -152,6 +152,16 @@ pub(crate) enum Isa {
 }
 
 impl Isa {
+    /// The AVX2 proof this instruction set carries (AVX-512 includes AVX2), for code
+    /// that has only an AVX2 variant.
+    pub(crate) fn avx2(self) -> Option<Avx2Token> {
+        match self {
+            Isa::Avx512(t) => Some(t.avx2()),
+            Isa::Avx2(t) => Some(t),
+            Isa::Portable => None,
+        }
+    }
+
     /// The level of [`SimdLevel::current`], proven on this CPU. `current` only
     /// returns levels the CPU supports, so the fall-backs are never taken; they keep
     /// a missing feature from ever reaching an unsafe path.

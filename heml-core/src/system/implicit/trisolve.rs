@@ -121,14 +121,12 @@ impl SupernodalSolve {
         }
         tmp.clear();
         tmp.resize(self.longest, T::default());
-        match Isa::current() {
+        match Isa::current().avx2() {
             // SAFETY: the token proves the CPU has avx2 and fma, the features
             // `sweeps_avx2` enables (it does the same safe, bounds-checked work as
             // `sweeps`)
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512(t) => unsafe { sweeps_avx2(t.avx2(), self, values, x, tmp) },
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(t) => unsafe { sweeps_avx2(t, self, values, x, tmp) },
+            Some(t) => unsafe { sweeps_avx2(t, self, values, x, tmp) },
             _ => sweeps(self, values, x, tmp),
         }
         match &self.inverse {
