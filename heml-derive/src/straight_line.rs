@@ -384,6 +384,16 @@ fn operation(g: &Graph, names: &Names, logged: &[Id], id: Id) -> Option<TokenStr
             let reuse_ln = logged.contains(&a);
             let (a, b) = (o(a), o(b));
             match (names.fast, thirds) {
+                // a^(−k/3) in the fibre kernels: a power of the inverse cube root, no
+                // division, and independent of the ln a the block may take, so that
+                // J^(−2/3) and ln J (HGO) are computed side by side rather than one
+                // after the other as exp(−⅔·ln J) (HGO's batch kernel −13 %). Not in
+                // the invariant kernels: there LLVM stopped vectorising the law's lane
+                // loop with it (Mooney–Rivlin 1.3× → 1.9× neo-Hookean's time).
+                (Some(core), Some(n)) if names.fma && n < 0 => {
+                    let k = Literal::u32_unsuffixed(n.unsigned_abs());
+                    quote!(#core::force::fastmath::inv_cbrt_pow(#a, #k))
+                }
                 // a^(n/3) when the block takes ln a anyway (J^(−2/3) next to ln J):
                 // exp(b·ln a) is one exponential instead of a cube root (two
                 // Halley divisions and a reciprocal on the chain J → Ī → law); the

@@ -326,6 +326,24 @@ pub fn pow_thirds(x: f64, n: i32) -> f64 {
     }
 }
 
+/// x^(−k/3) as the k-th power of [`inv_cbrt`] (k > 0): no division, ≤ 1.28 ulp per
+/// factor, and NaN for x < 0 when k is not a multiple of 3, like `f64::powf`. The
+/// fibre kernels' J^(−2/3) (see `heml-derive`'s `straight_line`): its chain does not
+/// wait on ln J, which the volumetric term takes anyway.
+#[inline(always)]
+pub fn inv_cbrt_pow(x: f64, k: u32) -> f64 {
+    let base = inv_cbrt(x);
+    let mut y = 1.0;
+    for _ in 0..k {
+        y *= base;
+    }
+    if x < 0.0 && !k.is_multiple_of(3) {
+        f64::NAN
+    } else {
+        y
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -632,5 +650,29 @@ mod tests {
         assert_eq!(pow_thirds(0.0, -2), f64::INFINITY);
         assert_eq!(pow_thirds(0.0, 2), 0.0);
         assert_eq!(pow_thirds(f64::INFINITY, -2), 0.0);
+    }
+
+    #[test]
+    fn inv_cbrt_pow_matches_powf() {
+        let mut worst: f64 = 0.0;
+        for x in samples() {
+            for k in [1u32, 2, 4, 5, 7] {
+                let b = -(k as f64) / 3.0;
+                let want = x.powf(b);
+                if want.is_finite() && want > 1e-300 {
+                    // k factors of a ≤ 1.28-ulp root and k − 1 roundings of the
+                    // products; powf's exponent −k/3 is rounded, off by |b·ln x| ulp
+                    let e = ulps(inv_cbrt_pow(x, k), want)
+                        / (1.28 * k as f64 + (k - 1) as f64 * 0.5 + 1.0 + (b * x.ln()).abs());
+                    worst = worst.max(e);
+                }
+            }
+        }
+        assert!(worst <= 1.0, "worst inv_cbrt_pow error {worst} of its bound");
+        assert!(inv_cbrt_pow(-2.0, 2).is_nan());
+        assert_eq!(inv_cbrt_pow(-8.0, 3), -0.125); // (−8)^(−1), an integral power
+        assert_eq!(inv_cbrt_pow(0.0, 2), f64::INFINITY);
+        assert_eq!(inv_cbrt_pow(f64::INFINITY, 2), 0.0);
+        assert!(inv_cbrt_pow(f64::NAN, 2).is_nan());
     }
 }
