@@ -53,6 +53,12 @@ impl<'a> Names<'a> {
         }
     }
 
+    /// Whether a^(−k/3) is a power of the inverse cube root (`inv_cbrt_pow`), for the
+    /// same kernels as [`Self::fma`]: see `operation`'s `Powf`.
+    fn inverse_roots(&self) -> bool {
+        self.fma
+    }
+
     /// The argument name of `var` in the generated functions, prefixed with `_`
     /// when unused so that unused arguments do not warn.
     pub fn arg(var: Var, used: bool) -> Ident {
@@ -390,7 +396,7 @@ fn operation(g: &Graph, names: &Names, logged: &[Id], id: Id) -> Option<TokenStr
                 // after the other as exp(−⅔·ln J) (HGO's batch kernel −13 %). Not in
                 // the invariant kernels: there LLVM stopped vectorising the law's lane
                 // loop with it (Mooney–Rivlin 1.3× → 1.9× neo-Hookean's time).
-                (Some(core), Some(n)) if names.fma && n < 0 => {
+                (Some(core), Some(n)) if names.inverse_roots() && n < 0 => {
                     let k = Literal::u32_unsuffixed(n.unsigned_abs());
                     quote!(#core::force::fastmath::inv_cbrt_pow(#a, #k))
                 }

@@ -315,15 +315,7 @@ pub fn pow_thirds(x: f64, n: i32) -> f64 {
     let c = cbrt(x);
     // invert first: c^-n as (1/c)^n keeps the products normal when the result is
     let base = if n < 0 { 1.0 / c } else { c };
-    let mut y = 1.0;
-    for _ in 0..n.unsigned_abs() {
-        y *= base;
-    }
-    if x < 0.0 && n % 3 != 0 {
-        f64::NAN
-    } else {
-        y
-    }
+    root_power(x, base, n.unsigned_abs())
 }
 
 /// x^(−k/3) as the k-th power of [`inv_cbrt`] (k > 0): no division, ≤ 1.28 ulp per
@@ -332,10 +324,17 @@ pub fn pow_thirds(x: f64, n: i32) -> f64 {
 /// wait on ln J, which the volumetric term takes anyway.
 #[inline(always)]
 pub fn inv_cbrt_pow(x: f64, k: u32) -> f64 {
-    let base = inv_cbrt(x);
+    root_power(x, inv_cbrt(x), k)
+}
+
+/// `root`^k for a cube root (or its inverse) `root` of x, and NaN for x < 0 when k
+/// is not a multiple of 3 (a non-integral power, as `f64::powf`): the products of
+/// [`pow_thirds`] and [`inv_cbrt_pow`], in the order both always took them.
+#[inline(always)]
+fn root_power(x: f64, root: f64, k: u32) -> f64 {
     let mut y = 1.0;
     for _ in 0..k {
-        y *= base;
+        y *= root;
     }
     if x < 0.0 && !k.is_multiple_of(3) {
         f64::NAN
