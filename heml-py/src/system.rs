@@ -128,7 +128,9 @@ fn stats_dict<'py>(py: Python<'py>, s: &StepStats) -> PyResult<Bound<'py, PyDict
 ///   the default material; `initial_velocity`: (n, 3) array;
 /// * `j0`, `inversion_fix`: the inversion extension; `dt_policy`: `"warn"`
 ///   (default), `"refuse"` or `"ignore"` for a step above the stable estimate;
-///   `safety`, `energy_every`, `pin_unreferenced` as in Rust.
+///   `safety`, `energy_every`, `lazy_energy`, `pin_unreferenced` as in Rust
+///   (`lazy_energy=True`: explicit steps skip the elastic energy where a field can,
+///   and `energies()` evaluates it when asked).
 ///
 /// Errors of the description (bad ids, unknown law, missing material…) raise
 /// `HemlError` with the library's message.
@@ -147,7 +149,7 @@ impl System {
         mesh, material, params = None, *, regions = None, density = 1000.0, gravity = None,
         fixed = None, prescribed = None, nodal_forces = None, rayleigh = None, prony = None,
         initial_velocity = None, j0 = 0.4, inversion_fix = true, dt_policy = "warn",
-        safety = None, energy_every = 1, pin_unreferenced = false
+        safety = None, energy_every = 1, lazy_energy = false, pin_unreferenced = false
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -168,6 +170,7 @@ impl System {
         dt_policy: &str,
         safety: Option<f64>,
         energy_every: u64,
+        lazy_energy: bool,
         pin_unreferenced: bool,
     ) -> PyResult<System> {
         let n = mesh.inner.n_nodes();
@@ -239,7 +242,7 @@ impl System {
         if let Some(s) = safety {
             b = b.safety(s);
         }
-        b = b.energy_every(energy_every);
+        b = b.energy_every(energy_every).lazy_energy(lazy_energy);
         if pin_unreferenced {
             b = b.pin_unreferenced();
         }

@@ -129,12 +129,15 @@ pub(super) fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// One timed case: a field evaluated at `x` on `pool`, `inner` calls per sample.
+/// One timed case: a field evaluated at `x` on `pool`, `inner` calls per sample,
+/// with its energy (`add_forces`) or without (`add_forces_only`, what an explicit
+/// step evaluates).
 pub(super) struct Case<'a> {
     pub(super) pool: &'a rayon::ThreadPool,
     pub(super) field: &'a dyn ElasticForces,
     pub(super) x: &'a [Vec3],
     pub(super) inner: usize,
+    pub(super) energy: bool,
 }
 
 /// Seconds per call of every case, `repeats` samples each, taken round-robin (one
@@ -158,7 +161,12 @@ pub(super) fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<V
                 let t = Instant::now();
                 for _ in 0..c.inner {
                     f.fill(Vec3::zeros());
-                    std::hint::black_box(c.field.add_forces(c.x, f)?);
+                    if c.energy {
+                        std::hint::black_box(c.field.add_forces(c.x, f)?);
+                    } else {
+                        c.field.add_forces_only(c.x, f)?;
+                        std::hint::black_box(&f);
+                    }
                 }
                 Ok(t.elapsed().as_secs_f64() / c.inner as f64)
             })?;
@@ -223,6 +231,7 @@ fn scaling(
             x,
             // about 20 ms per sample whatever the size
             inner: (2_000_000 / fl.n_tets().max(1)).clamp(1, 1000),
+            energy: true,
         })
         .collect();
     let repeats = args.repeats.max(1);
@@ -351,6 +360,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             field: heml_field.as_ref(),
             x: &x,
             inner,
+            energy: true,
         });
         if let Some(fem) = &fem_field {
             cases.push(Case {
@@ -358,6 +368,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
                 field: fem.as_ref(),
                 x: &x,
                 inner,
+                energy: true,
             });
         }
     }
@@ -371,13 +382,21 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         None => None,
     };
     let per_count = cases.len() / counts.len();
+    // --against: both laws also without the energy (what explicit steps evaluate)
     if let Some((_, field)) = &against {
-        cases.push(Case {
-            pool: &pools[0],
-            field: field.as_ref(),
-            x: &x,
-            inner,
-        });
+        for (field, energy) in [
+            (field.as_ref(), true),
+            (heml_field.as_ref(), false),
+            (field.as_ref(), false),
+        ] {
+            cases.push(Case {
+                pool: &pools[0],
+                field,
+                x: &x,
+                inner,
+                energy,
+            });
+        }
     }
     let samples = time_round_robin(&cases, repeats)?;
     let per = |s: f64| s / n_tets as f64;
@@ -414,17 +433,24 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             median_ratio(&samples[0], &samples[per_count])
         );
     }
-    if let (Some((name, _)), Some(other)) = (&against, samples.get(per_count * counts.len())) {
-        let mut r: Vec<f64> = samples[0].iter().zip(other).map(|(a, b)| a / b).collect();
-        r.sort_by(f64::total_cmp);
-        outln!(
-            "{} vs {name} (HEML, 1 thread): {:.2}× (per-round ratios {:.2}–{:.2}); {name} {:.2} ns/tet",
-            entry.name,
-            median(&mut r.clone()),
-            r[0],
-            r[r.len() - 1],
-            per(median(&mut other.clone())) * 1e9
-        );
+    if let Some((name, _)) = &against {
+        let a = per_count * counts.len();
+        let ratio_line = |what: &str, mine: &[f64], other: &[f64]| {
+            let mut r: Vec<f64> = mine.iter().zip(other).map(|(a, b)| a / b).collect();
+            r.sort_by(f64::total_cmp);
+            outln!(
+                "{} vs {name} ({what}, 1 thread): {:.2}× (per-round ratios {:.2}–{:.2}); {} {:.2}, {name} {:.2} ns/tet",
+                entry.name,
+                median(&mut r.clone()),
+                r[0],
+                r[r.len() - 1],
+                entry.name,
+                per(median(&mut mine.to_vec())) * 1e9,
+                per(median(&mut other.to_vec())) * 1e9
+            );
+        };
+        ratio_line("HEML, forces and energy", &samples[0], &samples[a]);
+        ratio_line("HEML, forces only as explicit steps", &samples[a + 1], &samples[a + 2]);
     }
     outln!("(ratios: medians of the per-round ratios; all cases timed round-robin)");
     if let Some(b) = heml_field.bytes_per_tet() {
@@ -450,6 +476,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
                 field: b.as_ref(),
                 x: &x,
                 inner: (inner / 4).max(1),
+                energy: true,
             })
             .collect();
         let t: Vec<f64> = time_round_robin(&cases, repeats.min(7))?
@@ -479,6 +506,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         .initial_velocity(move |p| Vec3::new(0.0, 0.0, 1e-3 * ((p.x - lo.x) / size.x).powi(2)))
         .fix_where(|p| p.x <= clamp)
         .energy_every(0)
+        .lazy_energy(true)
         .build()?;
     let mut integ = heml::integrator("symplectic_euler")?;
     let dt = 0.9 * sys.stable_dt();
@@ -497,7 +525,8 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
                 let t = Instant::now();
                 for _ in 0..inner {
                     f.fill(Vec3::zeros());
-                    std::hint::black_box(heml_field.add_forces(&x, &mut f)?);
+                    heml_field.add_forces_only(&x, &mut f)?;
+                    std::hint::black_box(&f);
                 }
                 forces[k].push(t.elapsed().as_secs_f64() / inner as f64);
                 let t = Instant::now();
@@ -509,7 +538,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             })?;
         }
     }
-    outln!("full step (symplectic_euler: forces + update + constraints, energies off) vs the force evaluation alone, {rounds} rounds × {inner}:");
+    outln!("full step (symplectic_euler: forces + update + constraints, energies off) vs the force evaluation alone (forces only, as the step's), {rounds} rounds × {inner}:");
     for (k, &n) in counts.iter().enumerate() {
         let (tf, ts) = (median(&mut forces[k].clone()), median(&mut steps[k].clone()));
         outln!(

@@ -54,6 +54,7 @@ pub fn run(args: &BenchArgs, energy: &str, pool: &rayon::ThreadPool) -> heml::Re
             field: f.as_ref(),
             x: &x,
             inner,
+            energy: true,
         })
         .collect();
     outln!("mesh: {} tets   law: {}   energy: {energy}", n_tets, entry.name);

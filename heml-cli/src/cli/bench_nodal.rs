@@ -43,6 +43,7 @@ pub(super) fn run(
                 field: field.as_ref(),
                 x,
                 inner,
+                energy: true,
             });
         }
     }

@@ -29,6 +29,38 @@ pub trait ElasticForces: Send + Sync {
     fn energy(&self, x: &[Vec3]) -> Result<f64>;
     /// Adds the internal forces at `x` to `f` and returns the total energy.
     fn add_forces(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<f64>;
+    /// Adds the internal forces at `x` to `f`, the same bits as [`Self::add_forces`],
+    /// without the energy: what an explicit step needs. Fields that can skip the
+    /// energy's arithmetic do ([`Self::skips_energy`]); the others evaluate it and
+    /// drop it (the default).
+    ///
+    /// ```
+    /// use heml_core::force::{ElasticForces, ForceOptions, HemlField};
+    /// use heml_core::mesh::generate::{box_mesh, HexSplit};
+    /// use heml_core::{Params, RuntimeLaw, Vec3};
+    ///
+    /// let mesh = box_mesh([0.02, 0.01, 0.01], [4, 2, 2], HexSplit::Six)?;
+    /// let law = RuntimeLaw::from_energy(
+    ///     "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)",
+    ///     &Params::from([("mu", 1e3), ("lambda", 1e4)]),
+    /// )?;
+    /// let field = HemlField::new(law, &mesh, ForceOptions::default())?;
+    /// let x: Vec<Vec3> = mesh.nodes().iter().map(|p| p * 1.1).collect();
+    /// let (mut a, mut b) = (vec![Vec3::zeros(); x.len()], vec![Vec3::zeros(); x.len()]);
+    /// let energy = field.add_forces(&x, &mut a)?;
+    /// field.add_forces_only(&x, &mut b)?;
+    /// assert!(energy > 0.0 && a == b); // the same forces, bit for bit
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    fn add_forces_only(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<()> {
+        self.add_forces(x, f).map(|_| ())
+    }
+    /// Whether [`Self::add_forces_only`] is cheaper than [`Self::add_forces`]: the
+    /// fibre laws' batched fields on the AVX2 driver (Holzapfel–Gasser–Ogden's `ln J`
+    /// serves its energy alone; ~10 % per evaluation). Default: no.
+    fn skips_energy(&self) -> bool {
+        false
+    }
     /// Per tet of this field (in its order): J and the energy density w per unit rest
     /// volume (for link laws: the tet's energy divided by its rest volume).
     fn tet_states(&self, x: &[Vec3]) -> Result<Vec<(f64, f64)>>;

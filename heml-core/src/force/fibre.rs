@@ -412,6 +412,7 @@ fn tet_dirs(fibres: &Fibres, t: usize) -> [Vec3; 2] {
 
 impl<M: FibreLaw> TetKernel for FibreKernel<M> {
     type Batch = FibreBatch;
+    const SKIPS_ENERGY: bool = true;
 
     const PAD: FibreBatch = FibreBatch {
         vol: [1.0; LANES],

@@ -40,6 +40,7 @@ struct Tets<'a, K: TetKernel> {
 }
 
 impl<K: TetKernel> BatchKernel for Tets<'_, K> {
+    const SKIPS_ENERGY: bool = K::SKIPS_ENERGY;
     #[inline(always)]
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]) {
         prefetch(self.rest, b);
@@ -265,6 +266,19 @@ impl<K: Formulation> ElasticForces for TetField<K> {
             Assembly::Reference => self.add_forces_reference(x, f),
             a => self.layout.add_batched(&self.tets(), a == Assembly::Parallel, x, f),
         }
+    }
+
+    fn add_forces_only(&self, x: &[Vec3], f: &mut [Vec3]) -> Result<()> {
+        match self.assembly {
+            Assembly::Reference => self.add_forces_reference(x, f).map(|_| ()),
+            a => self
+                .layout
+                .add_batched_forces(&self.tets(), a == Assembly::Parallel, x, f),
+        }
+    }
+
+    fn skips_energy(&self) -> bool {
+        K::SKIPS_ENERGY && self.assembly != Assembly::Reference
     }
 
     fn set_assembly(&mut self, assembly: Assembly) {

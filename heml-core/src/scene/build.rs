@@ -246,7 +246,12 @@ impl Scene {
         } else {
             TimeStepPolicy::Adapt
         });
-        b = b.force_options(opts).time_step_policy(dt_policy).energy_every(0);
+        // without energy.csv nothing reads the energy per step (the summary asks once)
+        b = b
+            .force_options(opts)
+            .time_step_policy(dt_policy)
+            .energy_every(0)
+            .lazy_energy(!self.output.csv);
         if let Some(safety) = s.safety {
             b = b.safety(safety);
         }

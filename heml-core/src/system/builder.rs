@@ -51,6 +51,7 @@ pub struct SystemBuilder {
     policy: TimeStepPolicy,
     safety: f64,
     energy_every: u64,
+    lazy_energy: bool,
     pin_unreferenced: bool,
     input_ids: Option<Vec<usize>>,
     problems: Vec<String>,
@@ -83,6 +84,7 @@ impl SystemBuilder {
             policy: TimeStepPolicy::default(),
             safety: DEFAULT_SAFETY,
             energy_every: 1,
+            lazy_energy: false,
             pin_unreferenced: false,
             input_ids: None,
             problems: Vec::new(),
@@ -274,6 +276,38 @@ impl SystemBuilder {
     /// default 1).
     pub fn energy_every(mut self, n: u64) -> Self {
         self.energy_every = n;
+        self
+    }
+
+    /// Let explicit steps evaluate the forces without the elastic energy where a
+    /// field can skip it (the fibre laws' fields: ~10 % per force evaluation for
+    /// Holzapfel–Gasser–Ogden, whose `ln J` serves its energy alone), except on the
+    /// steps that report energies ([`Self::energy_every`]). [`System::elastic_energy`]
+    /// then evaluates the energy when asked, at the cost of one more force
+    /// evaluation: for loops that never read it (a haptic loop, a run without
+    /// `energy.csv`). Default off. The forces and the trajectory are the same bits.
+    ///
+    /// ```
+    /// use heml_core::mesh::generate::{box_mesh, HexSplit};
+    /// use heml_core::{material::Invariant, Params, RuntimeLaw, System};
+    ///
+    /// let law = RuntimeLaw::from_energy("mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)",
+    ///     &Params::from([("mu", 1e3), ("lambda", 1e4)]))?;
+    /// let mut sys = System::builder(box_mesh([0.02, 0.01, 0.01], [4, 2, 2], HexSplit::Six)?)
+    ///     .material_law(Box::new(Invariant(law)))
+    ///     .density(1000.0)
+    ///     .energy_every(0)
+    ///     .lazy_energy(true)
+    ///     .build()?;
+    /// sys.compute_forces()?;
+    /// // evaluated when asked: at rest, zero to round-off
+    /// assert!(sys.elastic_energy()?.abs() < 1e-12);
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    ///
+    /// [`System::elastic_energy`]: super::System::elastic_energy
+    pub fn lazy_energy(mut self, on: bool) -> Self {
+        self.lazy_energy = on;
         self
     }
 
@@ -549,6 +583,7 @@ impl SystemBuilder {
                 safety: self.safety,
                 policy: self.policy,
                 energy_every: self.energy_every,
+                lazy_energy: self.lazy_energy,
             },
             diag: Diagnostics {
                 warned: false,

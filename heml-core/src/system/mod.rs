@@ -471,15 +471,24 @@ impl System {
     /// own accuracy; it costs one more force evaluation per call). Forces on
     /// constrained nodes are recorded as [`System::reactions`] and then zeroed.
     ///
+    /// The elastic energy comes with the forces, unless the system was built with
+    /// [`SystemBuilder::lazy_energy`] (then [`System::elastic_energy`] evaluates it
+    /// when asked); the forces are the same bits either way.
+    ///
     /// A non-finite force is an error naming the step and the first bad node; inside
     /// a step the system then rolls back to its state before the step.
     pub fn compute_forces(&mut self) -> Result<()> {
+        self.compute_forces_with(!self.stepping.lazy_energy || self.stepping.energy_every == 1)
+    }
+
+    /// [`System::compute_forces`], with the elastic energy too when `energy`.
+    pub(crate) fn compute_forces_with(&mut self, energy: bool) -> Result<()> {
         // the state accepted by the last finish_step, at the start of this step: its
         // forces were computed (and checked finite) before it was accepted
         if self.eval.accepted_forces && self.state.in_step.is_some_and(|(t0, _)| t0 == self.state.t) {
             return Ok(());
         }
-        match self.compute_forces_inner() {
+        match self.compute_forces_inner(energy) {
             Ok(()) => Ok(()),
             Err(e) => {
                 self.rollback();
@@ -488,21 +497,34 @@ impl System {
         }
     }
 
-    fn compute_forces_inner(&mut self) -> Result<()> {
+    /// The forces of [`System::compute_forces`], and the elastic energy when
+    /// `want_energy` (else [`System::elastic_energy`] evaluates it when asked).
+    fn compute_forces_inner(&mut self, want_energy: bool) -> Result<()> {
         let zero = Vec3::zeros();
         let stiffness = self.model.damping.beta > 0.0;
         self.eval.force.fill(zero);
         if stiffness {
             self.scratch.elastic.fill(zero);
         }
+        // the energy of every field that computes it anyway, so that it stays known
+        // unless a field did skip it
+        let mut skipped = false;
+        let mut add = |field: &dyn ElasticForces, x: &[Vec3], f: &mut [Vec3]| -> Result<f64> {
+            if want_energy || !field.skips_energy() {
+                field.add_forces(x, f)
+            } else {
+                skipped = true;
+                field.add_forces_only(x, f).map(|()| 0.0)
+            }
+        };
         let mut energy = 0.0;
         for r in &mut self.model.regions {
             if r.prony.is_none() && !stiffness {
-                energy += r.field.add_forces(&self.state.x, &mut self.eval.force)?;
+                energy += add(r.field.as_ref(), &self.state.x, &mut self.eval.force)?;
                 continue;
             }
             self.scratch.buf.fill(zero);
-            energy += r.field.add_forces(&self.state.x, &mut self.scratch.buf)?;
+            energy += add(r.field.as_ref(), &self.state.x, &mut self.scratch.buf)?;
             if stiffness {
                 for (e, s) in self.scratch.elastic.iter_mut().zip(&self.scratch.buf) {
                     *e += s;
@@ -562,7 +584,7 @@ impl System {
                 self.kept_state()
             )));
         }
-        self.eval.elastic_energy = Some(energy);
+        self.eval.elastic_energy = (!skipped).then_some(energy);
         self.eval.forces_current = true;
         Ok(())
     }
@@ -583,7 +605,7 @@ impl System {
             .collect();
         self.scratch.buf.fill(Vec3::zeros());
         for r in &self.model.regions {
-            r.field.add_forces(&xp, &mut self.scratch.buf)?;
+            r.field.add_forces_only(&xp, &mut self.scratch.buf)?;
         }
         let c = self.model.damping.beta / eps;
         for ((f, fp), f0) in self
@@ -712,8 +734,10 @@ impl System {
         }
         let max_speed = summary.max_speed();
         if !self.eval.forces_current {
-            // rolls back on failure
-            self.compute_forces()?;
+            // rolls back on failure; the energy with the forces when this step
+            // reports it
+            let reports = (self.state.step + 1).checked_rem(self.stepping.energy_every) == Some(0);
+            self.compute_forces_with(!self.stepping.lazy_energy || reports)?;
             self.eval.accepted_forces = true;
         }
         self.state.in_step = None;
@@ -831,7 +855,7 @@ impl System {
     pub(crate) fn elastic_forces_at(&self, x: &[Vec3], out: &mut [Vec3], keep: impl Fn(&Region) -> bool) -> Result<()> {
         out.fill(Vec3::zeros());
         for r in self.model.regions.iter().filter(|r| keep(r)) {
-            r.field.add_forces(x, out)?;
+            r.field.add_forces_only(x, out)?;
         }
         Ok(())
     }

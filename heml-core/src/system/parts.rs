@@ -131,6 +131,8 @@ pub(crate) struct Stepping {
     pub(crate) safety: f64,
     pub(crate) policy: TimeStepPolicy,
     pub(crate) energy_every: u64,
+    /// [`super::SystemBuilder::lazy_energy`].
+    pub(crate) lazy_energy: bool,
 }
 
 /// Warnings issued so far.

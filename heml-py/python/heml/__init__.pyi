@@ -200,6 +200,7 @@ class System:
         dt_policy: Literal["warn", "refuse", "ignore"] = "warn",
         safety: float | None = None,
         energy_every: int = 1,
+        lazy_energy: bool = False,
         pin_unreferenced: bool = False,
     ) -> None:
         """Builds and checks the system."""

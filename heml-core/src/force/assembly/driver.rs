@@ -28,6 +28,11 @@ pub(crate) trait BatchKernel: Sync {
     /// hold padding and may produce anything (they are never used).
     fn batch(&self, b: usize, p: &LanePoints, f: &mut LaneForces, e: &mut [f64; LANES]);
 
+    /// Whether a forces-only pass runs the driver variant that never reads the
+    /// energy lanes ([`super::super::kernel::TetKernel::SKIPS_ENERGY`]); otherwise it
+    /// runs the usual one and drops the energy.
+    const SKIPS_ENERGY: bool = false;
+
     /// Whether the driver calls [`Self::batch_w`] (with one scalar per node,
     /// [`Layout::add_batched_lumped`]) instead of [`Self::batch`].
     const USES_W: bool = false;
@@ -135,7 +140,25 @@ impl Layout {
     pub(crate) fn add_batched<K: BatchKernel>(&self, k: &K, parallel: bool, x: &[Vec3], f: &mut [Vec3]) -> Result<f64> {
         check_sizes(self.n_nodes, x, Some(f))?;
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        Ok(self.evaluate(&mut guard, k, x, Gather::Positions, f, parallel))
+        Ok(self.evaluate(&mut guard, k, x, Gather::Positions, f, parallel, Energy::Summed))
+    }
+
+    /// As [`Self::add_batched`] without the energy: on the AVX2 driver the kernel's
+    /// energy lanes are then never read, so the compiler drops the arithmetic that
+    /// only they need (a law's `ln J` when its forces use only 1/J, as
+    /// Holzapfel–Gasser–Ogden's). The forces are the same bits: the same operations
+    /// make them, and no multiply-add is contracted (Rust never does).
+    pub(crate) fn add_batched_forces<K: BatchKernel>(
+        &self,
+        k: &K,
+        parallel: bool,
+        x: &[Vec3],
+        f: &mut [Vec3],
+    ) -> Result<()> {
+        check_sizes(self.n_nodes, x, Some(f))?;
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        self.evaluate(&mut guard, k, x, Gather::Positions, f, parallel, Energy::Skipped);
+        Ok(())
     }
 
     /// The lumped volumes at `x` ([`Self::lumped_volumes`]), turned in place into one
@@ -157,7 +180,7 @@ impl Layout {
         let mut w = vec![0.0; self.n_nodes];
         self.lumped_in(&mut guard, x, parallel, &mut w);
         let e = to_w(&mut w);
-        Ok(e + self.evaluate(&mut guard, k, x, Gather::WOnly(&w), f, parallel))
+        Ok(e + self.evaluate(&mut guard, k, x, Gather::WOnly(&w), f, parallel, Energy::Summed))
     }
 
     /// Adds the forces of the plain kernel `k` to `f`, one tet at a time in field
@@ -176,6 +199,7 @@ impl Layout {
         Ok(energy)
     }
 
+    #[allow(clippy::too_many_arguments)] // the pass's inputs, each its own kind
     fn evaluate<K: BatchKernel>(
         &self,
         s: &mut Scratch,
@@ -184,6 +208,7 @@ impl Layout {
         gather: Gather,
         f: &mut [Vec3],
         parallel: bool,
+        energy: Energy,
     ) -> f64 {
         let isa = Isa::current();
         let parallel = self.runs_parallel(parallel);
@@ -225,7 +250,7 @@ impl Layout {
             bufs.f_mut().fill(Node4::default());
             let dead = &self.dead[blk.batch_start..blk.batch_end];
             let weights = self.weights.as_ref().map(|w| &w[blk.batch_start..blk.batch_end]);
-            *e = run_block(isa, k, blk.batch_start, n_tets, dead, weights, bufs, lanes);
+            *e = run_block(isa, energy, k, blk.batch_start, n_tets, dead, weights, bufs, lanes);
         };
         if parallel {
             tasks.into_par_iter().with_max_len(1).for_each(one);
@@ -247,15 +272,30 @@ impl Layout {
         } else {
             f.chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
         }
-        s.energy.iter().sum()
+        match energy {
+            Energy::Summed => s.energy.iter().sum(),
+            Energy::Skipped => 0.0,
+        }
     }
 }
 
+/// Whether a pass sums the tets' energies or only wants the forces.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Energy {
+    /// Forces and the total energy.
+    Summed,
+    /// Forces only (the pass returns 0): explicit steps, which need no energy.
+    Skipped,
+}
+
 /// Runs the batches of one block with the driver compiled for `isa` (`lanes`: the
-/// block's phase-1 buffer, one array per batch, for two-phase kernels).
+/// block's phase-1 buffer, one array per batch, for two-phase kernels). Only the
+/// AVX2 driver (the default one) of kernels with [`BatchKernel::SKIPS_ENERGY`] has
+/// a forces-only variant: the others sum the energy anyway (the caller drops it).
 #[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
 fn run_block<K: BatchKernel>(
     isa: Isa,
+    energy: Energy,
     k: &K,
     batch0: usize,
     n_tets: usize,
@@ -271,13 +311,23 @@ fn run_block<K: BatchKernel>(
         // SAFETY: the token proves the CPU has avx512f, avx512dq, avx512vl, avx2 and
         // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
         // of one `BlockBuffers`, so every index is below both buffers' length.
-        Isa::Avx512(t) => unsafe { block_avx512(Avx2(t.avx2()), k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
+        Isa::Avx512(t) => unsafe {
+            block_avx512::<K, true>(Avx2(t.avx2()), k, batch0, n_tets, dead, weights, tets, x, f, lanes)
+        },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the token proves the CPU has avx2 and fma, the features
         // `block_avx2` enables; the indices as above.
-        Isa::Avx2(t) => unsafe { block_avx2(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
+        Isa::Avx2(t) => {
+            if K::SKIPS_ENERGY && energy == Energy::Skipped {
+                // SAFETY: as above
+                unsafe { block_avx2::<K, false>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
+            } else {
+                // SAFETY: as above
+                unsafe { block_avx2::<K, true>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
+            }
+        }
         // SAFETY: the indices as above (and the portable I/O checks them anyway).
-        _ => unsafe { block_body(Portable, k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
+        _ => unsafe { block_body::<K, Portable, true>(Portable, k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
     }
 }
 
@@ -291,7 +341,7 @@ macro_rules! block_with_features {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
         #[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
-        unsafe fn $name<K: BatchKernel>(
+        unsafe fn $name<K: BatchKernel, const ENERGY: bool>(
             io: Avx2,
             k: &K,
             batch0: usize,
@@ -304,7 +354,7 @@ macro_rules! block_with_features {
             lanes: &mut [[f64; LANES]],
         ) -> f64 {
             // SAFETY: the caller's preconditions.
-            unsafe { block_body(io, k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
+            unsafe { block_body::<K, Avx2, ENERGY>(io, k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
         }
     };
 }
@@ -315,14 +365,16 @@ block_with_features!(block_avx2, "avx2,fma");
 /// batches, lane by lane for the padded last one and for batches with removed tets,
 /// whose lanes `dead` masks, one byte per batch of the block). With `weights` (one
 /// array per batch of the block, when the mesh's tets overlap) each lane's forces
-/// and energy are scaled by its tet's weight before the scatter.
+/// and energy are scaled by its tet's weight before the scatter. Without `ENERGY`
+/// the energy lanes are never read (and 0 is returned), so that the compiler drops
+/// what only they need from the inlined kernel.
 ///
 /// # Safety
 /// Every index of `tets` is below `x.len()` and `f.len()` (the parts of one
 /// [`BlockBuffers`]), as `IO` requires.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
-unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
+unsafe fn block_body<K: BatchKernel, IO: LaneIo, const ENERGY: bool>(
     io: IO,
     k: &K,
     batch0: usize,
@@ -357,7 +409,10 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
                 }
             }
         }
-        energy += k.between(batch0, lanes);
+        let e = k.between(batch0, lanes);
+        if ENERGY {
+            energy += e;
+        }
     }
     for (bo, idx) in tets.iter().enumerate() {
         let b = batch0 + bo;
@@ -383,8 +438,10 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
                     }
                 }
             }
-            for l in 0..LANES {
-                el[l] *= w[l];
+            if ENERGY {
+                for l in 0..LANES {
+                    el[l] *= w[l];
+                }
             }
         }
         let count = (n_tets - b * LANES).min(LANES);
@@ -392,12 +449,16 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo>(
         if count == LANES && mask == 0 {
             // SAFETY: as for the gather, below `f.len()`
             unsafe { io.scatter(idx, &fl, f) };
-            for l in 0..LANES {
-                energy += el[l];
+            if ENERGY {
+                for l in 0..LANES {
+                    energy += el[l];
+                }
             }
         } else {
             for l in (0..count).filter(|l| mask & (1 << l) == 0) {
-                energy += el[l];
+                if ENERGY {
+                    energy += el[l];
+                }
                 scatter_lane(idx, &fl, f, l);
             }
         }

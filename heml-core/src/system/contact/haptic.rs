@@ -541,6 +541,7 @@ impl Palpation {
             .fix_where(|p| p.z < low + 0.005)
             .rayleigh(15.0, 0.0)
             .energy_every(0)
+            .lazy_energy(true)
             .build()
     }
 

@@ -469,7 +469,7 @@ impl ImplicitStep<'_> {
         self.set_velocities(sys);
         sys.invalidate();
         // no rollback here: a failed line-search trial must leave the step going
-        sys.compute_forces_inner()?;
+        sys.compute_forces_inner(true)?;
         // r = f − M a⁺ with a⁺ of [`Self::accelerations`] computed in place (the
         // same operations per node, so the same bits): no vector allocated and one
         // pass over the nodes less per evaluation (a chord step evaluates twice)

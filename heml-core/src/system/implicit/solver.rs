@@ -223,7 +223,7 @@ impl ImplicitSolver {
                 if self.accel_at != Some((sys.state.step, sys.state.t, sys.model.revision)) || self.accel.len() != n {
                     // the acceleration of the current state (first step, or the state
                     // or the model was changed since the last Newmark step)
-                    sys.compute_forces_inner()?;
+                    sys.compute_forces_inner(true)?;
                     self.accel = (0..n).map(|i| sys.eval.force[i] * sys.model.inv_mass[i]).collect();
                 }
                 self.accel.clone()

@@ -50,7 +50,8 @@ impl NewtonProblem for Equilibrium<'_> {
     type Report = StaticReport;
 
     fn evaluate(&mut self, sys: &mut System) -> Result<()> {
-        sys.compute_forces()?;
+        // with the energy: the line search's merit reads it
+        sys.compute_forces_with(true)?;
         sys.slider_forces(self.sliders, &mut self.slider_reactions);
         Ok(())
     }
