@@ -9,8 +9,8 @@
 //! with a low-precision factor, here for free. In exchange a factorisation and a
 //! pair of triangular solves move half the bytes and run twice as many lanes per
 //! vector instruction: on gen_kidney_20k's system (nested dissection, 3.9·10⁶
-//! factor nonzeros) f32 factors ~2× faster and solves ~1.8× faster (README,
-//! session 18).
+//! factor nonzeros) f32 factors ~2× faster and solves ~1.8× faster
+//! (`docs/journal/implicit-steps.md`, session 18).
 //!
 //! The time-stepping matrix M/h² + K is well conditioned (its smallest eigenvalue
 //! is at least the smallest nodal mass over h²), which is where f32 is safe; a
@@ -40,7 +40,7 @@ pub enum FactorPrecision {
 /// Free coordinates from which [`FactorPrecision::Auto`] factors time steps in f32:
 /// the threshold of nested dissection ([`super::AUTO_NESTED_DISSECTION`]), below
 /// which a factorisation costs well under a millisecond and the solves are
-/// dominated by other work (measured in the README, session 18).
+/// dominated by other work (measured in `docs/journal/implicit-steps.md`, session 18).
 pub const AUTO_SINGLE: usize = super::AUTO_NESTED_DISSECTION;
 
 impl FactorPrecision {

@@ -27,8 +27,8 @@ use rayon::prelude::*;
 /// Nodes per part at least (below it, a part's sweep is too short to be worth a task).
 const MIN_PART_NODES: usize = 128;
 /// Parts at most. More parts serve more threads but enlarge the sequential
-/// separator; 2 suit the 2-core machines this library is tuned on (measured in the
-/// README).
+/// separator; 2 suit the 2-core machines this library is tuned on (measured in
+/// `docs/journal/implicit-steps.md`).
 const MAX_PARTS: usize = 2;
 
 /// The parallel Gauss–Seidel ordering of a [`BlockMatrix`]'s pattern.
