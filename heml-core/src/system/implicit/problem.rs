@@ -118,7 +118,7 @@ pub(super) struct ImplicitStep<'a> {
     pub chord_iterations: usize,
     /// The step's iterates on the current factor, for the Anderson mixing of the
     /// chord iterations.
-    pub anderson: Anderson,
+    pub anderson: &'a mut Anderson,
 }
 
 impl ImplicitStep<'_> {

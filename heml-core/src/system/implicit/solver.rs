@@ -1,6 +1,7 @@
 //! [`ImplicitSolver`]: the state an implicit integrator keeps between steps (tangent
 //! operators, numbering of the unknowns, Newmark's acceleration) and its step.
 
+use super::anderson::Anderson;
 use super::linear::SolveCache;
 use super::problem::{inverted_tets, ImplicitStep};
 use super::settings::{ImplicitScheme, ImplicitSettings, LinearSolver};
@@ -46,6 +47,9 @@ pub struct ImplicitSolver {
     last_dx_revision: u64,
     /// Phase times of the last step.
     times: PhaseTimes,
+    /// The chord iterations' Anderson history, whose secant pairs carry over to
+    /// the next steps on the same factor.
+    anderson: Anderson,
 }
 
 impl std::fmt::Debug for ImplicitSolver {
@@ -72,6 +76,7 @@ impl ImplicitSolver {
             last_dx: None,
             last_dx_revision: 0,
             times: PhaseTimes::default(),
+            anderson: Anderson::default(),
         }
     }
 
@@ -273,7 +278,7 @@ impl ImplicitSolver {
             reused: false,
             fresh_iterations: 0,
             chord_iterations: 0,
-            anderson: Default::default(),
+            anderson: &mut self.anderson,
         };
         let mut outcome = newton(sys, dofs, &mut problem)?;
         // the last iteration's contraction (and cost): a step that ended on a kept
@@ -291,6 +296,7 @@ impl ImplicitSolver {
             problem.check_contraction();
         }
         let leftover = problem.leftover();
+        problem.anderson.end_step();
         problem.set_velocities(sys);
         let mut warnings = std::mem::take(&mut problem.warnings);
         if outcome.is_none() {
