@@ -19,8 +19,9 @@
 //! mixed too. Measured on `heml bench --implicit`'s default preset (session 24):
 //! the liver's 12-step sag takes 3 factorisations instead of 6, its 200-step long
 //! run 12 instead of 19 (328 Newton iterations instead of 371), gen_kidney_20k's long
-//! run 18 instead of 21. A new factor or contact correction clears both (g is then
-//! another map). A correction that is not a descent direction of the line search's
+//! run 18 instead of 21. The solver carries them with one Newton iteration per step
+//! only (steps iterated to the Newton tolerance took more factorisations with
+//! them). A new factor or contact correction clears both (g is then another map). A correction that is not a descent direction of the line search's
 //! merit (gᵀ r ≤ 0) falls back to the plain chord correction.
 
 use nalgebra::{DMatrix, DVector};
