@@ -21,8 +21,9 @@
 //! run 12 instead of 19 (328 Newton iterations instead of 371), gen_kidney_20k's long
 //! run 18 instead of 21. The solver carries them with one Newton iteration per step
 //! only (steps iterated to the Newton tolerance took more factorisations with
-//! them). A new factor or contact correction clears both (g is then another map). A correction that is not a descent direction of the line search's
-//! merit (gᵀ r ≤ 0) falls back to the plain chord correction.
+//! them). A new factor or contact correction clears both (g is then another map).
+//! A correction that is not a descent direction of the line search's merit
+//! (gᵀ r ≤ 0) falls back to the plain chord correction.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -55,8 +56,8 @@ impl Anderson {
     /// (the newest [`MEMORY`] kept) and the history starts empty.
     pub fn end_step(&mut self) {
         for w in self.history.windows(2) {
-            let d = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u - v).collect::<Vec<f64>>();
-            self.carried.push((d(&w[1].0, &w[0].0), d(&w[1].1, &w[0].1)));
+            self.carried
+                .push((difference(&w[1].0, &w[0].0), difference(&w[1].1, &w[0].1)));
         }
         let extra = self.carried.len().saturating_sub(MEMORY);
         self.carried.drain(..extra);
@@ -88,9 +89,12 @@ impl Anderson {
     /// equations, regularised by 10⁻¹⁰ of their largest diagonal entry); `None`
     /// when they cannot be solved.
     fn mixed(&self, x: &[f64], g: &[f64]) -> Option<Vec<f64>> {
-        let diff = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u - v).collect::<Vec<f64>>();
         // the step's own differences first, then the newest carried pairs, MEMORY in all
-        let own: Vec<(Vec<f64>, Vec<f64>)> = self.history.iter().map(|(xi, gi)| (diff(x, xi), diff(g, gi))).collect();
+        let own: Vec<(Vec<f64>, Vec<f64>)> = self
+            .history
+            .iter()
+            .map(|(xi, gi)| (difference(x, xi), difference(g, gi)))
+            .collect();
         let room = MEMORY.saturating_sub(own.len());
         let pairs: Vec<(&[f64], &[f64])> = own
             .iter()
@@ -118,6 +122,11 @@ impl Anderson {
         }
         Some(out)
     }
+}
+
+/// a − b, element by element.
+fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(u, v)| u - v).collect()
 }
 
 #[cfg(test)]

@@ -207,6 +207,8 @@ impl ImplicitSolver {
                 self.accel_at = None;
                 self.last_dx = None;
                 self.cache.refactor = true;
+                // the failed step's iterates are of no later step
+                self.anderson.clear();
                 Err(e)
             }
         }
