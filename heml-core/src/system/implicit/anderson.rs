@@ -11,12 +11,15 @@
 //! earlier ones. It is a multisecant quasi-Newton method on the same equations
 //! r(x) = 0 (its fixed point is the chord iteration's: the exact step), costs a few
 //! vector operations per iteration (no tangent), and recovers the missed modes from
-//! the residuals already evaluated. The history is the step's iterations on one
-//! factor, completed by the secant pairs (Δx, Δg) of the earlier steps on the same
-//! factor: the step's inertial term moves r by a constant from step to step, which
-//! cancels in a difference, so those pairs still describe the slowly changing
-//! tangent, and the first chord iteration of a step — which had no history — is
-//! mixed too. Measured on `heml bench --implicit`'s default preset (session 24):
+//! the residuals already evaluated. The history is the secant pairs (Δx, Δg) of
+//! consecutive iterates on one factor: the step's own, completed by those of the
+//! earlier steps on the same factor — the step's inertial term moves r by a
+//! constant from step to step, which cancels in a difference, so those pairs still
+//! describe the slowly changing tangent, and the first chord iteration of a step —
+//! which had no history — is mixed too. Each mixing adds one pair and one row of
+//! the least-squares problem's Gram matrix (session 25: the differences to every
+//! earlier iterate and the whole matrix were formed anew each time, ~2 ms of the
+//! liver's long run). Measured on `heml bench --implicit`'s default preset (session 24):
 //! the liver's 12-step sag takes 3 factorisations instead of 6, its 200-step long
 //! run 12 instead of 19 (328 Newton iterations instead of 371), gen_kidney_20k's long
 //! run 18 instead of 21. The solver carries them with one Newton iteration per step
@@ -26,107 +29,150 @@
 //! (gᵀ r ≤ 0) falls back to the plain chord correction.
 
 use nalgebra::{DMatrix, DVector};
+use std::collections::VecDeque;
 
-/// Earlier iterates kept for the mixing (5: the least-squares problem stays
+/// Secant pairs kept for the mixing (5: the least-squares problem stays
 /// well-conditioned and the chord iterations of a step are rarely more).
 const MEMORY: usize = 5;
 
-/// The iterates and corrections of the current step on the current factor, and
-/// the secant pairs of the earlier steps on it.
+/// The secant pairs on the current factor and the step's last iterate.
+///
+/// The pairs are differences of *consecutive* iterates, (x_{i+1} − x_i, g_{i+1} −
+/// g_i): they span the same space as the differences of the current iterate to the
+/// earlier ones (so the mixed correction is the same up to round-off), but stay the
+/// same when a new iterate arrives, so that each mixing adds one pair and one row
+/// of the Gram matrix ΔGᵀΔG (`MEMORY` dot products) instead of forming all the
+/// differences and the whole matrix again. The step's own pairs and those carried
+/// from the earlier steps are one chronological list: the newest [`MEMORY`] are the
+/// step's own first, then the newest carried ones.
 #[derive(Debug, Default)]
 pub(super) struct Anderson {
-    /// (x_i, g_i) by degree of freedom, oldest first.
-    history: Vec<(Vec<f64>, Vec<f64>)>,
-    /// (Δx, Δg) of consecutive iterates of earlier steps on the same factor, oldest
-    /// first. Differences, not iterates: the step's inertial term shifts r by a
-    /// constant from one step to the next, which cancels in a difference, so a pair
-    /// stays a secant of the same slowly changing tangent.
-    carried: Vec<(Vec<f64>, Vec<f64>)>,
+    /// (Δx, Δg) by degree of freedom, oldest first, at most [`MEMORY`].
+    pairs: VecDeque<(Vec<f64>, Vec<f64>)>,
+    /// gram[i][j] = Δg_i·Δg_j of `pairs` (same order).
+    gram: VecDeque<VecDeque<f64>>,
+    /// The step's last iterate and its raw correction (None at a step's start: the
+    /// next step's first iterate forms no pair with the last step's, whose residual
+    /// had another inertial term).
+    last: Option<(Vec<f64>, Vec<f64>)>,
+    /// Vectors of dropped pairs, reused for new ones (no allocation per mixing).
+    spare: Vec<(Vec<f64>, Vec<f64>)>,
+    /// Scratch of the mixed correction.
+    out: Vec<f64>,
 }
 
 impl Anderson {
-    /// Forgets the history and the carried pairs (a new factor: g is then another
+    /// Forgets the pairs and the last iterate (a new factor: g is then another
     /// map).
     pub fn clear(&mut self) {
-        self.history.clear();
-        self.carried.clear();
+        while let Some(p) = self.pairs.pop_front() {
+            self.spare.push(p);
+        }
+        self.gram.clear();
+        self.last = None;
     }
 
-    /// Ends a step: its consecutive iterates' differences join the carried pairs
-    /// (the newest [`MEMORY`] kept) and the history starts empty.
+    /// Ends a step: its pairs stay (carried to the next step on the same factor),
+    /// its last iterate is dropped.
     pub fn end_step(&mut self) {
-        for w in self.history.windows(2) {
-            self.carried
-                .push((difference(&w[1].0, &w[0].0), difference(&w[1].1, &w[0].1)));
-        }
-        let extra = self.carried.len().saturating_sub(MEMORY);
-        self.carried.drain(..extra);
-        self.history.clear();
+        self.last = None;
     }
 
     /// Records iterate `x` and its correction `g` = P⁻¹ r(x), and replaces `g` by
-    /// the mixed correction when the history allows one that is a descent
-    /// direction (dot with the residual `r` positive) and finite.
-    pub fn mix(&mut self, x: Vec<f64>, g: &mut [f64], r: &[f64]) {
-        let raw = g.to_vec();
+    /// the mixed correction when the pairs allow one that is a descent direction
+    /// (dot with the residual `r` positive) and finite.
+    pub fn mix(&mut self, x: &[f64], g: &mut [f64], r: &[f64]) {
         // pairs of another numbering of the unknowns are of another map
-        self.carried.retain(|(dx, _)| dx.len() == x.len());
-        if !self.history.is_empty() || !self.carried.is_empty() {
-            if let Some(dx) = self.mixed(&x, &raw) {
-                let descent: f64 = dx.iter().zip(r).map(|(a, b)| a * b).sum();
-                if descent > 0.0 && dx.iter().all(|v| v.is_finite()) {
-                    g.copy_from_slice(&dx);
-                }
+        if self.pairs.front().is_some_and(|(dx, _)| dx.len() != x.len())
+            || self.last.as_ref().is_some_and(|(lx, _)| lx.len() != x.len())
+        {
+            self.clear();
+        }
+        let (mut lx, mut lg) = match self.last.take() {
+            Some((lx, lg)) => {
+                self.push_pair(x, g, &lx, &lg);
+                (lx, lg)
             }
-        }
-        if self.history.len() == MEMORY {
-            self.history.remove(0);
-        }
-        self.history.push((x, raw));
+            None => self.spare.pop().unwrap_or_default(),
+        };
+        lx.clear();
+        lx.extend_from_slice(x);
+        lg.clear();
+        lg.extend_from_slice(g);
+        self.last = Some((lx, lg));
+        self.apply(g, r);
     }
 
-    /// g − (ΔX + ΔG) γ with γ the least-squares solution of ΔG γ ≈ g (normal
-    /// equations, regularised by 10⁻¹⁰ of their largest diagonal entry); `None`
-    /// when they cannot be solved.
-    fn mixed(&self, x: &[f64], g: &[f64]) -> Option<Vec<f64>> {
-        // the step's own differences first, then the newest carried pairs, MEMORY in all
-        let own: Vec<(Vec<f64>, Vec<f64>)> = self
-            .history
-            .iter()
-            .map(|(xi, gi)| (difference(x, xi), difference(g, gi)))
-            .collect();
-        let room = MEMORY.saturating_sub(own.len());
-        let pairs: Vec<(&[f64], &[f64])> = own
-            .iter()
-            .chain(self.carried.iter().rev().take(room))
-            .map(|(a, b)| (a.as_slice(), b.as_slice()))
-            .collect();
-        let m = pairs.len();
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
-        let mut gram = DMatrix::from_fn(m, m, |i, j| dot(pairs[i].1, pairs[j].1));
+    /// Appends the pair (x − lx, g − lg), dropping the oldest beyond [`MEMORY`],
+    /// and its row of the Gram matrix.
+    fn push_pair(&mut self, x: &[f64], g: &[f64], lx: &[f64], lg: &[f64]) {
+        if self.pairs.len() == MEMORY {
+            if let Some(p) = self.pairs.pop_front() {
+                self.spare.push(p);
+            }
+            self.gram.pop_front();
+            self.gram.iter_mut().for_each(|row| {
+                row.pop_front();
+            });
+        }
+        let (mut dx, mut dg) = self.spare.pop().unwrap_or_default();
+        difference_into(x, lx, &mut dx);
+        difference_into(g, lg, &mut dg);
+        let mut row: VecDeque<f64> = self.pairs.iter().map(|(_, q)| dot(q, &dg)).collect();
+        let own = dot(&dg, &dg);
+        for (old, &v) in self.gram.iter_mut().zip(&row) {
+            old.push_back(v);
+        }
+        row.push_back(own);
+        self.gram.push_back(row);
+        self.pairs.push_back((dx, dg));
+    }
+
+    /// g ← g − (ΔX + ΔG) γ with γ the least-squares solution of ΔG γ ≈ g (normal
+    /// equations, regularised by 10⁻¹⁰ of their largest diagonal entry), when
+    /// there are pairs, the equations can be solved, and the result is a finite
+    /// descent direction (dot with `r` positive).
+    fn apply(&mut self, g: &mut [f64], r: &[f64]) {
+        let m = self.pairs.len();
+        if m == 0 {
+            return;
+        }
+        let mut gram = DMatrix::from_fn(m, m, |i, j| self.gram[i][j]);
         let scale = (0..m).map(|i| gram[(i, i)]).fold(0.0, f64::max);
         if !(scale > 0.0 && scale.is_finite()) {
-            return None;
+            return;
         }
         for i in 0..m {
             gram[(i, i)] += 1e-10 * scale;
         }
-        let rhs = DVector::from_fn(m, |i, _| dot(pairs[i].1, g));
-        let gamma = gram.cholesky()?.solve(&rhs);
-        let mut out = g.to_vec();
-        for (k, (dxk, dgk)) in pairs.iter().enumerate() {
+        let rhs = DVector::from_fn(m, |i, _| dot(&self.pairs[i].1, g));
+        let Some(chol) = gram.cholesky() else { return };
+        let gamma = chol.solve(&rhs);
+        let mut out = std::mem::take(&mut self.out);
+        out.clear();
+        out.extend_from_slice(g);
+        for (k, (dx, dg)) in self.pairs.iter().enumerate() {
             let c = gamma[k];
-            for (o, (a, b)) in out.iter_mut().zip(dxk.iter().zip(dgk.iter())) {
+            for (o, (a, b)) in out.iter_mut().zip(dx.iter().zip(dg)) {
                 *o -= c * (a + b);
             }
         }
-        Some(out)
+        if dot(&out, r) > 0.0 && out.iter().all(|v| v.is_finite()) {
+            g.copy_from_slice(&out);
+        }
+        self.out = out;
     }
 }
 
-/// a − b, element by element.
-fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
-    a.iter().zip(b).map(|(u, v)| u - v).collect()
+/// out = a − b, element by element (`out` resized).
+fn difference_into(a: &[f64], b: &[f64], out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(a.iter().zip(b).map(|(u, v)| u - v));
+}
+
+/// a·b.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(u, v)| u * v).sum()
 }
 
 #[cfg(test)]
@@ -158,7 +204,7 @@ mod tests {
             plain.iter_mut().zip(&g).for_each(|(x, d)| *x += d);
             let r = residual(&mixed);
             let mut g = correction(&r);
-            anderson.mix(mixed.clone(), &mut g, &r);
+            anderson.mix(&mixed, &mut g, &r);
             mixed.iter_mut().zip(&g).for_each(|(x, d)| *x += d);
         }
         let (e_plain, e_mixed) = (norm(&residual(&plain)) / r0, norm(&residual(&mixed)) / r0);
@@ -191,11 +237,12 @@ mod tests {
         for _ in 0..4 {
             let r = residual(&x, &b1);
             let mut g = correction(&r);
-            anderson.mix(x.clone(), &mut g, &r);
+            anderson.mix(&x, &mut g, &r);
             x.iter_mut().zip(&g).for_each(|(x, d)| *x += d);
         }
         anderson.end_step();
-        assert_eq!(anderson.carried.len(), 3);
+        assert_eq!(anderson.pairs.len(), 3);
+        assert!(anderson.last.is_none());
         // step 2: another right-hand side, one iteration from the end of step 1
         let b2 = [1.5, 1.0, 3.5];
         let r0 = residual(&x, &b2);
@@ -206,10 +253,10 @@ mod tests {
         let plain = after(&correction(&r0));
         let mut fresh = Anderson::default();
         let mut g = correction(&r0);
-        fresh.mix(x.clone(), &mut g, &r0);
+        fresh.mix(&x, &mut g, &r0);
         let uncarried = after(&g);
         let mut g = correction(&r0);
-        anderson.mix(x.clone(), &mut g, &r0);
+        anderson.mix(&x, &mut g, &r0);
         let carried = after(&g);
         // exact but for the regularisation: step 1's last pair was taken near its
         // solution (|Δg|² ~1e-10 of the largest pair's), where the 1e-10 shift of the
@@ -221,6 +268,6 @@ mod tests {
         );
         // a new factor forgets them
         anderson.clear();
-        assert!(anderson.carried.is_empty() && anderson.history.is_empty());
+        assert!(anderson.pairs.is_empty() && anderson.gram.is_empty() && anderson.last.is_none());
     }
 }

@@ -123,11 +123,13 @@ pub(super) struct ImplicitStep<'a> {
 
 impl ImplicitStep<'_> {
     /// d_i = x_i − x0_i − h v0_i on a free node.
+    #[inline]
     fn d(&self, sys: &System, i: usize) -> Vec3 {
         sys.state.x[i] - self.x0[i] - self.v0[i] * self.h
     }
 
     /// v⁺_i = v0_i + c_v d_i on a free node.
+    #[inline]
     fn v(&self, sys: &System, i: usize) -> Vec3 {
         self.v0[i] + self.d(sys, i) * self.cv
     }
@@ -348,7 +350,7 @@ impl NewtonProblem for ImplicitStep<'_> {
             if !reused || self.cache.corrections != corrections {
                 self.anderson.clear();
             }
-            self.anderson.mix(dofs.gather(&sys.state.x), rhs, &r);
+            self.anderson.mix(&dofs.gather(&sys.state.x), rhs, &r);
         }
         self.cache.refactor = false;
         self.reused |= reused;
@@ -397,7 +399,8 @@ impl NewtonProblem for ImplicitStep<'_> {
                 let d = self.d(sys, i);
                 let a = d * self.ca - self.a0[i];
                 // mass damping −α M v⁺ is the gradient of α/(2 c_v)·|v⁺|²_M too
-                let v = self.v(sys, i);
+                // (v⁺ of [`Self::v`] from the same d)
+                let v = self.v0[i] + d * self.cv;
                 0.5 * sys.model.mass[i] * (a.norm_squared() / self.ca + alpha * v.norm_squared() / self.cv)
             })
             .sum();
