@@ -424,7 +424,7 @@ impl NewtonProblem for ImplicitStep<'_> {
     /// J = 0.43 to −2.95, and the motion diverged from there); halving the step
     /// until no new tet inverts keeps the iterates where the law is physical.
     fn infeasibility(&self, sys: &System) -> Option<usize> {
-        Some(inverted_tets(sys))
+        Some(inverted_tets(sys, &sys.state.x))
     }
 
     fn starting_infeasibility(&self) -> Option<Option<usize>> {
@@ -432,13 +432,12 @@ impl NewtonProblem for ImplicitStep<'_> {
     }
 }
 
-/// The alive tets of `sys` whose signed volume at the current positions is not
+/// The alive tets of `sys` whose signed volume at positions `x` (by node) is not
 /// positive (rest tets are positively oriented, so these are the inverted ones):
 /// only positions, ~a tenth of a force evaluation's work, in parallel.
-pub(super) fn inverted_tets(sys: &System) -> usize {
+pub(super) fn inverted_tets(sys: &System, x: &[Vec3]) -> usize {
     use rayon::prelude::*;
     let alive: Option<&[bool]> = sys.model.cut.topo.as_ref().map(|t| &t.alive[..]);
-    let x = &sys.state.x;
     // branch-free per tet (a count, not a filter): the liver's 596 tets are
     // counted about four times per implicit step
     let count = |first: usize, tets: &[[u32; 4]]| -> usize {

@@ -238,9 +238,8 @@ impl ImplicitSolver {
         };
         let x0 = sys.state.x.clone();
         let v0 = sys.state.v.clone();
-        let inverted = inverted_tets(sys);
         sys.advance_time()?;
-        let start_inverted = predict(sys, &x0, &v0, &a0, h, ca, inverted);
+        let start_inverted = predict(sys, &x0, &v0, &a0, h, ca);
         let load_norm = {
             let mut ext: Vec<Vec3> = sys.model.mass.iter().map(|m| sys.model.gravity * *m).collect();
             for &(i, f) in &sys.model.nodal {
@@ -291,7 +290,7 @@ impl ImplicitSolver {
         // contact) must not decide the step — left to the next one, the imbalance
         // piles up (on gen_kidney_20k's sag the motion diverged within 22 steps)
         if problem.reused && outcome.is_none() {
-            problem.start_inverted = predict(sys, &x0, &v0, &a0, h, ca, inverted);
+            problem.start_inverted = predict(sys, &x0, &v0, &a0, h, ca);
             problem.restart();
             problem.cache.refactor = true;
             outcome = newton(sys, dofs, &mut problem)?;
@@ -345,7 +344,8 @@ impl ImplicitSolver {
 
 /// Sets the free nodes of `sys` to the predictor a⁺ = â (d = 2â/c_a): x⁺ = x + h v
 /// for backward Euler, the constant-acceleration guess for Newmark — or, when that
-/// inverts more tets than the `inverted` ones at the start of the step, to a
+/// inverts more tets than `x0` has (counted only then: a predictor without an
+/// inverted tet inverts no more, and x0 is usually counted for nothing), to a
 /// fraction ½, ¼, … of its displacement from `x0` (at worst x0 itself) that does
 /// not. Why: the Newton iterations never invert a tet (their line search halves
 /// such trials, [`super::problem`]), so the step must start from positions where
@@ -356,10 +356,11 @@ impl ImplicitSolver {
 /// Returns the inverted tets at the positions it leaves when it counted them there
 /// (the Newton iterations start from that count instead of counting again); `None`
 /// when it fell back to x0.
-fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: f64, inverted: usize) -> Option<usize> {
+fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: f64) -> Option<usize> {
     /// Halvings of the predictor's displacement before starting from x0.
     const MAX_HALVINGS: i32 = 8;
     let scales = (0..MAX_HALVINGS).map(|k| 0.5f64.powi(k)).chain([0.0]);
+    let mut at_start: Option<usize> = None;
     for scale in scales {
         for i in 0..x0.len() {
             if sys.model.inv_mass[i] > 0.0 {
@@ -371,8 +372,8 @@ fn predict(sys: &mut System, x0: &[Vec3], v0: &[Vec3], a0: &[Vec3], h: f64, ca: 
         if scale == 0.0 {
             return None;
         }
-        let n = inverted_tets(sys);
-        if n <= inverted {
+        let n = inverted_tets(sys, &sys.state.x);
+        if n == 0 || n <= *at_start.get_or_insert_with(|| inverted_tets(sys, x0)) {
             return Some(n);
         }
     }
