@@ -116,8 +116,8 @@ pub(super) struct ImplicitStep<'a> {
     pub fresh_iterations: usize,
     /// Iterations of this step on a kept factor (chord iterations).
     pub chord_iterations: usize,
-    /// The step's iterates on the current factor, for the Anderson mixing of the
-    /// chord iterations.
+    /// The Anderson mixing of the chord iterations: the secant pairs on the current
+    /// factor (the step's own and those carried from earlier steps; the solver's).
     pub anderson: &'a mut Anderson,
 }
 
@@ -131,7 +131,13 @@ impl ImplicitStep<'_> {
     /// v⁺_i = v0_i + c_v d_i on a free node.
     #[inline]
     fn v(&self, sys: &System, i: usize) -> Vec3 {
-        self.v0[i] + self.d(sys, i) * self.cv
+        self.v_of(i, self.d(sys, i))
+    }
+
+    /// v⁺_i from a d_i already computed ([`Self::d`]).
+    #[inline]
+    fn v_of(&self, i: usize, d: Vec3) -> Vec3 {
+        self.v0[i] + d * self.cv
     }
 
     /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
@@ -399,8 +405,7 @@ impl NewtonProblem for ImplicitStep<'_> {
                 let d = self.d(sys, i);
                 let a = d * self.ca - self.a0[i];
                 // mass damping −α M v⁺ is the gradient of α/(2 c_v)·|v⁺|²_M too
-                // (v⁺ of [`Self::v`] from the same d)
-                let v = self.v0[i] + d * self.cv;
+                let v = self.v_of(i, d);
                 0.5 * sys.model.mass[i] * (a.norm_squared() / self.ca + alpha * v.norm_squared() / self.cv)
             })
             .sum();
