@@ -300,12 +300,17 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
         "long run, default preset: {} ({total} steps of {} ms; ms per step p50 / p90 / max / mean, \
          factorisations (+ low-rank contact correction columns); `prepare`: operators, pattern and symbolic analysis before the first step; \
          `phases`: the whole run's wall time in ms by phase — force evaluations with line-search merits, tangent updates, assembly, \
-         factorisations, triangular solves, and the rest: predictor, inverted-tet counts, bookkeeping; and the run's Newton iterations)",
+         factorisations, triangular solves, and the rest: predictor, inverted-tet counts, bookkeeping; the run's Newton iterations; \
+         and its simulated time per wall second against the explicit integrator's, measured again just before it, by the mean steps)",
         LONG_PHASES.map(|(name, n)| format!("{name} {n}")).join(", "),
         DT * 1e3
     );
     for &n in counts {
         let (pool, _) = thread_pool(n, placement)?;
+        // the explicit reference measured again right beside the long runs: the
+        // machine's speed drifts between the tables (issue 11's bar is this ratio)
+        let (explicit, edt, et) = explicit_case(mesh, &pool)?;
+        let explicit_rate = edt / (et.iter().sum::<f64>() / et.len() as f64);
         let cholesky = direct
             .precisions
             .iter()
@@ -352,6 +357,15 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
             }
             line += &phase_totals(&run.phases);
             line += &format!(", Newton iterations {}", run.newtons.iter().sum::<f64>());
+            if failed.is_none() && done > 0 {
+                let mean = run.times.iter().sum::<f64>() / done as f64;
+                line += &format!(
+                    " | vs {explicit} ({:.3} ms per {:.0} µs step) by the means: {:.2}×",
+                    1e3 * edt / explicit_rate,
+                    edt * 1e6,
+                    DT / mean / explicit_rate
+                );
+            }
             outln!("{line}");
         }
     }
