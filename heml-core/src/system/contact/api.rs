@@ -37,9 +37,9 @@ impl System {
         let critical = tool.law.critical_dt(m_min) * self.stepping.safety;
         if critical < self.stepping.stable_dt {
             self.warn(format!(
-                "{id}: contact stiffness {:e} N/m limits the explicit time step to {critical:e} s (critical step \
-                 of the spring and dashpot on the lightest surface node, {m_min:e} kg, × safety), below the stable estimate {:e} s; use a smaller dt, \
-                 a softer contact or an implicit integrator",
+                "{id}: contact stiffness {:e} N/m limits the explicit time step to {critical:.3e} s (critical step \
+                 of the spring and dashpot on the lightest surface node, {m_min:.3e} kg, × safety), below the stable estimate {:.3e} s; \
+                 explicit integrators need a smaller dt or a softer contact (implicit ones do not)",
                 tool.law.stiffness, self.stepping.stable_dt
             ));
         }
