@@ -310,7 +310,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
         // the explicit reference measured again right beside the long runs: the
         // machine's speed drifts between the tables (issue 11's bar is this ratio)
         let (explicit, edt, et) = explicit_case(mesh, &pool)?;
-        let explicit_rate = edt / (et.iter().sum::<f64>() / et.len() as f64);
+        let explicit_mean = percentiles(&et).3;
         let cholesky = direct
             .precisions
             .iter()
@@ -358,12 +358,12 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
             line += &phase_totals(&run.phases);
             line += &format!(", Newton iterations {}", run.newtons.iter().sum::<f64>());
             if failed.is_none() && done > 0 {
-                let mean = run.times.iter().sum::<f64>() / done as f64;
+                let mean = percentiles(&run.times).3;
                 line += &format!(
                     " | vs {explicit} ({:.3} ms per {:.0} µs step) by the means: {:.2}×",
-                    1e3 * edt / explicit_rate,
+                    1e3 * explicit_mean,
                     edt * 1e6,
-                    DT / mean / explicit_rate
+                    (DT / mean) / (edt / explicit_mean)
                 );
             }
             outln!("{line}");

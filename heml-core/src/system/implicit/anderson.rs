@@ -49,8 +49,9 @@ const MEMORY: usize = 5;
 pub(super) struct Anderson {
     /// (Δx, Δg) by degree of freedom, oldest first, at most [`MEMORY`].
     pairs: VecDeque<(Vec<f64>, Vec<f64>)>,
-    /// gram[i][j] = Δg_i·Δg_j of `pairs` (same order).
-    gram: VecDeque<VecDeque<f64>>,
+    /// gram[i][j] = Δg_i·Δg_j of `pairs` (same order; the leading `pairs.len()`
+    /// rows and columns are in use).
+    gram: [[f64; MEMORY]; MEMORY],
     /// The step's last iterate and its raw correction (None at a step's start: the
     /// next step's first iterate forms no pair with the last step's, whose residual
     /// had another inertial term).
@@ -68,7 +69,6 @@ impl Anderson {
         while let Some(p) = self.pairs.pop_front() {
             self.spare.push(p);
         }
-        self.gram.clear();
         self.last = None;
     }
 
@@ -110,21 +110,23 @@ impl Anderson {
             if let Some(p) = self.pairs.pop_front() {
                 self.spare.push(p);
             }
-            self.gram.pop_front();
-            self.gram.iter_mut().for_each(|row| {
-                row.pop_front();
-            });
+            // the oldest pair's row and column leave: the rest moves up and left
+            for i in 1..MEMORY {
+                for j in 1..MEMORY {
+                    self.gram[i - 1][j - 1] = self.gram[i][j];
+                }
+            }
         }
         let (mut dx, mut dg) = self.spare.pop().unwrap_or_default();
         difference_into(x, lx, &mut dx);
         difference_into(g, lg, &mut dg);
-        let mut row: VecDeque<f64> = self.pairs.iter().map(|(_, q)| dot(q, &dg)).collect();
-        let own = dot(&dg, &dg);
-        for (old, &v) in self.gram.iter_mut().zip(&row) {
-            old.push_back(v);
+        let m = self.pairs.len();
+        for (i, (_, q)) in self.pairs.iter().enumerate() {
+            let v = dot(q, &dg);
+            self.gram[i][m] = v;
+            self.gram[m][i] = v;
         }
-        row.push_back(own);
-        self.gram.push_back(row);
+        self.gram[m][m] = dot(&dg, &dg);
         self.pairs.push_back((dx, dg));
     }
 
@@ -268,6 +270,6 @@ mod tests {
         );
         // a new factor forgets them
         anderson.clear();
-        assert!(anderson.pairs.is_empty() && anderson.gram.is_empty() && anderson.last.is_none());
+        assert!(anderson.pairs.is_empty() && anderson.last.is_none());
     }
 }
