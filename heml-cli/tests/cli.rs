@@ -256,32 +256,7 @@ fn bench_implicit_reports_rows_and_names_bad_input() {
         // and the whole run's p50 / p90 / max / mean and factorisations
         assert_eq!(long.len(), 4, "1 and 2 threads × two long-run rows:\n{out}");
         for row in &long {
-            assert!(
-                ["| press: ", "| grasp: ", "| all: "].iter().all(|p| row.contains(p)),
-                "{pc}: {row}"
-            );
-            // the ratio to explicit stepping by the means (issue 11's measure) is
-            // the run's 10 ms over its mean step, over the explicit dt over its
-            // step: recomputed from the printed numbers. Tolerance 30 %: the mean
-            // step is printed to 0.01 ms and the explicit one to 0.001 ms, each
-            // ~0.05 and ~0.005 ms on this block (up to ~10 % rounding apiece); a
-            // wrong formula (inverted, per step, by the median) errs by far more
-            let field = |after: &str, until: char| -> f64 {
-                let t = row.split(after).nth(1).unwrap_or_else(|| panic!("{after} in {row}"));
-                let t = t.split(until).next().unwrap().trim();
-                t.parse().unwrap_or_else(|_| panic!("{t:?} after {after} in {row}"))
-            };
-            let mean = row.split("| all: ").nth(1).unwrap().split(' ').next().unwrap();
-            let mean: f64 = mean.split('/').nth(3).unwrap().parse().unwrap();
-            let explicit_ms = row.split(" ms per ").next().unwrap().rsplit('(').next().unwrap();
-            let explicit_ms: f64 = explicit_ms.trim().parse().unwrap();
-            let dt_us = field(" ms per ", 'µ');
-            let ratio = field("by the means: ", '×');
-            let want = (10.0 / mean) / (dt_us * 1e-3 / explicit_ms);
-            assert!(
-                ratio > 0.0 && (ratio / want - 1.0).abs() < 0.3,
-                "{pc}: ratio {ratio} against {want} from the printed means: {row}"
-            );
+            assert_long_run_ratio(row, 10.0);
         }
         // the default preset's CG converges to 1e-6: the residual column shows it
         for row in rows.iter().filter(|r| r.contains(" default ") && r.contains(" cg ")) {
@@ -293,6 +268,80 @@ fn bench_implicit_reports_rows_and_names_bad_input() {
     let (ok, _, err) = heml(&["bench", "--implicit", path.to_str().unwrap(), "--preconditioner", "ilu"]);
     assert!(!ok && err.contains("--preconditioner ilu: expected"), "{err}");
     assert_names_missing_shared_mesh("--implicit", &dir);
+}
+
+/// A long-run row of `heml bench --implicit` has its three phases and the whole
+/// run, and its ratio to explicit stepping by the means (issue 11's measure) is the
+/// run's step `dt_ms` over its mean step, over the explicit dt over its step:
+/// recomputed from the printed numbers. Tolerance 30 %: the mean step is printed to
+/// 0.01 ms and the explicit one to 0.001 ms, each ~0.05 and ~0.005 ms on the test
+/// block (up to ~10 % rounding apiece); a wrong formula (inverted, per step, by the
+/// median, another dt) errs by far more.
+fn assert_long_run_ratio(row: &str, dt_ms: f64) {
+    assert!(
+        ["| press: ", "| grasp: ", "| all: "].iter().all(|p| row.contains(p)),
+        "{row}"
+    );
+    let field = |after: &str, until: char| -> f64 {
+        let t = row.split(after).nth(1).unwrap_or_else(|| panic!("{after} in {row}"));
+        let t = t.split(until).next().unwrap().trim();
+        t.parse().unwrap_or_else(|_| panic!("{t:?} after {after} in {row}"))
+    };
+    let mean = row.split("| all: ").nth(1).unwrap().split(' ').next().unwrap();
+    let mean: f64 = mean.split('/').nth(3).unwrap().parse().unwrap();
+    let explicit_ms = row.split(" ms per ").next().unwrap().rsplit('(').next().unwrap();
+    let explicit_ms: f64 = explicit_ms.trim().parse().unwrap();
+    let dt_us = field(" ms per ", 'µ');
+    let ratio = field("by the means: ", '×');
+    let want = (dt_ms / mean) / (dt_us * 1e-3 / explicit_ms);
+    assert!(
+        ratio > 0.0 && (ratio / want - 1.0).abs() < 0.3,
+        "ratio {ratio} against {want} from the printed means: {row}"
+    );
+}
+
+/// `heml bench --implicit --implicit-dt 0.02` steps at 20 ms: the header says so,
+/// the long run keeps its simulated durations (0.5 s, 0.75 s, 0.75 s: 25, 38 and 38
+/// steps, 101 in all, each phase's row present) and its ratio to explicit stepping
+/// is taken with 20 ms; a step outside (0, 0.1] s is refused with a message naming
+/// the option and the range.
+#[test]
+fn bench_implicit_steps_at_the_given_dt() {
+    use heml::io::write_mesh;
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = support::temp_dir("cli", "implicit_dt");
+    let path = dir.join("block_mm.vtu");
+    write_mesh(&path, &box_mesh([40.0, 40.0, 20.0], [4, 4, 2], HexSplit::Six).unwrap()).unwrap();
+    let (ok, out, err) = heml(&[
+        "bench",
+        "--implicit",
+        path.to_str().unwrap(),
+        "--threads",
+        "1",
+        "--no-cg",
+        "--implicit-dt",
+        "0.02",
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("backward Euler at dt = 20 ms"), "{out}");
+    assert!(
+        out.contains("fall 25, press 38, grasp 38 (101 steps of 20 ms;"),
+        "{out}"
+    );
+    let long: Vec<&str> = out
+        .lines()
+        .filter(|l| l.starts_with("block_mm (192, ×0.001 m)") && l.contains(" | fall: "))
+        .collect();
+    assert_eq!(long.len(), 1, "one thread, the Cholesky long run:\n{out}");
+    assert_long_run_ratio(long[0], 20.0);
+    for bad in ["0", "-0.01", "0.5", "nan", "inf"] {
+        let flag = format!("--implicit-dt={bad}");
+        let (ok, _, err) = heml(&["bench", "--implicit", path.to_str().unwrap(), &flag]);
+        assert!(
+            !ok && err.contains("--implicit-dt") && err.contains("at most 0.1"),
+            "{bad}: {err}"
+        );
+    }
 }
 
 /// `heml materials --energy` checks a text, prints its derivatives and rest state,

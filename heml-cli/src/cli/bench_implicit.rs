@@ -1,4 +1,5 @@
-//! `heml bench --implicit [MESH…]`: backward Euler at dt = 10 ms against the best
+//! `heml bench --implicit [MESH…]`: backward Euler at dt = 10 ms (or
+//! `--implicit-dt`) against the best
 //! explicit integrator at its stable step on the same soft, nearly incompressible
 //! scene, per mesh and thread count, measured in one run, with conjugate gradients
 //! and with the reused sparse Cholesky factor side by side.
@@ -111,15 +112,41 @@ fn solver_label(settings: &ImplicitSettings) -> String {
     }
 }
 
-/// Implicit step size.
-const DT: f64 = 0.01;
-/// Timed implicit steps per case (0.12 s simulated).
+/// Implicit step size by default (issue 11's benchmark step).
+pub const DEFAULT_DT: f64 = 0.01;
+/// The largest `--implicit-dt`: 0.1 s, beyond which a soft organ's motion under a
+/// tool is not resolved by one step (and no interactive loop steps that slowly).
+pub const MAX_DT: f64 = 0.1;
+/// Timed implicit steps per case (0.12 s simulated at 10 ms).
 const IMPLICIT_STEPS: usize = 12;
 /// Timed explicit steps per case.
 const EXPLICIT_STEPS: usize = 50;
-/// The long run's phases, in steps: falling from rest, a tool pressing on top, a
-/// grasp at the free end moving (2 s simulated in all).
-const LONG_PHASES: [(&str, usize); 3] = [("fall", 50), ("press", 75), ("grasp", 75)];
+/// The long run's phases in simulated seconds: falling from rest, a tool pressing
+/// on top, a grasp at the free end moving (2 s in all; 50, 75 and 75 steps at 10 ms).
+const LONG_PHASES: [(&str, f64); 3] = [("fall", 0.5), ("press", 0.75), ("grasp", 0.75)];
+
+/// The long run's phases in steps of `dt` (at least one each).
+fn long_phases(dt: f64) -> [(&'static str, usize); 3] {
+    LONG_PHASES.map(|(name, secs)| (name, ((secs / dt).round() as usize).max(1)))
+}
+
+/// `dt` in milliseconds as printed: at most three decimals, trailing zeros dropped
+/// (10, 33.3, 0.5).
+fn ms(dt: f64) -> String {
+    let t = format!("{:.3}", dt * 1e3);
+    t.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+/// `--implicit-dt`: the implicit step in seconds, checked to lie in (0, [`MAX_DT`]].
+pub fn step(dt: f64) -> heml::Result<f64> {
+    if dt.is_finite() && dt > 0.0 && dt <= MAX_DT {
+        Ok(dt)
+    } else {
+        Err(HemlError::Invalid(format!(
+            "--implicit-dt {dt}: expected a time step in seconds, above 0 and at most {MAX_DT}"
+        )))
+    }
+}
 
 /// The liver-like scene on `mesh` (metres).
 fn scene(mesh: &TetMesh) -> heml::Result<System> {
@@ -168,7 +195,12 @@ struct ImplicitRun {
 }
 
 /// `IMPLICIT_STEPS` backward-Euler steps from rest with `settings`.
-fn implicit_case(mesh: &TetMesh, settings: ImplicitSettings, pool: &rayon::ThreadPool) -> heml::Result<ImplicitRun> {
+fn implicit_case(
+    mesh: &TetMesh,
+    settings: ImplicitSettings,
+    dt: f64,
+    pool: &rayon::ThreadPool,
+) -> heml::Result<ImplicitRun> {
     let mut sys = scene(mesh)?;
     let mut solver = ImplicitSolver::new(ImplicitScheme::BackwardEuler, settings);
     pool.install(|| {
@@ -178,7 +210,7 @@ fn implicit_case(mesh: &TetMesh, settings: ImplicitSettings, pool: &rayon::Threa
         let (mut times, mut cgs, mut newtons, mut phases) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..IMPLICIT_STEPS {
             let t = Instant::now();
-            let s = solver.step(&mut sys, DT)?;
+            let s = solver.step(&mut sys, dt)?;
             times.push(t.elapsed().as_secs_f64());
             cgs.push(s.cg_iterations as f64);
             newtons.push(s.newton_iterations as f64);
@@ -206,6 +238,7 @@ fn implicit_case(mesh: &TetMesh, settings: ImplicitSettings, pool: &rayon::Threa
 fn long_case(
     mesh: &TetMesh,
     settings: ImplicitSettings,
+    dt: f64,
     pool: &rayon::ThreadPool,
 ) -> heml::Result<(ImplicitRun, Option<HemlError>)> {
     use heml::system::contact::{ContactLaw, Palpation};
@@ -231,7 +264,7 @@ fn long_case(
         run.prepare = t.elapsed().as_secs_f64();
         let mut step = |sys: &mut System, run: &mut ImplicitRun| -> heml::Result<()> {
             let t = Instant::now();
-            let s = solver.step(sys, DT)?;
+            let s = solver.step(sys, dt)?;
             run.times.push(t.elapsed().as_secs_f64());
             run.cgs.push(s.cg_iterations as f64);
             run.newtons.push(s.newton_iterations as f64);
@@ -240,7 +273,7 @@ fn long_case(
             run.factor_single = solver.factor_is_single();
             Ok(())
         };
-        let [(_, fall), (_, press), (_, grasp)] = LONG_PHASES;
+        let [(_, fall), (_, press), (_, grasp)] = long_phases(dt);
         for _ in 0..fall {
             step(&mut sys, &mut run)?;
         }
@@ -250,7 +283,7 @@ fn long_case(
         };
         let (tool, path) = Palpation::on_top(&mut sys, 0.004, 0.01, law, 0.5)?;
         for k in 0..press {
-            sys.set_tool_pose(tool, path.at((k + 1) as f64 * DT))?;
+            sys.set_tool_pose(tool, path.at((k + 1) as f64 * dt))?;
             step(&mut sys, &mut run)?;
         }
         sys.remove_tool(tool)?;
@@ -293,8 +326,16 @@ fn percentiles(v: &[f64]) -> (f64, f64, f64, f64) {
 /// Prints the long run of the default preset with the Cholesky factor on `mesh` at
 /// each thread count of `counts`: per phase and over the whole run, p50, p90, max
 /// and mean wall time per step and the factorisations.
-fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, placement: Placement) -> heml::Result<()> {
-    let total: usize = LONG_PHASES.iter().map(|p| p.1).sum();
+fn long_runs(
+    mesh: &TetMesh,
+    label: &str,
+    counts: &[usize],
+    direct: &Direct,
+    dt: f64,
+    placement: Placement,
+) -> heml::Result<()> {
+    let phases = long_phases(dt);
+    let total: usize = phases.iter().map(|p| p.1).sum();
     outln!();
     outln!(
         "long run, default preset: {} ({total} steps of {} ms; ms per step p50 / p90 / max / mean, \
@@ -302,8 +343,8 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
          `phases`: the whole run's wall time in ms by phase — force evaluations with line-search merits, tangent updates, assembly, \
          factorisations, triangular solves, and the rest: predictor, inverted-tet counts, bookkeeping; the run's Newton iterations; \
          and its simulated time per wall second against the explicit integrator's, measured again just before it, by the mean steps)",
-        LONG_PHASES.map(|(name, n)| format!("{name} {n}")).join(", "),
-        DT * 1e3
+        phases.map(|(name, n)| format!("{name} {n}")).join(", "),
+        ms(dt)
     );
     for &n in counts {
         let (pool, _) = thread_pool(n, placement)?;
@@ -318,7 +359,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
         let cg = direct.cg.then(ImplicitSettings::default);
         for settings in cholesky.chain(cg) {
             let solver = solver_label(&settings);
-            let (run, failed) = long_case(mesh, settings, &pool)?;
+            let (run, failed) = long_case(mesh, settings, dt, &pool)?;
             if let Some(e) = &failed {
                 outln!(
                     "{label:<30} {n:>3} {solver:<8} failed after {} steps: {e}",
@@ -332,7 +373,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
             );
             let done = run.times.len();
             let mut start = 0;
-            for (name, len) in LONG_PHASES.iter().copied().chain([("all", total)]) {
+            for (name, len) in phases.iter().copied().chain([("all", total)]) {
                 let range = if name == "all" {
                     0..done
                 } else {
@@ -363,7 +404,7 @@ fn long_runs(mesh: &TetMesh, label: &str, counts: &[usize], direct: &Direct, pla
                     " | vs {explicit} ({:.3} ms per {:.0} µs step) by the means: {:.2}×",
                     1e3 * explicit_mean,
                     edt * 1e6,
-                    (DT / mean) / (edt / explicit_mean)
+                    (dt / mean) / (edt / explicit_mean)
                 );
             }
             outln!("{line}");
@@ -427,12 +468,13 @@ fn explicit_case(mesh: &TetMesh, pool: &rayon::ThreadPool) -> heml::Result<(Stri
     Ok(best.expect("two candidates"))
 }
 
-/// Runs the implicit benchmark on `meshes` (each with its scale to metres) at 1 and
-/// `threads` threads.
+/// Runs the implicit benchmark on `meshes` (each with its scale to metres) with
+/// implicit steps of `dt` seconds at 1 and `threads` threads.
 pub fn run(
     meshes: &[(PathBuf, f64)],
     preconditioner: CgPreconditioner,
     direct: &Direct,
+    dt: f64,
     threads: usize,
     placement: Placement,
 ) -> heml::Result<()> {
@@ -444,7 +486,7 @@ pub fn run(
     outln!(
         "backward Euler at dt = {} ms vs the best explicit integrator at 0.9× its stable dt; \
          neo-Hookean E = 3 kPa, ν = 0.49, ρ = 1000, gravity, α = 15/s, 10 % clamped",
-        DT * 1e3
+        ms(dt)
     );
     outln!(
         "implicit: {IMPLICIT_STEPS} steps from rest per case after `prepare` (median [min–max]); linear solver: cg \
@@ -488,7 +530,7 @@ pub fn run(
             for (sname, settings) in rows(preconditioner, direct) {
                 let solver = solver_label(&settings);
                 let direct = settings.linear_solver == LinearSolver::Cholesky;
-                let run = match implicit_case(&mesh, settings, &pool) {
+                let run = match implicit_case(&mesh, settings, dt, &pool) {
                     Ok(run) => run,
                     Err(e) => {
                         outln!("{label:<30} {n:>3} {sname:<11} {solver:<8} failed: {e}");
@@ -500,7 +542,7 @@ pub fn run(
                 let median = |f: fn(&PhaseTimes) -> f64| stats(&run.phases.iter().map(f).collect::<Vec<_>>()).0;
                 let phase = |f: fn(&PhaseTimes) -> f64| 1e3 * median(f);
                 let factorizations: usize = run.phases.iter().map(|p| p.factorizations).sum();
-                let rate = DT / m;
+                let rate = dt / m;
                 let mean = run.times.iter().sum::<f64>() / run.times.len() as f64;
                 outln!(
                     "{:<30} {:>3} {:<11} {:<8} {:>7.2} [{:>6.2}–{:>6.2}] {:>6.2} {:>6.1} {:>4} [{}–{}] ({:.0e}) {:>11} {:>5.1}/{:>5.1}/{:>4.1}/{:>5.1}/{:>5.1} {:>9.3} {:>6}: {:.2e} s, {:.3} [{:.3}–{:.3}], {:.4} {:>7.2}× ({:.2}×)",
@@ -536,11 +578,11 @@ pub fn run(
                     emax * 1e3,
                     explicit_rate,
                     rate / explicit_rate,
-                    DT / mean / explicit_rate
+                    dt / mean / explicit_rate
                 );
             }
         }
-        long_runs(&mesh, &label, &counts, direct, placement)?;
+        long_runs(&mesh, &label, &counts, direct, dt, placement)?;
     }
     outln!("(wall-clock medians on a shared machine: other processes' load widens the ranges)");
     Ok(())

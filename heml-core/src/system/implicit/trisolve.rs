@@ -59,15 +59,13 @@ struct Supernode {
     len: usize,
 }
 
-/// The supernodes of a symbolic factorisation and its fill-reducing permutation,
-/// copied out once per analysis.
+/// The supernodes of a symbolic factorisation (of a matrix numbered in its
+/// fill-reducing order: `cholesky.rs` permutes the right-hand sides), copied out
+/// once per analysis.
 #[derive(Debug)]
 pub(super) struct SupernodalSolve {
     nodes: Vec<Supernode>,
     rows: Vec<usize>,
-    /// x_perm[i] = rhs[forward[i]]; rhs[i] = x_perm[inverse[i]].
-    forward: Option<Vec<usize>>,
-    inverse: Option<Vec<usize>>,
     /// Factor values expected (faer's `len_val`).
     len_val: usize,
     /// The longest off-diagonal pattern: the scratch the solves need.
@@ -97,28 +95,18 @@ impl SupernodalSolve {
                 }
             })
             .collect();
-        let perm = symbolic.perm();
         Some(SupernodalSolve {
             rows: sn.row_idx().to_vec(),
-            forward: perm.map(|p| p.arrays().0.to_vec()),
-            inverse: perm.map(|p| p.arrays().1.to_vec()),
             len_val: symbolic.len_val(),
             longest: nodes.iter().map(|s| s.len).max().unwrap_or(0),
             nodes,
         })
     }
 
-    /// Solves L Lᵀ x = P `rhs` Pᵀ-wise (A x = rhs for A = Pᵀ L Lᵀ P) in place, with
-    /// the factor `values` in faer's supernodal layout; `x` and `tmp` are scratch
-    /// (resized here).
-    pub(super) fn solve<T: Real>(&self, values: &[T], rhs: &mut [T], x: &mut Vec<T>, tmp: &mut Vec<T>) {
+    /// Solves L Lᵀ x = `x` in place, with the factor `values` in faer's supernodal
+    /// layout; `tmp` is scratch (resized here).
+    pub(super) fn solve<T: Real>(&self, values: &[T], x: &mut [T], tmp: &mut Vec<T>) {
         assert_eq!(values.len(), self.len_val, "factor of another analysis");
-        let n = rhs.len();
-        x.clear();
-        match &self.forward {
-            Some(f) => x.extend(f.iter().map(|&i| rhs[i])),
-            None => x.extend_from_slice(rhs),
-        }
         tmp.clear();
         tmp.resize(self.longest, T::default());
         match Isa::current().avx2() {
@@ -128,10 +116,6 @@ impl SupernodalSolve {
             #[cfg(target_arch = "x86_64")]
             Some(t) => unsafe { sweeps_avx2(t, self, values, x, tmp) },
             _ => sweeps(self, values, x, tmp),
-        }
-        match &self.inverse {
-            Some(inv) => (0..n).for_each(|i| rhs[i] = x[inv[i]]),
-            None => rhs.copy_from_slice(x),
         }
     }
 }
