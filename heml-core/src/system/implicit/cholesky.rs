@@ -12,9 +12,10 @@
 //! the analysis and the buffers. The pattern is numbered in the fill-reducing order
 //! itself (faer's analysis is handed P A Pᵀ with no ordering of its own), so that
 //! no numeric factorisation permutes the matrix first, as faer does for an analysis
-//! that holds a permutation: the same factor bits, ~14 % less time per liver
-//! factorisation (0.42–0.47 against 0.42–0.56 ms at load 1.5, 2026-11-27); the
-//! solves permute their right-hand side instead (a gather, O(unknowns)).
+//! that holds a permutation: the same factor bits, ~14 % less factorisation time
+//! on the liver (4.3–4.7 against 5.0–5.6 ms for the 12 of `heml bench
+//! --implicit`'s long run, 2026-11-27); the solves permute their right-hand side
+//! instead (a gather, O(unknowns)).
 //!
 //! The factorisation is always supernodal: faer's default picks its simplicial
 //! (column-by-column, scalar) kernel below ~40 flops per factor nonzero, which is
@@ -52,7 +53,7 @@ use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
-use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::{amd, SupernodalThreshold};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::traits::RealField;
 use faer::{Conj, MatMut, Par, Side};
@@ -170,19 +171,25 @@ impl Cholesky {
         let analysis_failed = |e: faer::sparse::FaerError| {
             HemlError::Numerical(format!("sparse Cholesky: symbolic analysis failed: {e:?}"))
         };
-        // the fill-reducing permutation: ours, or faer's AMD from an analysis of
-        // the pattern as numbered
+        // the fill-reducing permutation: ours, or faer's AMD of the pattern as
+        // numbered (the call and options of faer's own analysis with AMD)
         let forward = match ordering.permutation(matrix, dofs)? {
             Some(p) => p,
             None => {
                 let (col_ptr, row_idx, _) = lower_pattern(n, entries.clone());
                 let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-                let amd = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, params)
-                    .map_err(analysis_failed)?;
-                match amd.perm() {
-                    Some(p) => p.arrays().0.to_vec(),
-                    None => (0..n).collect(),
-                }
+                let (mut forward, mut inverse) = (vec![0usize; n], vec![0usize; n]);
+                let mut scratch = MemBuffer::try_new(amd::order_maybe_unsorted_scratch::<usize>(n, row_idx.len()))
+                    .map_err(|_| analysis_failed(faer::sparse::FaerError::OutOfMemory))?;
+                amd::order_maybe_unsorted(
+                    &mut forward,
+                    &mut inverse,
+                    pattern,
+                    params.amd_params,
+                    MemStack::new(&mut scratch),
+                )
+                .map_err(analysis_failed)?;
+                forward
             }
         };
         let mut inverse = vec![0usize; n];
@@ -391,19 +398,39 @@ impl Cholesky {
     }
 }
 
-/// The `entries` (column, row, source), sorted here, in compressed columns:
-/// (column pointers, row indices, sources).
-fn lower_pattern(n: usize, mut entries: Vec<(usize, usize, usize)>) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
-    entries.sort_unstable();
-    let mut col_ptr = vec![0usize; n + 1];
-    for &(c, _, _) in &entries {
-        col_ptr[c + 1] += 1;
+/// The `entries` (column, row, source) in compressed columns, rows ascending in
+/// each: (column pointers, row indices, sources). Columns and rows are below `n`
+/// and no (column, row) comes twice (one entry per matrix coefficient), so two
+/// counting sorts — by row, then stably by column — give the order a sort of the
+/// triples would, in O(entries) instead of O(entries · log entries) (the liver's
+/// ~10⁴ entries: a sort took ~0.5 ms of each `prepare`).
+fn lower_pattern(n: usize, entries: Vec<(usize, usize, usize)>) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+    /// `items` stably ordered by `key` (< n), and the start of each key's run.
+    fn by_key(
+        n: usize,
+        items: &[(usize, usize, usize)],
+        key: fn(&(usize, usize, usize)) -> usize,
+    ) -> (Vec<(usize, usize, usize)>, Vec<usize>) {
+        let mut start = vec![0usize; n + 1];
+        for e in items {
+            start[key(e) + 1] += 1;
+        }
+        for k in 0..n {
+            start[k + 1] += start[k];
+        }
+        let mut next = start.clone();
+        let mut out = vec![(0, 0, 0); items.len()];
+        for e in items {
+            let k = key(e);
+            out[next[k]] = *e;
+            next[k] += 1;
+        }
+        (out, start)
     }
-    for c in 0..n {
-        col_ptr[c + 1] += col_ptr[c];
-    }
-    let row_idx = entries.iter().map(|e| e.1).collect();
-    let src = entries.iter().map(|e| e.2).collect();
+    let (by_row, _) = by_key(n, &entries, |e| e.1);
+    let (sorted, col_ptr) = by_key(n, &by_row, |e| e.0);
+    let row_idx = sorted.iter().map(|e| e.1).collect();
+    let src = sorted.iter().map(|e| e.2).collect();
     (col_ptr, row_idx, src)
 }
 
