@@ -230,11 +230,7 @@ fn assert_names_missing_shared_mesh(flag: &str, dir: &std::path::Path) {
 /// without meshes it names the missing shared mesh and a bad preconditioner name.
 #[test]
 fn bench_implicit_reports_rows_and_names_bad_input() {
-    use heml::io::write_mesh;
-    use heml::mesh::generate::{box_mesh, HexSplit};
-    let dir = support::temp_dir("cli", "implicit");
-    let path = dir.join("block_mm.vtu");
-    write_mesh(&path, &box_mesh([40.0, 40.0, 20.0], [4, 4, 2], HexSplit::Six).unwrap()).unwrap();
+    let (dir, path) = implicit_block("implicit");
     for pc in ["parallel_gauss_seidel", "symmetric_gauss_seidel", "block_jacobi"] {
         let (ok, out, err) = heml(&[
             "bench",
@@ -268,6 +264,17 @@ fn bench_implicit_reports_rows_and_names_bad_input() {
     let (ok, _, err) = heml(&["bench", "--implicit", path.to_str().unwrap(), "--preconditioner", "ilu"]);
     assert!(!ok && err.contains("--preconditioner ilu: expected"), "{err}");
     assert_names_missing_shared_mesh("--implicit", &dir);
+}
+
+/// The `heml bench --implicit` tests' mesh: a 40 × 40 × 20 mm block of 192 tets
+/// written as `block_mm.vtu` into a fresh folder named after `tag`: (folder, file).
+fn implicit_block(tag: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    use heml::io::write_mesh;
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = support::temp_dir("cli", tag);
+    let path = dir.join("block_mm.vtu");
+    write_mesh(&path, &box_mesh([40.0, 40.0, 20.0], [4, 4, 2], HexSplit::Six).unwrap()).unwrap();
+    (dir, path)
 }
 
 /// A long-run row of `heml bench --implicit` has its three phases and the whole
@@ -307,11 +314,7 @@ fn assert_long_run_ratio(row: &str, dt_ms: f64) {
 /// the option and the range.
 #[test]
 fn bench_implicit_steps_at_the_given_dt() {
-    use heml::io::write_mesh;
-    use heml::mesh::generate::{box_mesh, HexSplit};
-    let dir = support::temp_dir("cli", "implicit_dt");
-    let path = dir.join("block_mm.vtu");
-    write_mesh(&path, &box_mesh([40.0, 40.0, 20.0], [4, 4, 2], HexSplit::Six).unwrap()).unwrap();
+    let (_dir, path) = implicit_block("implicit_dt");
     let (ok, out, err) = heml(&[
         "bench",
         "--implicit",
