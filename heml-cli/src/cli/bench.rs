@@ -283,7 +283,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         let preconditioner = super::bench_implicit::preconditioner(&args.preconditioner)?;
         let direct =
             super::bench_implicit::Direct::parse(&args.cholesky_ordering, &args.factor_precision, !args.no_cg)?;
-        let dt = super::bench_implicit::step(args.implicit_dt)?;
+        let dt = super::bench_implicit::checked_dt(args.implicit_dt)?;
         return super::bench_implicit::run(&meshes, preconditioner, &direct, dt, threads, placement);
     }
     if let Some(energy) = &args.energy {

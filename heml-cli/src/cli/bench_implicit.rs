@@ -138,7 +138,7 @@ fn ms(dt: f64) -> String {
 }
 
 /// `--implicit-dt`: the implicit step in seconds, checked to lie in (0, [`MAX_DT`]].
-pub fn step(dt: f64) -> heml::Result<f64> {
+pub fn checked_dt(dt: f64) -> heml::Result<f64> {
     if dt.is_finite() && dt > 0.0 && dt <= MAX_DT {
         Ok(dt)
     } else {
@@ -543,7 +543,7 @@ pub fn run(
                 let phase = |f: fn(&PhaseTimes) -> f64| 1e3 * median(f);
                 let factorizations: usize = run.phases.iter().map(|p| p.factorizations).sum();
                 let rate = dt / m;
-                let mean = run.times.iter().sum::<f64>() / run.times.len() as f64;
+                let mean = percentiles(&run.times).3;
                 outln!(
                     "{:<30} {:>3} {:<11} {:<8} {:>7.2} [{:>6.2}–{:>6.2}] {:>6.2} {:>6.1} {:>4} [{}–{}] ({:.0e}) {:>11} {:>5.1}/{:>5.1}/{:>4.1}/{:>5.1}/{:>5.1} {:>9.3} {:>6}: {:.2e} s, {:.3} [{:.3}–{:.3}], {:.4} {:>7.2}× ({:.2}×)",
                     label,

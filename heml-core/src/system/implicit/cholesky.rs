@@ -173,10 +173,16 @@ impl Cholesky {
         };
         // the fill-reducing permutation: ours, or faer's AMD of the pattern as
         // numbered (the call and options of faer's own analysis with AMD)
-        let forward = match ordering.permutation(matrix, dofs)? {
-            Some(p) => p,
+        let (forward, inverse) = match ordering.permutation(matrix, dofs)? {
+            Some(forward) => {
+                let mut inverse = vec![0usize; n];
+                for (k, &d) in forward.iter().enumerate() {
+                    inverse[d] = k;
+                }
+                (forward, inverse)
+            }
             None => {
-                let (col_ptr, row_idx, _) = lower_pattern(n, entries.clone());
+                let (col_ptr, row_idx, _) = compressed_columns(n, entries.clone());
                 let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
                 let (mut forward, mut inverse) = (vec![0usize; n], vec![0usize; n]);
                 let mut scratch = MemBuffer::try_new(amd::order_maybe_unsorted_scratch::<usize>(n, row_idx.len()))
@@ -189,13 +195,9 @@ impl Cholesky {
                     MemStack::new(&mut scratch),
                 )
                 .map_err(analysis_failed)?;
-                forward
+                (forward, inverse)
             }
         };
-        let mut inverse = vec![0usize; n];
-        for (k, &d) in forward.iter().enumerate() {
-            inverse[d] = k;
-        }
         // the lower triangle of P A Pᵀ: analysed and factored as numbered, so that
         // no factorisation permutes the matrix again (faer would, each time)
         for e in &mut entries {
@@ -205,11 +207,11 @@ impl Cholesky {
         // (faer's analysis without an ordering reads the upper triangle, whatever
         // side it is told: so the transposed pattern)
         let upper: Vec<(usize, usize, usize)> = entries.iter().map(|&(c, r, s)| (r, c, s)).collect();
-        let (upper_ptr, upper_idx, _) = lower_pattern(n, upper);
+        let (upper_ptr, upper_idx, _) = compressed_columns(n, upper);
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &upper_ptr, None, &upper_idx);
         let symbolic = factorize_symbolic_cholesky(pattern, Side::Upper, SymmetricOrdering::Identity, params)
             .map_err(analysis_failed)?;
-        let (col_ptr, row_idx, src) = lower_pattern(n, entries);
+        let (col_ptr, row_idx, src) = compressed_columns(n, entries);
         let fill = symbolic.len_val();
         if fill > max_nonzeros {
             return Err(HemlError::Invalid(format!(
@@ -404,7 +406,7 @@ impl Cholesky {
 /// counting sorts — by row, then stably by column — give the order a sort of the
 /// triples would, in O(entries) instead of O(entries · log entries) (the liver's
 /// ~10⁴ entries: a sort took ~0.5 ms of each `prepare`).
-fn lower_pattern(n: usize, entries: Vec<(usize, usize, usize)>) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+fn compressed_columns(n: usize, entries: Vec<(usize, usize, usize)>) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
     /// `items` stably ordered by `key` (< n), and the start of each key's run.
     fn by_key(
         n: usize,
@@ -552,7 +554,7 @@ mod tests {
                     entries.push((a.min(b), a.max(b), 0));
                 }
             }
-            let (col_ptr, row_idx, _) = lower_pattern(n, entries);
+            let (col_ptr, row_idx, _) = compressed_columns(n, entries);
             let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
             let order = ordering.permutation(m, dofs).unwrap();
             let params = CholeskySymbolicParams {
