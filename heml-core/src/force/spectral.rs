@@ -46,7 +46,8 @@ pub fn sym_eigen(a: &Matrix3<f64>) -> ([f64; 3], [Vec3; 3]) {
     // the eigenvalues of bn are the roots of t³ − 3t − 2r; r ≥ 0: the largest is the
     // separated one, else the smallest (minus the largest root for −r)
     let r = (0.5 * bn.determinant()).clamp(-1.0, 1.0);
-    let beta = largest_cubic_root(r.abs()).copysign(if r >= 0.0 { 1.0 } else { -1.0 });
+    let root = largest_cubic_root(r.abs());
+    let beta = if r >= 0.0 { root } else { -root };
     let n0 = separated_vector(&bn, beta);
     let (u, v) = complement(&n0);
     // the 2×2 problem in span(u, v), diagonalised by one Jacobi rotation

@@ -643,7 +643,8 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
                 first_bad.fetch_min(k, std::sync::atomic::Ordering::Relaxed);
             }
         });
-        if let Some(k) = Some(first_bad.into_inner()).filter(|&k| k != usize::MAX) {
+        let k = first_bad.into_inner();
+        if k != usize::MAX {
             return Err(HemlError::Numerical(format!(
                 "non-finite tangent stiffness in tet {} (nodes {:?})",
                 self.ids[k], self.tets[k]
