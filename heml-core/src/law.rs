@@ -399,4 +399,19 @@ pub trait StretchLaw: MaterialInfo {
     fn dw(&self, e: [f64; 3], j: f64, ext: Option<f64>) -> StretchDerivs;
     /// The second derivatives at `e`, `j`.
     fn d2w(&self, e: [f64; 3], j: f64, ext: Option<f64>) -> StretchSecond;
+
+    /// [`Self::dw`] at `N` lanes at once (squared stretches `e[i][lane]`, `j[lane]`,
+    /// `ext[lane]`), equal to it lane by lane, which the default calls. The batch
+    /// kernels call it for their four tets: a law whose `dw` is straight-line
+    /// arithmetic (the branch-free functions of [`crate::force::fastmath`]) overrides
+    /// it with a loop over the lanes that vectorises, as Ogden's does.
+    /// (`heml_materials::Ogden`'s unit tests check the two agree to the bit.)
+    #[inline(always)]
+    fn dw_lanes<const N: usize>(&self, e: &[[f64; N]; 3], j: &[f64; N], ext: &[Option<f64>; N]) -> [StretchDerivs; N] {
+        let mut out = [StretchDerivs::default(); N];
+        for l in 0..N {
+            out[l] = self.dw([e[0][l], e[1][l], e[2][l]], j[l], ext[l]);
+        }
+        out
+    }
 }

@@ -1,3 +1,4 @@
+use heml_core::force::fastmath;
 use heml_core::law::{
     MaterialInfo, Moduli, OpCount, ParamInfo, SmallStrain, StretchDerivs, StretchLaw, StretchSecond, STRETCH_PAIRS,
 };
@@ -111,38 +112,35 @@ heml_core::__private::inventory::submit! {
 
 /// Where the J-dependence of a tet is evaluated: J itself, or J0 when the J0
 /// extension applies, with its logarithm — taken once per tet for the volumetric term
-/// and every term's J^(−α/3).
+/// and every term's J^(−α/3) — and the offset J − J0 of the Taylor polynomial (0
+/// without the extension, where the polynomial is then f itself: f + 0·(…) = f).
 #[derive(Debug, Clone, Copy)]
 struct JPoint {
-    j: f64,
-    ext: Option<f64>,
     /// The evaluation point, J or J0, and its logarithm.
     x: f64,
     ln_x: f64,
+    /// J − J0 when extended, else 0.
+    d: f64,
 }
 
 impl JPoint {
+    #[inline(always)]
     fn new(j: f64, ext: Option<f64>) -> Self {
         let x = ext.unwrap_or(j);
         JPoint {
-            j,
-            ext,
             x,
-            ln_x: x.ln(),
+            ln_x: fastmath::ln(x),
+            d: ext.map_or(0.0, |j0| j - j0),
         }
     }
 
-    /// f(J) and its first two derivatives from `at(x, ln x)`, or (extended) those of
-    /// the second-order Taylor polynomial of f about J0.
-    fn taylor(&self, at: impl Fn(f64, f64) -> [f64; 3]) -> [f64; 3] {
-        let [f, f1, f2] = at(self.x, self.ln_x);
-        match self.ext {
-            None => [f, f1, f2],
-            Some(j0) => {
-                let d = self.j - j0;
-                [f + d * (f1 + 0.5 * d * f2), f1 + d * f2, f2]
-            }
-        }
+    /// f(J) and its first two derivatives from `[f, f1, f2]` at x: those of f
+    /// itself, or (extended) of its second-order Taylor polynomial about J0 — one
+    /// expression for both, without a branch, so that the lanes of a batch vectorise.
+    #[inline(always)]
+    fn taylor(&self, [f, f1, f2]: [f64; 3]) -> [f64; 3] {
+        let d = self.d;
+        [f + d * (f1 + 0.5 * d * f2), f1 + d * f2, f2]
     }
 }
 
@@ -170,20 +168,75 @@ impl Ogden {
         .filter(|&(mu, alpha)| mu != 0.0 && alpha != 0.0)
     }
 
-    /// J^(−α/3) and its derivatives (extended below J0).
+    /// J^(−α/3) and its derivatives (extended below J0), as exp(b·ln J) from the
+    /// shared logarithm.
+    #[inline(always)]
     fn jpow(alpha: f64, at: &JPoint) -> [f64; 3] {
         let b = -alpha / 3.0;
-        at.taylor(|x, ln_x| {
-            // as exp(b·ln J), the logarithm shared (see `dw`)
-            let f = (b * ln_x).exp();
-            [f, b * f / x, b * (b - 1.0) * f / (x * x)]
-        })
+        let f = fastmath::exp(b * at.ln_x);
+        let x = at.x;
+        at.taylor([f, b * f / x, b * (b - 1.0) * f / (x * x)])
     }
 
     /// κ/2·(ln J)² and its derivatives (extended below J0).
+    #[inline(always)]
     fn volumetric(&self, at: &JPoint) -> [f64; 3] {
-        let k = self.kappa;
-        at.taylor(|x, l| [0.5 * k * l * l, k * l / x, k * (1.0 - l) / (x * x)])
+        let (k, x, l) = (self.kappa, at.x, at.ln_x);
+        at.taylor([0.5 * k * l * l, k * l / x, k * (1.0 - l) / (x * x)])
+    }
+
+    /// [`StretchLaw::dw`] at `N` lanes, the terms outside and the lanes inside (so
+    /// that the loops over the lanes are straight-line code that vectorises): the
+    /// same operations per lane whatever `N`, so [`StretchLaw::dw`] (`N` = 1) and
+    /// [`StretchLaw::dw_lanes`] give the same bits. The powers e_i^(a−1) of every
+    /// term are exp((a − 1)·ln e_i) with the three logarithms taken once, and J^(−α/3)
+    /// comes from the one ln J: relative error ≤ (1 + |(a − 1) ln e_i|) ulp (the
+    /// branch-free `ln` and `exp` of `fastmath`, each within about an ulp).
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // lanes in lock-step: what vectorises
+    fn dw_n<const N: usize>(&self, e: &[[f64; N]; 3], j: &[f64; N], ext: &[Option<f64>; N]) -> [StretchDerivs; N] {
+        let mut at = [JPoint {
+            x: 1.0,
+            ln_x: 0.0,
+            d: 0.0,
+        }; N];
+        let mut ln_e = [[0.0; N]; 3];
+        let (mut w, mut de, mut dj) = ([0.0; N], [[0.0; N]; 3], [0.0; N]);
+        for l in 0..N {
+            at[l] = JPoint::new(j[l], ext[l]);
+            for i in 0..3 {
+                ln_e[i][l] = fastmath::ln(e[i][l]);
+            }
+            let [u, u1, _] = self.volumetric(&at[l]);
+            (w[l], dj[l]) = (u, u1);
+        }
+        for (mu, alpha) in self.terms() {
+            let (a1, c, half) = (0.5 * alpha - 1.0, mu / alpha, 0.5 * mu);
+            for l in 0..N {
+                let [f, f1, _] = Self::jpow(alpha, &at[l]);
+                // e^(a−1), then e^a = e·e^(a−1)
+                let pm = [
+                    fastmath::exp(a1 * ln_e[0][l]),
+                    fastmath::exp(a1 * ln_e[1][l]),
+                    fastmath::exp(a1 * ln_e[2][l]),
+                ];
+                let s = e[0][l] * pm[0] + e[1][l] * pm[1] + e[2][l] * pm[2];
+                w[l] += c * (f * s - 3.0);
+                dj[l] += c * f1 * s;
+                for i in 0..3 {
+                    de[i][l] += half * f * pm[i];
+                }
+            }
+        }
+        let mut out = [StretchDerivs::default(); N];
+        for l in 0..N {
+            out[l] = StretchDerivs {
+                w: w[l],
+                de: [de[0][l], de[1][l], de[2][l]],
+                dj: dj[l],
+            };
+        }
+        out
     }
 }
 
@@ -199,32 +252,13 @@ impl StretchLaw for Ogden {
     };
 
     fn dw(&self, e: [f64; 3], j: f64, ext: Option<f64>) -> StretchDerivs {
-        let at = JPoint::new(j, ext);
-        let [u, u1, _] = self.volumetric(&at);
-        let mut out = StretchDerivs {
-            w: u,
-            de: [0.0; 3],
-            dj: u1,
-        };
-        // the powers e_i^(a−1) of every term as exp((a − 1)·ln e_i), the three
-        // logarithms taken once (and J^(−α/3) from the one ln J of `at`): a `powf` costs several times an `exp`, and the
-        // force pass of a three-term law took twelve per tet (~30 % of its time).
-        // Relative error ≤ (1 + |(a − 1) ln e_i|) ulp, against `powf`'s one.
-        let ln_e = e.map(f64::ln);
-        for (mu, alpha) in self.terms() {
-            let a = 0.5 * alpha;
-            let [f, f1, _] = Self::jpow(alpha, &at);
-            // e^(a−1), then e^a = e·e^(a−1)
-            let pm = ln_e.map(|l| ((a - 1.0) * l).exp());
-            let s: f64 = (0..3).map(|i| e[i] * pm[i]).sum();
-            let c = mu / alpha;
-            out.w += c * (f * s - 3.0);
-            out.dj += c * f1 * s;
-            for (de, p) in out.de.iter_mut().zip(pm) {
-                *de += 0.5 * mu * f * p;
-            }
-        }
-        out
+        let [d] = self.dw_n(&[[e[0]], [e[1]], [e[2]]], &[j], &[ext]);
+        d
+    }
+
+    #[inline(always)]
+    fn dw_lanes<const N: usize>(&self, e: &[[f64; N]; 3], j: &[f64; N], ext: &[Option<f64>; N]) -> [StretchDerivs; N] {
+        self.dw_n(e, j, ext)
     }
 
     fn d2w(&self, e: [f64; 3], j: f64, ext: Option<f64>) -> StretchSecond {
@@ -234,20 +268,24 @@ impl StretchLaw for Ogden {
             djj: u2,
             ..StretchSecond::default()
         };
-        let ln_e = e.map(f64::ln);
+        let ln_e = [fastmath::ln(e[0]), fastmath::ln(e[1]), fastmath::ln(e[2])];
         for (mu, alpha) in self.terms() {
-            let a = 0.5 * alpha;
+            let a1 = 0.5 * alpha - 1.0;
             let [f, f1, f2] = Self::jpow(alpha, &at);
             // as in `dw`, the same bits
-            let pm = ln_e.map(|l| ((a - 1.0) * l).exp());
-            let s: f64 = (0..3).map(|i| e[i] * pm[i]).sum();
+            let pm = [
+                fastmath::exp(a1 * ln_e[0]),
+                fastmath::exp(a1 * ln_e[1]),
+                fastmath::exp(a1 * ln_e[2]),
+            ];
+            let s = e[0] * pm[0] + e[1] * pm[1] + e[2] * pm[2];
             out.djj += mu / alpha * f2 * s;
             for i in 0..3 {
-                out.dee[i][i] += 0.5 * mu * f * (a - 1.0) * pm[i] / e[i];
+                out.dee[i][i] += 0.5 * mu * f * a1 * pm[i] / e[i];
                 out.dej[i] += 0.5 * mu * f1 * pm[i];
             }
             for (q, &(i, k)) in STRETCH_PAIRS.iter().enumerate() {
-                out.dd[q] += 0.5 * mu * f * power_divided_difference(e[i], e[k], a - 1.0);
+                out.dd[q] += 0.5 * mu * f * power_divided_difference(e[i], e[k], a1);
             }
         }
         out
@@ -257,6 +295,37 @@ impl StretchLaw for Ogden {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The batch kernels' four-lane law is the plain one lane by lane, to the bit
+    /// (the plain and batched force paths of a tet then agree exactly): Treloar's
+    /// three terms, lanes at and below J0 (extended), stretched and compressed.
+    #[test]
+    fn lanes_equal_the_plain_law_bit_for_bit() {
+        let law = Ogden {
+            mu1: 0.63e6,
+            alpha1: 1.3,
+            mu2: 0.0012e6,
+            alpha2: 5.0,
+            mu3: -0.01e6,
+            alpha3: -2.0,
+            kappa: 2e8,
+        };
+        let e = [[1.0, 1.44, 0.3, 2.5], [1.0, 0.8, 0.3, 0.04], [1.0, 0.81, 1.7, 1.1]];
+        let j = [1.0, 0.97, 0.2, -0.1];
+        let ext = [None, None, Some(0.25), Some(0.25)];
+        let d = law.dw_lanes(&e, &j, &ext);
+        for l in 0..4 {
+            let plain = law.dw([e[0][l], e[1][l], e[2][l]], j[l], ext[l]);
+            assert!(
+                plain.w.is_finite() && plain.de.iter().all(|x| x.is_finite()),
+                "lane {l}"
+            );
+            assert_eq!(d[l], plain, "lane {l}");
+            for (a, b) in [(d[l].w, plain.w), (d[l].dj, plain.dj)] {
+                assert_eq!(a.to_bits(), b.to_bits(), "lane {l}");
+            }
+        }
+    }
 
     #[test]
     fn divided_difference_is_accurate_near_and_at_coincidence() {

@@ -19,49 +19,147 @@
 //! library call); with products by reciprocals in place of the divisions, this cut
 //! the Ogden force pass by about a tenth (the decomposition runs for every tet of a
 //! stretch law's force pass and of a projected invariant tangent).
+//!
+//! The decomposition has no branch: every special case is computed on safe values
+//! and selected, so one function serves a single matrix ([`sym_eigen`]) and the four
+//! tets of a batch ([`sym_eigen_lanes`], whose loop over the lanes vectorises) with
+//! the same bits.
 
 use crate::Vec3;
 use nalgebra::Matrix3;
 
 /// Eigenvalues (in no particular order) and orthonormal eigenvectors of the symmetric
-/// matrix `a`: `a·n[i] = e[i]·n[i]`.
+/// matrix `a`: `a·n[i] = e[i]·n[i]`. The same arithmetic as each lane of
+/// [`sym_eigen_lanes`] (one branch-free function serves both), so a tet gets the
+/// same bits from the plain and the batched kernels.
 pub fn sym_eigen(a: &Matrix3<f64>) -> ([f64; 3], [Vec3; 3]) {
-    let scale = a.amax();
-    if scale == 0.0 || !scale.is_finite() {
-        let e = if scale == 0.0 { 0.0 } else { f64::NAN };
-        return ([e; 3], [Vec3::x(), Vec3::y(), Vec3::z()]);
+    let (e, n) = eigen_sym([a[(0, 0)], a[(0, 1)], a[(0, 2)], a[(1, 1)], a[(1, 2)], a[(2, 2)]]);
+    (e, n.map(Vec3::from))
+}
+
+/// [`sym_eigen`] of `N` symmetric matrices at once, given by their upper triangles
+/// per lane (`a[k][lane]`, k over `[xx, xy, xz, yy, yz, zz]`): eigenvalues
+/// `e[i][lane]` and eigenvectors `n[i][component][lane]`, each lane the bits
+/// [`sym_eigen`] gives its matrix. The decomposition has no branch (its special cases
+/// are selects), so the loop over the lanes runs four matrices per vector instruction
+/// in the AVX2 block driver: its one long chain of dependent divisions and square
+/// roots is paid once per four tets (the stretch kernels), where a tet at a time paid
+/// it per tet.
+///
+/// ```
+/// use heml_core::force::spectral::{sym_eigen, sym_eigen_lanes};
+/// use nalgebra::Matrix3;
+///
+/// let m = [Matrix3::new(2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 5.0), Matrix3::identity()];
+/// let a = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)].map(|(r, c)| [m[0][(r, c)], m[1][(r, c)]]);
+/// let (e, n) = sym_eigen_lanes(&a);
+/// let (e0, n0) = sym_eigen(&m[0]);
+/// assert_eq!([e[0][0], e[1][0], e[2][0]], e0);
+/// assert_eq!(n[1][2][0], n0[1][2]);
+/// let mut values = e0;
+/// values.sort_by(f64::total_cmp);
+/// assert!((values[0] - 1.0).abs() < 1e-14 && (values[1] - 3.0).abs() < 1e-14 && (values[2] - 5.0).abs() < 1e-14);
+/// assert_eq!([e[0][1], e[1][1], e[2][1]], [1.0; 3]);
+/// ```
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // lanes in lock-step: what vectorises
+pub fn sym_eigen_lanes<const N: usize>(a: &[[f64; N]; 6]) -> ([[f64; N]; 3], [[[f64; N]; 3]; 3]) {
+    let mut e = [[0.0; N]; 3];
+    let mut n = [[[0.0; N]; 3]; 3];
+    for l in 0..N {
+        let (el, nl) = eigen_sym([a[0][l], a[1][l], a[2][l], a[3][l], a[4][l], a[5][l]]);
+        for i in 0..3 {
+            e[i][l] = el[i];
+            for c in 0..3 {
+                n[i][c][l] = nl[i][c];
+            }
+        }
     }
-    // products with reciprocals rather than nine divisions each: this decomposition
-    // runs for every tet of a stretch law's force pass and of a projected tangent
-    // update, and its divisions were a third of its time (one chain of latencies)
-    let s = a * (1.0 / scale);
-    let q = s.trace() * (1.0 / 3.0);
-    let b = s - Matrix3::identity() * q;
-    let p2 = b.norm_squared() * (1.0 / 6.0);
-    if p2 == 0.0 {
-        return ([q * scale; 3], [Vec3::x(), Vec3::y(), Vec3::z()]);
+    (e, n)
+}
+
+/// `if c { a } else { b }` on computed values: a select, not a branch.
+#[inline(always)]
+fn pick(c: bool, a: f64, b: f64) -> f64 {
+    if c {
+        a
+    } else {
+        b
     }
-    let p = p2.sqrt();
-    let bn = b * (1.0 / p);
+}
+
+/// u × v.
+#[inline(always)]
+fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
+/// u · v.
+#[inline(always)]
+fn dot(u: [f64; 3], v: [f64; 3]) -> f64 {
+    u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+}
+
+/// The decomposition of the symmetric matrix with upper triangle `m` (`[xx, xy, xz,
+/// yy, yz, zz]`), written without a branch: every special case — a zero or
+/// non-finite matrix, a multiple of the identity, the choice among the cross
+/// products and of the complement, a vanishing rotation — is computed on safe
+/// values and selected.
+#[inline(always)]
+fn eigen_sym(m: [f64; 6]) -> ([f64; 3], [[f64; 3]; 3]) {
+    let finite = m.iter().fold(true, |ok, x| ok & x.is_finite());
+    let scale = m.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+    // products with reciprocals rather than divisions: this decomposition runs for
+    // every tet of a stretch law's force pass and of a projected tangent update, and
+    // its divisions were a third of its time (one chain of latencies)
+    let inv = 1.0 / pick(finite & (scale > 0.0), scale, 1.0);
+    let s = [m[0] * inv, m[1] * inv, m[2] * inv, m[3] * inv, m[4] * inv, m[5] * inv];
+    let q = (s[0] + s[3] + s[5]) * (1.0 / 3.0);
+    let (b00, b11, b22) = (s[0] - q, s[3] - q, s[5] - q);
+    let p2 = (b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (s[1] * s[1] + s[2] * s[2] + s[4] * s[4])) * (1.0 / 6.0);
+    // a multiple of the identity (the zero matrix included): no deviator
+    let round = p2 <= 0.0;
+    let p = pick(round, 1.0, p2.sqrt());
+    let ip = 1.0 / p;
+    let bn = [b00 * ip, s[1] * ip, s[2] * ip, b11 * ip, s[4] * ip, b22 * ip];
+    let [n00, n01, n02, n11, n12, n22] = bn;
+    let det = n00 * (n11 * n22 - n12 * n12) - n01 * (n01 * n22 - n12 * n02) + n02 * (n01 * n12 - n11 * n02);
     // the eigenvalues of bn are the roots of t³ − 3t − 2r; r ≥ 0: the largest is the
     // separated one, else the smallest (minus the largest root for −r)
-    let r = (0.5 * bn.determinant()).clamp(-1.0, 1.0);
+    let r = (0.5 * det).clamp(-1.0, 1.0);
     let root = largest_cubic_root(r.abs());
-    let beta = if r >= 0.0 { root } else { -root };
-    let n0 = separated_vector(&bn, beta);
-    let (u, v) = complement(&n0);
+    let beta = pick(r >= 0.0, root, -root);
+    let n0 = separated_vector(bn, beta);
+    let (u, v) = complement(n0);
     // the 2×2 problem in span(u, v), diagonalised by one Jacobi rotation
-    let (muu, muv, mvv) = (u.dot(&(bn * u)), u.dot(&(bn * v)), v.dot(&(bn * v)));
-    let (c, sn) = jacobi_rotation(muu, muv, mvv);
-    let n1 = u * c - v * sn;
-    let n2 = u * sn + v * c;
-    let rayleigh = |n: &Vec3| n.dot(&(bn * n));
-    let e = [
-        (q + p * rayleigh(&n0)) * scale,
-        (q + p * rayleigh(&n1)) * scale,
-        (q + p * rayleigh(&n2)) * scale,
+    let times = |x: [f64; 3]| {
+        [
+            n00 * x[0] + n01 * x[1] + n02 * x[2],
+            n01 * x[0] + n11 * x[1] + n12 * x[2],
+            n02 * x[0] + n12 * x[1] + n22 * x[2],
+        ]
+    };
+    let (bu, bv) = (times(u), times(v));
+    let (c, sn) = jacobi_rotation(dot(u, bu), dot(u, bv), dot(v, bv));
+    let n1 = [u[0] * c - v[0] * sn, u[1] * c - v[1] * sn, u[2] * c - v[2] * sn];
+    let n2 = [u[0] * sn + v[0] * c, u[1] * sn + v[1] * c, u[2] * sn + v[2] * c];
+    let value = |n: [f64; 3]| {
+        let e = (q + p * dot(n, times(n))) * scale;
+        pick(finite, pick(round, q * scale, e), f64::NAN)
+    };
+    let e = [value(n0), value(n1), value(n2)];
+    // the axes for a multiple of the identity and a non-finite matrix
+    let axes = !finite | round;
+    let n = [
+        [pick(axes, 1.0, n0[0]), pick(axes, 0.0, n0[1]), pick(axes, 0.0, n0[2])],
+        [pick(axes, 0.0, n1[0]), pick(axes, 1.0, n1[1]), pick(axes, 0.0, n1[2])],
+        [pick(axes, 0.0, n2[0]), pick(axes, 0.0, n2[1]), pick(axes, 1.0, n2[2])],
     ];
-    (e, [n0, n1, n2])
+    (e, n)
 }
 
 /// The largest root of t³ − 3t − 2ρ for ρ ∈ [0, 1], which lies in [√3, 2]: the
@@ -86,57 +184,68 @@ fn largest_cubic_root(rho: f64) -> f64 {
     t
 }
 
-/// The unit eigenvector of the separated eigenvalue `beta` of `bn`: the largest
-/// cross product of two rows of bn − βI (which has rank 2, its null space the vector).
-fn separated_vector(bn: &Matrix3<f64>, beta: f64) -> Vec3 {
-    let m = bn - Matrix3::identity() * beta;
-    let rows = [m.row(0).transpose(), m.row(1).transpose(), m.row(2).transpose()];
+/// The unit eigenvector of the separated eigenvalue `beta` of `bn` (upper
+/// triangle): the largest cross product of two rows of bn − βI (which has rank 2, its
+/// null space the vector); the x axis when all three vanish.
+#[inline(always)]
+fn separated_vector(bn: [f64; 6], beta: f64) -> [f64; 3] {
+    let [m00, m01, m02, m11, m12, m22] = bn;
+    let rows = [[m00 - beta, m01, m02], [m01, m11 - beta, m12], [m02, m12, m22 - beta]];
     let cands = [
-        rows[0].cross(&rows[1]),
-        rows[0].cross(&rows[2]),
-        rows[1].cross(&rows[2]),
+        cross(rows[0], rows[1]),
+        cross(rows[0], rows[2]),
+        cross(rows[1], rows[2]),
     ];
-    let norms = cands.map(|c| c.norm_squared());
-    let k = if norms[0] >= norms[1] && norms[0] >= norms[2] {
-        0
-    } else if norms[1] >= norms[2] {
-        1
-    } else {
-        2
-    };
-    if norms[k] > 0.0 {
-        cands[k] * (1.0 / norms[k].sqrt())
-    } else {
-        Vec3::x()
-    }
+    let norms = [
+        dot(cands[0], cands[0]),
+        dot(cands[1], cands[1]),
+        dot(cands[2], cands[2]),
+    ];
+    // the first of the largest, as selects
+    let first = (norms[0] >= norms[1]) & (norms[0] >= norms[2]);
+    let second = !first & (norms[1] >= norms[2]);
+    let best = |k: usize| pick(first, cands[0][k], pick(second, cands[1][k], cands[2][k]));
+    let norm = pick(first, norms[0], pick(second, norms[1], norms[2]));
+    let some = norm > 0.0;
+    let inv = 1.0 / pick(some, norm, 1.0).sqrt();
+    [
+        pick(some, best(0) * inv, 1.0),
+        pick(some, best(1) * inv, 0.0),
+        pick(some, best(2) * inv, 0.0),
+    ]
 }
 
 /// Two unit vectors completing the unit `w` to an orthonormal basis.
-fn complement(w: &Vec3) -> (Vec3, Vec3) {
-    let u = if w.x.abs() > w.y.abs() {
-        Vec3::new(-w.z, 0.0, w.x) * (1.0 / (w.x * w.x + w.z * w.z).sqrt())
-    } else {
-        Vec3::new(0.0, w.z, -w.y) * (1.0 / (w.y * w.y + w.z * w.z).sqrt())
-    };
-    (u, w.cross(&u))
+#[inline(always)]
+fn complement(w: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+    let x_major = w[0].abs() > w[1].abs();
+    // (−w_z, 0, w_x) or (0, w_z, −w_y), whichever is longer
+    let u = [
+        pick(x_major, -w[2], 0.0),
+        pick(x_major, 0.0, w[2]),
+        pick(x_major, w[0], -w[1]),
+    ];
+    let inv = 1.0 / dot(u, u).sqrt();
+    let u = [u[0] * inv, u[1] * inv, u[2] * inv];
+    (u, cross(w, u))
 }
 
 /// (cos θ, sin θ) of the rotation that diagonalises [[a, b], [b, d]] (stable form,
 /// Golub & Van Loan §8.5.2): the columns (c, −s) and (s, c) are its eigenvectors.
+/// (1, 0) when b = 0; a diagonal with a = d turns by 45°.
+#[inline(always)]
 fn jacobi_rotation(a: f64, b: f64, d: f64) -> (f64, f64) {
-    if b == 0.0 {
-        return (1.0, 0.0);
-    }
-    let tau = (d - a) / (2.0 * b);
-    let t = tau.signum() / (tau.abs() + (1.0 + tau * tau).sqrt());
-    let t = if tau == 0.0 { 1.0 } else { t };
+    let tau = (d - a) / (2.0 * pick(b == 0.0, 1.0, b));
+    let t = 1.0f64.copysign(tau) / (tau.abs() + (1.0 + tau * tau).sqrt());
+    let t = pick(tau == 0.0, 1.0, t);
     let c = 1.0 / (1.0 + t * t).sqrt();
-    (c, t * c)
+    (pick(b == 0.0, 1.0, c), pick(b == 0.0, 0.0, t * c))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::force::assembly::LANES;
     use nalgebra::{Rotation3, Unit};
 
     /// ‖A n − e n‖ and ‖NᵀN − I‖ of the decomposition of `a`, relative to ‖A‖.
@@ -228,6 +337,54 @@ mod tests {
             assert!((got * got * got - 3.0 * got - 2.0 * rho).abs() < 1e-14, "{rho}: {got}");
         }
         assert!(worst < 4.5e-16, "worst relative difference {worst:e}");
+    }
+
+    /// The batched decomposition is the plain one lane by lane, to the bit: the
+    /// batched and plain stretch kernels rely on it (same forces whichever path a
+    /// tet takes). Random matrices with special ones in some lanes (zero, identity
+    /// multiples, repeated eigenvalues, a NaN).
+    #[test]
+    fn lanes_equal_the_plain_decomposition_bit_for_bit() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let special = [
+            Matrix3::zeros(),
+            Matrix3::identity() * 2.5,
+            rotated([2.0, 1.0, 1.0], Vec3::new(1.0, 2.0, 3.0), 0.7),
+            rotated([0.5, 0.5, 3.0], Vec3::z(), 0.0),
+            Matrix3::from_element(f64::NAN),
+        ];
+        for round in 0..500 {
+            let mats: [Matrix3<f64>; LANES] = std::array::from_fn(|l| {
+                if (round + l) % 7 == 0 {
+                    special[(round / 7 + l) % special.len()]
+                } else {
+                    let m = Matrix3::from_fn(|_, _| rnd());
+                    m.transpose() * m
+                }
+            });
+            let mut a = [[0.0; LANES]; 6];
+            for (l, m) in mats.iter().enumerate() {
+                for (k, (r, c)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)].into_iter().enumerate() {
+                    a[k][l] = m[(r, c)];
+                }
+            }
+            let (e, n) = sym_eigen_lanes(&a);
+            for (l, m) in mats.iter().enumerate() {
+                let (pe, pn) = sym_eigen(m);
+                for i in 0..3 {
+                    assert_eq!(e[i][l].to_bits(), pe[i].to_bits(), "lane {l} of round {round}: {m}");
+                    for c in 0..3 {
+                        assert_eq!(n[i][c][l].to_bits(), pn[i][c].to_bits(), "lane {l} of round {round}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -15,15 +15,17 @@
 //! **P1.** F = Ds·Dm⁻¹, C = FᵀF, P = 2F·∂w/∂C + ∂w/∂J·cof F, f = −Vol·P·Dm⁻ᵀ: the
 //! oracle HEML is tested against (same law, same eigensolver, independent path).
 //!
-//! Both batch kernels run the plain kernel lane by lane: the eigensolver branches, so
-//! nothing is gained by writing it across lanes (see the README's benchmark).
+//! Both batch kernels decompose their four tets' C together (the eigensolver has no
+//! branch, so its lanes vectorise: [`super::spectral::sym_eigen_lanes`]) and run the
+//! rest of the plain kernel lane by lane; the plain kernel decomposes with the same
+//! arithmetic, so both paths give a tet the same bits.
 
 use super::assembly::{LaneForces, LanePoints, LANES};
 use super::field::{Formulation, TetField};
 use super::heml::{scatter_links, volume_terms};
 use super::kernel::TetKernel;
 use super::p1::cofactor;
-use super::spectral::sym_eigen;
+use super::spectral::{sym_eigen, sym_eigen_lanes};
 use super::ForceOptions;
 use crate::error::Result;
 use crate::law::{StretchDerivs, StretchLaw};
@@ -67,7 +69,7 @@ const PAD: StretchBatch = StretchBatch {
 
 /// The spectral state of a tet: C's eigenvalues (floored, see [`spectral_state`]),
 /// eigenvectors, and the extension point the law is evaluated with.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Spectral {
     /// Eigenvalues of C (the squared stretches), floored at [`STRETCH_FLOOR`]·tr C.
     pub e: [f64; 3],
@@ -88,7 +90,13 @@ pub(crate) const STRETCH_FLOOR: f64 = 1e-12;
 #[inline(always)]
 pub(crate) fn spectral_state<M: StretchLaw>(c: &Matrix3<f64>, j: f64, opts: &ForceOptions) -> Spectral {
     let (e, n) = sym_eigen(c);
-    let floor = STRETCH_FLOOR * c.trace().abs();
+    floored::<M>(e, n, c.trace(), j, opts)
+}
+
+/// The spectral state from C's eigen-decomposition `e`, `n` and trace.
+#[inline(always)]
+fn floored<M: StretchLaw>(e: [f64; 3], n: [Vec3; 3], trace: f64, j: f64, opts: &ForceOptions) -> Spectral {
+    let floor = STRETCH_FLOOR * trace.abs();
     Spectral {
         e: [e[0].max(floor), e[1].max(floor), e[2].max(floor)],
         n,
@@ -136,8 +144,14 @@ pub fn energy_and_piola_stretch<M: StretchLaw>(law: &M, f: &Matrix3<f64>, opts: 
     let j = f.determinant();
     let c = f.transpose() * f;
     let s = spectral_state::<M>(&c, j, opts);
-    let d = law.dw(s.e, j, s.ext);
-    (d.w, f * gradient_c(&s, &d) * 2.0 + cofactor(f) * d.dj)
+    piola_of_derivs(f, &s, &law.dw(s.e, j, s.ext))
+}
+
+/// Energy density and first Piola–Kirchhoff stress at `f` from C's spectral state
+/// `s` and the law's derivatives `d` there.
+#[inline(always)]
+fn piola_of_derivs(f: &Matrix3<f64>, s: &Spectral, d: &StretchDerivs) -> (f64, Matrix3<f64>) {
+    (d.w, f * gradient_c(s, d) * 2.0 + cofactor(f) * d.dj)
 }
 
 /// Internal forces of a principal-stretch law, the HEML way.
@@ -181,21 +195,89 @@ impl<M: StretchLaw> StretchP1Field<M> {
     }
 }
 
-/// Runs a plain kernel on every lane of a batch (see the module doc).
-#[inline(always)]
-fn lane_by_lane(
-    p: &LanePoints,
-    f: &mut LaneForces,
-    en: &mut [f64; LANES],
-    mut tet: impl FnMut(usize, &[Vec3; 4], &mut [Vec3; 4]) -> f64,
-) {
-    for (l, e) in en.iter_mut().enumerate() {
-        let pts: [Vec3; 4] = std::array::from_fn(|a| Vec3::new(p[a][0][l], p[a][1][l], p[a][2][l]));
-        let mut fl = [Vec3::zeros(); 4];
-        *e = tet(l, &pts, &mut fl);
-        for (a, fa) in fl.iter().enumerate() {
-            for c in 0..3 {
-                f[a][c][l] = fa[c];
+/// A stretch formulation's work on one tet, in two parts around the
+/// eigen-decomposition of C: so that the batch kernel decomposes its four tets' C
+/// together ([`sym_eigen_lanes`]: one branch-free pass whose lanes vectorise) while
+/// the plain kernel decomposes one ([`sym_eigen`], the same arithmetic): both give
+/// a tet the same bits. The second part takes the corners again and recomputes the
+/// few products it shares with the first (edge vectors, F) rather than receiving
+/// them: four tets' worth of them, moved between the parts, cost more (measured).
+trait SpectralSplit<M: StretchLaw> {
+    /// The law and the force options (the J0 extension).
+    fn law_opts(&self) -> (&M, &ForceOptions);
+
+    /// The first part for the tet in lane `lane` of `r` at corners `p`: its C (the
+    /// upper triangle is read) and J.
+    fn pre(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> (Matrix3<f64>, f64);
+
+    /// The second part: energy and forces (into `f`) from the spectral state and the
+    /// law's derivatives there.
+    fn post(
+        &self,
+        r: &StretchBatch,
+        lane: usize,
+        p: &[Vec3; 4],
+        s: &Spectral,
+        d: &StretchDerivs,
+        f: &mut [Vec3; 4],
+    ) -> f64;
+
+    /// Energy and J of the tet; forces into `f` (the plain kernel).
+    #[inline(always)]
+    fn eval(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4], f: &mut [Vec3; 4]) -> (f64, f64) {
+        let (c, j) = self.pre(r, lane, p);
+        let (law, opts) = self.law_opts();
+        let s = spectral_state::<M>(&c, j, opts);
+        let d = law.dw(s.e, j, s.ext);
+        (self.post(r, lane, p, &s, &d, f), j)
+    }
+
+    /// The batch kernel: the first parts lane by lane, the four decompositions
+    /// together, the law at the four tets together ([`StretchLaw::dw_lanes`]), the
+    /// second parts lane by lane.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // lanes in lock-step
+    fn batch_split(&self, r: &StretchBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
+        let corners = |l: usize| {
+            [
+                Vec3::new(p[0][0][l], p[0][1][l], p[0][2][l]),
+                Vec3::new(p[1][0][l], p[1][1][l], p[1][2][l]),
+                Vec3::new(p[2][0][l], p[2][1][l], p[2][2][l]),
+                Vec3::new(p[3][0][l], p[3][1][l], p[3][2][l]),
+            ]
+        };
+        let mut a = [[0.0; LANES]; 6];
+        let (mut j, mut trace) = ([0.0; LANES], [0.0; LANES]);
+        for l in 0..LANES {
+            let (c, jl) = self.pre(r, l, &corners(l));
+            (a[0][l], a[1][l], a[2][l]) = (c[(0, 0)], c[(0, 1)], c[(0, 2)]);
+            (a[3][l], a[4][l], a[5][l]) = (c[(1, 1)], c[(1, 2)], c[(2, 2)]);
+            (j[l], trace[l]) = (jl, c.trace());
+        }
+        let (law, opts) = self.law_opts();
+        let (e, n) = sym_eigen_lanes(&a);
+        let (mut floor_e, mut ext) = ([[0.0; LANES]; 3], [None; LANES]);
+        let mut states = [Spectral::default(); LANES];
+        for l in 0..LANES {
+            let vecs = [
+                Vec3::new(n[0][0][l], n[0][1][l], n[0][2][l]),
+                Vec3::new(n[1][0][l], n[1][1][l], n[1][2][l]),
+                Vec3::new(n[2][0][l], n[2][1][l], n[2][2][l]),
+            ];
+            states[l] = floored::<M>([e[0][l], e[1][l], e[2][l]], vecs, trace[l], j[l], opts);
+            for i in 0..3 {
+                floor_e[i][l] = states[l].e[i];
+            }
+            ext[l] = states[l].ext;
+        }
+        let d = law.dw_lanes(&floor_e, &j, &ext);
+        for l in 0..LANES {
+            let mut fl = [Vec3::zeros(); 4];
+            en[l] = self.post(r, l, &corners(l), &states[l], &d[l], &mut fl);
+            for a in 0..4 {
+                for k in 0..3 {
+                    f[a][k][l] = fl[a][k];
+                }
             }
         }
     }
@@ -228,55 +310,111 @@ macro_rules! stretch_tet_kernel {
                 (j, e / rest.vol[lane])
             }
 
+            #[inline(always)]
             fn batch(&self, r: &StretchBatch, p: &LanePoints, f: &mut LaneForces, en: &mut [f64; LANES]) {
-                lane_by_lane(p, f, en, |l, pts, fl| self.eval(r, l, pts, fl).0);
+                self.batch_split(r, p, f, en);
             }
         }
     };
 }
 
-impl<M: StretchLaw> StretchHemlKernel<M> {
-    /// Energy and J of the tet in lane `lane`; forces into `f`.
+impl<M: StretchLaw> SpectralSplit<M> for StretchHemlKernel<M> {
     #[inline(always)]
-    fn eval(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4], f: &mut [Vec3; 4]) -> (f64, f64) {
+    fn law_opts(&self) -> (&M, &ForceOptions) {
+        (&self.law, &self.opts)
+    }
+
+    #[inline(always)]
+    fn pre(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> (Matrix3<f64>, f64) {
         let v = edge_vectors(p);
         // element-wise, not `array::map` (its closures were not inlined here)
-        let l: [f64; 6] = std::array::from_fn(|e| v[e].norm_squared());
-        let vol = r.vol[lane];
-        let vinv = r.vinv(lane);
-        let (j, crosses) = volume_terms(&v, vol);
-        let s = spectral_state::<M>(&c_of_lengths(&vinv, &l), j, &self.opts);
-        let d = self.law.dw(s.e, j, s.ext);
-        let gh = vinv * gradient_c(&s, &d) * vinv.transpose();
+        let l = [
+            v[0].norm_squared(),
+            v[1].norm_squared(),
+            v[2].norm_squared(),
+            v[3].norm_squared(),
+            v[4].norm_squared(),
+            v[5].norm_squared(),
+        ];
+        let (j, _) = volume_terms(&v, r.vol[lane]);
+        (c_of_lengths(&r.vinv(lane), &l), j)
+    }
+
+    #[inline(always)]
+    fn post(
+        &self,
+        r: &StretchBatch,
+        lane: usize,
+        p: &[Vec3; 4],
+        s: &Spectral,
+        d: &StretchDerivs,
+        f: &mut [Vec3; 4],
+    ) -> f64 {
+        let v = edge_vectors(p);
+        let (vol, vinv) = (r.vol[lane], r.vinv(lane));
+        let (_, crosses) = volume_terms(&v, vol);
+        let gh = vinv * gradient_c(s, d) * vinv.transpose();
         let gc = edge_contraction(&gh);
-        let g: [f64; 6] = std::array::from_fn(|e| vol * gc[e]);
+        let g = [
+            vol * gc[0],
+            vol * gc[1],
+            vol * gc[2],
+            vol * gc[3],
+            vol * gc[4],
+            vol * gc[5],
+        ];
         scatter_links(f, &g, &v);
         let sj = d.dj / 6.0;
         for a in 0..3 {
             f[a + 1] -= crosses[a] * sj;
             f[0] += crosses[a] * sj;
         }
-        (vol * d.w, j)
+        vol * d.w
     }
 }
 
 stretch_tet_kernel!(StretchHemlKernel);
 
 impl<M: StretchLaw> StretchP1Kernel<M> {
-    /// Energy and J of the tet in lane `lane`; forces into `f`.
+    /// F = Ds·Dm⁻¹ of the tet in lane `lane` at corners `p`.
     #[inline(always)]
-    fn eval(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4], f: &mut [Vec3; 4]) -> (f64, f64) {
+    fn deformation(r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> Matrix3<f64> {
+        Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * r.vinv(lane)
+    }
+}
+
+impl<M: StretchLaw> SpectralSplit<M> for StretchP1Kernel<M> {
+    #[inline(always)]
+    fn law_opts(&self) -> (&M, &ForceOptions) {
+        (&self.law, &self.opts)
+    }
+
+    #[inline(always)]
+    fn pre(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> (Matrix3<f64>, f64) {
+        let fm = Self::deformation(r, lane, p);
+        (fm.transpose() * fm, fm.determinant())
+    }
+
+    #[inline(always)]
+    fn post(
+        &self,
+        r: &StretchBatch,
+        lane: usize,
+        p: &[Vec3; 4],
+        s: &Spectral,
+        d: &StretchDerivs,
+        f: &mut [Vec3; 4],
+    ) -> f64 {
+        let fm = Self::deformation(r, lane, p);
         let vol = r.vol[lane];
-        let dm_inv = r.vinv(lane);
-        let fm = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * dm_inv;
-        let (w, pk) = energy_and_piola_stretch(&self.law, &fm, &self.opts);
-        let h = -vol * pk * dm_inv.transpose();
+        let (w, pk) = piola_of_derivs(&fm, s, d);
+        let h = -vol * pk * r.vinv(lane).transpose();
         for a in 0..3 {
             let fa: Vec3 = h.column(a).into();
             f[a + 1] += fa;
             f[0] -= fa;
         }
-        (vol * w, fm.determinant())
+        vol * w
     }
 }
 
