@@ -268,7 +268,7 @@ fn bench_implicit_reports_rows_and_names_bad_input() {
 
 /// The `heml bench --implicit` tests' mesh: a 40 × 40 × 20 mm block of 192 tets
 /// written as `block_mm.vtu` into a fresh folder named after `tag`: (folder, file).
-fn implicit_block(tag: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+fn implicit_block(tag: &str) -> (support::TestDir, std::path::PathBuf) {
     use heml::io::write_mesh;
     use heml::mesh::generate::{box_mesh, HexSplit};
     let dir = support::temp_dir("cli", tag);

@@ -11,7 +11,7 @@ mod support;
 use support::heml;
 
 /// A fresh, empty temporary directory for one test.
-fn temp_dir(name: &str) -> PathBuf {
+fn temp_dir(name: &str) -> support::TestDir {
     support::temp_dir("cli-run", name)
 }
 

@@ -341,7 +341,15 @@ impl<M: InvariantLaw> InvariantHessian<M> {
         let r = &self.rest[k];
         let vol = r.vol;
         let v = edge_vectors(p);
-        let l = v.map(|e| e.norm_squared());
+        // written out, as the force kernel's (no `map` closure on this per-tet path)
+        let l = [
+            v[0].norm_squared(),
+            v[1].norm_squared(),
+            v[2].norm_squared(),
+            v[3].norm_squared(),
+            v[4].norm_squared(),
+            v[5].norm_squared(),
+        ];
         let (i1, i2, _) = invariant_terms(&r.vtr, &l, M::USES_I2);
         let (j, crosses) = if M::USES_J {
             volume_terms(&v, vol)
@@ -372,9 +380,18 @@ impl<M: InvariantLaw> InvariantHessian<M> {
             vol,
         };
         let used = Self::USED;
-        let d = std::array::from_fn(|a| if used[a] { d.d[a] } else { 0.0 });
-        let h = std::array::from_fn(|a| std::array::from_fn(|b| if used[a] && used[b] { h[a][b] } else { 0.0 }));
-        (st, (d, h))
+        let (mut du, mut hu) = ([0.0; 3], [[0.0; 3]; 3]);
+        for a in 0..3 {
+            if used[a] {
+                du[a] = d.d[a];
+                for b in 0..3 {
+                    if used[b] {
+                        hu[a][b] = h[a][b];
+                    }
+                }
+            }
+        }
+        (st, (du, hu))
     }
 }
 
