@@ -20,6 +20,7 @@ pub mod params;
 pub mod registry;
 pub mod rest;
 pub mod runtime_law;
+mod sampling;
 pub mod scene;
 pub mod system;
 

@@ -26,6 +26,20 @@ pub fn edge_vectors(p: &[Vec3; 4]) -> [Vec3; 6] {
     [e(0), e(1), e(2), e(3), e(4), e(5)]
 }
 
+/// The squared lengths of the six edge vectors `v` (written out, as
+/// [`edge_vectors`]: the per-tet paths of the kernels and tangents call it).
+#[inline(always)]
+pub fn squared_lengths(v: &[Vec3; 6]) -> [f64; 6] {
+    [
+        v[0].norm_squared(),
+        v[1].norm_squared(),
+        v[2].norm_squared(),
+        v[3].norm_squared(),
+        v[4].norm_squared(),
+        v[5].norm_squared(),
+    ]
+}
+
 /// Rest data of one tet for the HEML kernel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RestTet {
@@ -207,13 +221,7 @@ mod tests {
     fn i2_terms_match_the_definition_on_many_tets() {
         // deterministic pseudo-random rest tets (a jittered regular tet, scaled) and
         // deformation gradients; tr C² and Mtr·l against RestTet's Mtr
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = crate::sampling::uniform(0x2545_f491_4f6c_dd1du64);
         for _ in 0..500 {
             let s = 10f64.powf(4.0 * rnd());
             let base = [

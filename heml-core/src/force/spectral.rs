@@ -303,13 +303,7 @@ mod tests {
 
     #[test]
     fn random_symmetric_matrices_decompose() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rnd = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = crate::sampling::uniform(0x9e37_79b9_7f4a_7c15u64);
         for _ in 0..2000 {
             let m = Matrix3::from_fn(|_, _| rnd());
             let a = m.transpose() * m + Matrix3::identity() * rnd().abs() * 1e-3;
@@ -345,13 +339,7 @@ mod tests {
     /// multiples, repeated eigenvalues, a NaN).
     #[test]
     fn lanes_equal_the_plain_decomposition_bit_for_bit() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = crate::sampling::uniform(0x2545_f491_4f6c_dd1du64);
         let special = [
             Matrix3::zeros(),
             Matrix3::identity() * 2.5,

@@ -30,7 +30,7 @@ use super::ForceOptions;
 use crate::error::Result;
 use crate::law::{StretchDerivs, StretchLaw};
 use crate::mesh::TetMesh;
-use crate::rest::{d_of_lengths, edge_vectors, rest_edge_matrix};
+use crate::rest::{d_of_lengths, edge_vectors, rest_edge_matrix, squared_lengths};
 use crate::Vec3;
 use nalgebra::Matrix3;
 
@@ -195,6 +195,14 @@ impl<M: StretchLaw> StretchP1Field<M> {
     }
 }
 
+/// One tet of a batch: the batch's rest data, its lane, its corners.
+#[derive(Clone, Copy)]
+struct Tet<'a> {
+    r: &'a StretchBatch,
+    lane: usize,
+    p: &'a [Vec3; 4],
+}
+
 /// A stretch formulation's work on one tet, in two parts around the
 /// eigen-decomposition of C: so that the batch kernel decomposes its four tets' C
 /// together ([`sym_eigen_lanes`]: one branch-free pass whose lanes vectorise) while
@@ -206,30 +214,22 @@ trait SpectralSplit<M: StretchLaw> {
     /// The law and the force options (the J0 extension).
     fn law_opts(&self) -> (&M, &ForceOptions);
 
-    /// The first part for the tet in lane `lane` of `r` at corners `p`: its C (the
-    /// upper triangle is read) and J.
-    fn pre(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> (Matrix3<f64>, f64);
+    /// The first part for tet `t`: its C (the upper triangle is read) and J.
+    fn pre(&self, t: Tet) -> (Matrix3<f64>, f64);
 
     /// The second part: energy and forces (into `f`) from the spectral state and the
     /// law's derivatives there.
-    fn post(
-        &self,
-        r: &StretchBatch,
-        lane: usize,
-        p: &[Vec3; 4],
-        s: &Spectral,
-        d: &StretchDerivs,
-        f: &mut [Vec3; 4],
-    ) -> f64;
+    fn post(&self, t: Tet, s: &Spectral, d: &StretchDerivs, f: &mut [Vec3; 4]) -> f64;
 
     /// Energy and J of the tet; forces into `f` (the plain kernel).
     #[inline(always)]
     fn eval(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4], f: &mut [Vec3; 4]) -> (f64, f64) {
-        let (c, j) = self.pre(r, lane, p);
+        let t = Tet { r, lane, p };
+        let (c, j) = self.pre(t);
         let (law, opts) = self.law_opts();
         let s = spectral_state::<M>(&c, j, opts);
         let d = law.dw(s.e, j, s.ext);
-        (self.post(r, lane, p, &s, &d, f), j)
+        (self.post(t, &s, &d, f), j)
     }
 
     /// The batch kernel: the first parts lane by lane, the four decompositions
@@ -249,7 +249,11 @@ trait SpectralSplit<M: StretchLaw> {
         let mut a = [[0.0; LANES]; 6];
         let (mut j, mut trace) = ([0.0; LANES], [0.0; LANES]);
         for l in 0..LANES {
-            let (c, jl) = self.pre(r, l, &corners(l));
+            let (c, jl) = self.pre(Tet {
+                r,
+                lane: l,
+                p: &corners(l),
+            });
             (a[0][l], a[1][l], a[2][l]) = (c[(0, 0)], c[(0, 1)], c[(0, 2)]);
             (a[3][l], a[4][l], a[5][l]) = (c[(1, 1)], c[(1, 2)], c[(2, 2)]);
             (j[l], trace[l]) = (jl, c.trace());
@@ -273,7 +277,16 @@ trait SpectralSplit<M: StretchLaw> {
         let d = law.dw_lanes(&floor_e, &j, &ext);
         for l in 0..LANES {
             let mut fl = [Vec3::zeros(); 4];
-            en[l] = self.post(r, l, &corners(l), &states[l], &d[l], &mut fl);
+            en[l] = self.post(
+                Tet {
+                    r,
+                    lane: l,
+                    p: &corners(l),
+                },
+                &states[l],
+                &d[l],
+                &mut fl,
+            );
             for a in 0..4 {
                 for k in 0..3 {
                     f[a][k][l] = fl[a][k];
@@ -325,33 +338,16 @@ impl<M: StretchLaw> SpectralSplit<M> for StretchHemlKernel<M> {
     }
 
     #[inline(always)]
-    fn pre(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> (Matrix3<f64>, f64) {
-        let v = edge_vectors(p);
-        // element-wise, not `array::map` (its closures were not inlined here)
-        let l = [
-            v[0].norm_squared(),
-            v[1].norm_squared(),
-            v[2].norm_squared(),
-            v[3].norm_squared(),
-            v[4].norm_squared(),
-            v[5].norm_squared(),
-        ];
-        let (j, _) = volume_terms(&v, r.vol[lane]);
-        (c_of_lengths(&r.vinv(lane), &l), j)
+    fn pre(&self, t: Tet) -> (Matrix3<f64>, f64) {
+        let v = edge_vectors(t.p);
+        let (j, _) = volume_terms(&v, t.r.vol[t.lane]);
+        (c_of_lengths(&t.r.vinv(t.lane), &squared_lengths(&v)), j)
     }
 
     #[inline(always)]
-    fn post(
-        &self,
-        r: &StretchBatch,
-        lane: usize,
-        p: &[Vec3; 4],
-        s: &Spectral,
-        d: &StretchDerivs,
-        f: &mut [Vec3; 4],
-    ) -> f64 {
-        let v = edge_vectors(p);
-        let (vol, vinv) = (r.vol[lane], r.vinv(lane));
+    fn post(&self, t: Tet, s: &Spectral, d: &StretchDerivs, f: &mut [Vec3; 4]) -> f64 {
+        let v = edge_vectors(t.p);
+        let (vol, vinv) = (t.r.vol[t.lane], t.r.vinv(t.lane));
         let (_, crosses) = volume_terms(&v, vol);
         let gh = vinv * gradient_c(s, d) * vinv.transpose();
         let gc = edge_contraction(&gh);
@@ -376,10 +372,11 @@ impl<M: StretchLaw> SpectralSplit<M> for StretchHemlKernel<M> {
 stretch_tet_kernel!(StretchHemlKernel);
 
 impl<M: StretchLaw> StretchP1Kernel<M> {
-    /// F = Ds·Dm⁻¹ of the tet in lane `lane` at corners `p`.
+    /// F = Ds·Dm⁻¹ of tet `t`.
     #[inline(always)]
-    fn deformation(r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> Matrix3<f64> {
-        Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * r.vinv(lane)
+    fn deformation(t: Tet) -> Matrix3<f64> {
+        let p = t.p;
+        Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]) * t.r.vinv(t.lane)
     }
 }
 
@@ -390,25 +387,17 @@ impl<M: StretchLaw> SpectralSplit<M> for StretchP1Kernel<M> {
     }
 
     #[inline(always)]
-    fn pre(&self, r: &StretchBatch, lane: usize, p: &[Vec3; 4]) -> (Matrix3<f64>, f64) {
-        let fm = Self::deformation(r, lane, p);
+    fn pre(&self, t: Tet) -> (Matrix3<f64>, f64) {
+        let fm = Self::deformation(t);
         (fm.transpose() * fm, fm.determinant())
     }
 
     #[inline(always)]
-    fn post(
-        &self,
-        r: &StretchBatch,
-        lane: usize,
-        p: &[Vec3; 4],
-        s: &Spectral,
-        d: &StretchDerivs,
-        f: &mut [Vec3; 4],
-    ) -> f64 {
-        let fm = Self::deformation(r, lane, p);
-        let vol = r.vol[lane];
+    fn post(&self, t: Tet, s: &Spectral, d: &StretchDerivs, f: &mut [Vec3; 4]) -> f64 {
+        let fm = Self::deformation(t);
+        let vol = t.r.vol[t.lane];
         let (w, pk) = piola_of_derivs(&fm, s, d);
-        let h = -vol * pk * r.vinv(lane).transpose();
+        let h = -vol * pk * t.r.vinv(t.lane).transpose();
         for a in 0..3 {
             let fa: Vec3 = h.column(a).into();
             f[a + 1] += fa;

@@ -341,15 +341,7 @@ impl<M: InvariantLaw> InvariantHessian<M> {
         let r = &self.rest[k];
         let vol = r.vol;
         let v = edge_vectors(p);
-        // written out, as the force kernel's (no `map` closure on this per-tet path)
-        let l = [
-            v[0].norm_squared(),
-            v[1].norm_squared(),
-            v[2].norm_squared(),
-            v[3].norm_squared(),
-            v[4].norm_squared(),
-            v[5].norm_squared(),
-        ];
+        let l = crate::rest::squared_lengths(&v);
         let (i1, i2, _) = invariant_terms(&r.vtr, &l, M::USES_I2);
         let (j, crosses) = if M::USES_J {
             volume_terms(&v, vol)

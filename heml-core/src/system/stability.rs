@@ -167,13 +167,7 @@ fn power_iteration(
         return Ok((0.0, true));
     }
     // deterministic, well-mixed start vector (never orthogonal to the top mode in practice)
-    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut next = crate::sampling::uniform(0x9E37_79B9_7F4A_7C15_u64);
     let mut u: Vec<Vec3> = (0..n)
         .map(|i| Vec3::new(next(), next(), next()) * s[i].signum())
         .collect();
