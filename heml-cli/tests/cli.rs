@@ -76,6 +76,35 @@ fn info_errors_name_the_problem() {
     }
 }
 
+/// `heml validate --help` names every case the binary runs (the list is the
+/// validation crate's table, not a copy that can fall behind), and an unknown case
+/// is refused with the list.
+#[test]
+fn validate_names_every_case_it_has() {
+    let (ok, out, err) = heml(&["validate", "--help"]);
+    assert!(ok, "{err}");
+    for case in heml_validation::CASES {
+        assert!(out.contains(case.name), "{} missing from:\n{out}", case.name);
+    }
+    let (ok, _, err) = heml(&["validate", "--case", "lockin"]);
+    assert!(!ok && err.contains("locking"), "{err}");
+}
+
+/// `heml info --param E=5000` keeps the documented default nu = 0.45.
+#[test]
+fn info_keeps_the_default_of_the_modulus_not_given() {
+    use heml::io::write_mesh;
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = support::temp_dir("cli", "info-default-nu");
+    let path = dir.join("box.vtu");
+    write_mesh(&path, &box_mesh([0.01, 0.01, 0.01], [1, 1, 1], HexSplit::Six).unwrap()).unwrap();
+    let path = path.to_str().unwrap();
+    let (ok, out, err) = heml(&["info", path, "--param", "E=5000"]);
+    assert!(ok && out.contains("E=5000") && out.contains("nu=0.45"), "{out}{err}");
+    let (ok, _, err) = heml(&["info", path, "--param", "E=5000", "--param", "E=6000"]);
+    assert!(!ok && err.contains("--param E is given twice"), "{err}");
+}
+
 /// `heml bench` on a small generated box: the table names the mesh it measured
 /// (the same box the library generates), both thread counts, HEML and P1 side by side
 /// with positive rates, and the memory of both fields.

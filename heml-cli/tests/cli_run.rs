@@ -268,6 +268,22 @@ dt_policy = \"refuse\"
         "{err}"
     );
     assert!(!dir.join("o").exists(), "a refused run writes nothing");
+    // --duration: refused by the flag's name, and a refusal about the duration says
+    // the flag set it (not the scene's line)
+    let out = dir.join("o");
+    let run = |d: &str| heml(&["run", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), d]);
+    let (ok, _, err) = run("--duration=-1");
+    assert!(
+        !ok && err.contains("--duration -1: expected a finite number of seconds > 0"),
+        "{err}"
+    );
+    std::fs::write(&scene, format!("{good}[solver]\nduration = 0.1\n")).unwrap();
+    let (ok, _, err) = run("--duration=1e30");
+    assert!(
+        !ok && err.contains("above max_steps") && err.contains("from --duration"),
+        "{err}"
+    );
+    assert!(!out.exists(), "a refused run writes nothing");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

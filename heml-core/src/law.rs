@@ -125,10 +125,29 @@ pub struct RestState {
 /// The rest state of an invariant law with parameter values `values` (registry
 /// entries point at this; named by `#[heml::material]`'s output).
 pub fn rest_state_invariant<M: InvariantLaw>(values: &[f64]) -> RestState {
-    let d = M::from_params(values).dw(3.0, 3.0, 1.0);
-    RestState {
-        energy: d.w,
-        stress: 2.0 * d.d[0] + 4.0 * d.d[1] + d.d[2],
+    RestState::of_invariant_law(&M::from_params(values))
+}
+
+impl RestState {
+    /// The rest state of an invariant law (compiled or declared at run time): its
+    /// derivatives at I1 = I2 = 3, J = 1.
+    ///
+    /// ```
+    /// use heml_core::law::{Derivs, RestState};
+    /// let d = Derivs { w: 0.0, d: [0.5, 0.0, -1.0] }; // μ/2 (I1 − 3) − μ ln J, μ = 1
+    /// assert_eq!(RestState::from_derivs(d).stress, 0.0);
+    /// ```
+    pub fn of_invariant_law<M: InvariantLaw>(law: &M) -> RestState {
+        Self::from_derivs(law.dw(3.0, 3.0, 1.0))
+    }
+
+    /// The rest state from the derivatives at I1 = I2 = 3, J = 1: P(I) = (2w₁ + 4w₂ +
+    /// w_J)·I (∂I1/∂F = 2F, ∂I2/∂F = 2(I1 F − F Fᵀ F) = 4I and ∂J/∂F = I at F = I).
+    pub fn from_derivs(d: Derivs) -> RestState {
+        RestState {
+            energy: d.w,
+            stress: 2.0 * d.d[0] + 4.0 * d.d[1] + d.d[2],
+        }
     }
 }
 

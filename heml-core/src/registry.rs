@@ -52,10 +52,9 @@ impl MaterialEntry {
     ///
     /// The law is probed with two sets of distinct O(1) parameter values, so that a
     /// cancellation special to one set cannot hide a prestress (a set at which the law
-    /// is not finite is skipped, unless both are). An exact rest state
-    /// evaluates to zero up to round-off, a few ulps of O(1) terms (≲ 1e-15); the
-    /// threshold 1e-9 × the largest parameter is far above that and far below any real
-    /// prestress of an O(1) law.
+    /// is not finite is skipped, unless both are). What counts as at rest, and the
+    /// text, are shared with the laws given as text
+    /// ([`crate::RuntimeLaw`]), which are checked with their own values.
     pub fn rest_check(&self) -> Option<String> {
         if self.allow_prestress {
             return None;
@@ -67,35 +66,82 @@ impl MaterialEntry {
         ];
         let results: Vec<(&Vec<f64>, RestState)> = probes.iter().map(|v| (v, (self.rest)(v))).collect();
         let finite = |r: &RestState| r.energy.is_finite() && r.stress.is_finite();
-        let at_rest = |values: &[f64], r: &RestState| {
-            let tol = 1e-9 * values.iter().fold(1.0, |m: f64, v| m.max(v.abs()));
-            r.energy.abs() <= tol && r.stress.abs() <= tol
-        };
         // a probe outside the law's domain (NaN, say) proves nothing unless all are
-        let (values, RestState { energy, stress }) = match results.iter().find(|(v, r)| finite(r) && !at_rest(v, r)) {
+        let (values, rest) = match results.iter().find(|(v, r)| finite(r) && !is_at_rest(v, r)) {
             Some(hit) => *hit,
             None if results.iter().all(|(_, r)| !finite(r)) => results[0],
             None => return None,
         };
-        let shown: Vec<String> = self
-            .params
-            .iter()
-            .zip(values)
-            .map(|(p, v)| format!("{}={v}", p.name))
-            .collect();
-        Some(format!(
-            "material law '{}' ({}) is not at rest when undeformed: with {} its energy is {energy:e} \
-             and its stress {stress:e}; subtract the rest value and slope from the energy, or declare \
-             the law with `allow_prestress` if this is intended",
-            self.name,
-            self.module,
-            shown.join(", ")
-        ))
+        rest_warning(
+            &format!("material law '{}' ({})", self.name, self.module),
+            self.params,
+            values,
+            rest,
+            ", or declare the law with `allow_prestress` if this is intended",
+        )
     }
 
     /// The first line of the doc comment (the law's title).
     pub fn title(&self) -> &'static str {
         self.doc.lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("")
+    }
+}
+
+/// Whether `rest` (energy and stress at F = I of a law with parameter values
+/// `values`) is a rest state: both zero up to round-off. An exact rest state
+/// evaluates to zero up to a few ulps of its terms, which scale with the
+/// parameters (≲ 1e-15 × the largest); the threshold 1e-9 × the largest parameter
+/// (at least 1e-9) is far above that and far below any real prestress. Not finite
+/// is not at rest.
+pub(crate) fn is_at_rest(values: &[f64], rest: &RestState) -> bool {
+    let tol = 1e-9 * values.iter().fold(1.0, |m: f64, v| m.max(v.abs()));
+    rest.energy.abs() <= tol && rest.stress.abs() <= tol
+}
+
+/// The warning for a law (`law` names it, e.g. "material law 'x' (module)") that is
+/// not at rest with parameter values `values`, or `None` when it is
+/// ([`is_at_rest`]); `remedy` ends the advice. One text for the compiled laws
+/// ([`MaterialEntry::rest_check`]) and the laws given as text
+/// ([`crate::RuntimeLaw::rest_check`]).
+pub(crate) fn rest_warning(
+    law: &str,
+    params: &[ParamInfo],
+    values: &[f64],
+    rest: RestState,
+    remedy: &str,
+) -> Option<String> {
+    if is_at_rest(values, &rest) {
+        return None;
+    }
+    Some(format!(
+        "{law} is not at rest when undeformed: {}its energy is {:e} and its stress {:e}; subtract the rest \
+         value and slope from the energy{remedy}",
+        with_values(params, values, " "),
+        rest.energy,
+        rest.stress
+    ))
+}
+
+/// `"with a=1, b=2"` followed by `end`, for messages about a law with these
+/// parameter values; empty when it has none. Values far from 1 are written in
+/// exponent form (`1e300`, not 301 digits).
+pub(crate) fn with_values(params: &[ParamInfo], values: &[f64], end: &str) -> String {
+    let show = |v: f64| {
+        if v == 0.0 || (1e-4..1e16).contains(&v.abs()) {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        }
+    };
+    let shown: Vec<String> = params
+        .iter()
+        .zip(values)
+        .map(|(p, &v)| format!("{}={}", p.name, show(v)))
+        .collect();
+    if shown.is_empty() {
+        String::new()
+    } else {
+        format!("with {}{end}", shown.join(", "))
     }
 }
 

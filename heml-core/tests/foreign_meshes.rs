@@ -347,12 +347,22 @@ fn damaged_binary_and_gmsh1_data_give_precise_errors() {
     assert_eq!(line, 3, "{msg}");
     assert!(msg.contains(&format!("at byte {at}: expected the integer 1")), "{msg}");
 
-    // an unknown element type: its record size is unknown
+    // an element type outside Gmsh's table (1..=140): refused, as it may be a volume
     let mut bad = b22.clone();
     let el = bad.windows(12).position(|w| w == b"$Elements\n3\n").unwrap() + 12;
-    bad[el] = 99;
+    bad[el] = 200;
     let (_, msg) = msh_error(&bad);
-    assert!(msg.contains(&format!("at byte {el}: unknown element type 99")), "{msg}");
+    assert!(
+        msg.contains(&format!("at byte {el}: element type 200 is not a Gmsh element type")),
+        "{msg}"
+    );
+    // a surface type without a fixed node count (a polygon): its record size is unknown
+    bad[el] = 34;
+    let (_, msg) = msh_error(&bad);
+    assert!(
+        msg.contains(&format!("at byte {el}: element type 34 has no fixed node count")),
+        "{msg}"
+    );
 
     // an element block announcing more elements than the count line
     let mut bad = b22.clone();

@@ -98,6 +98,10 @@ pub struct Graph {
     /// (`base -> (exponent, node)`): later powers of the same base are expressed
     /// through it when they differ by an integer or an integer factor.
     anchors: HashMap<Id, (f64, Id)>,
+    /// At most this many distinct nodes (`None`: unlimited); see [`Graph::with_node_limit`].
+    limit: Option<usize>,
+    /// A node was asked for beyond `limit`: the graph holds a placeholder instead.
+    exhausted: bool,
 }
 
 impl Graph {
@@ -106,14 +110,34 @@ impl Graph {
         Self::default()
     }
 
+    /// An empty graph that never holds more than `limit` nodes (a hard bound on the
+    /// memory and the work of everything built in it, for expressions from
+    /// untrusted text). A node asked for beyond the limit is not created: the
+    /// constructor returns a placeholder leaf (a NaN constant, the graph's last
+    /// node) and the graph is [`Graph::exhausted`] from then on — its expressions
+    /// are meaningless and the caller reports the limit instead of using them.
+    /// Every algorithm of this crate only ever visits existing nodes, so once the
+    /// limit is hit the remaining work is bounded by the limit too.
+    pub fn with_node_limit(limit: usize) -> Self {
+        Self {
+            limit: Some(limit),
+            ..Self::default()
+        }
+    }
+
+    /// Whether a node was asked for beyond the limit of [`Graph::with_node_limit`]
+    /// (the graph's expressions are then meaningless).
+    pub fn exhausted(&self) -> bool {
+        self.exhausted
+    }
+
     /// The node behind `id`.
     pub fn node(&self, id: Id) -> Node {
         self.nodes[id]
     }
 
     /// Number of distinct nodes created so far.
-    #[cfg(test)]
-    pub(crate) fn len(&self) -> usize {
+    pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
@@ -134,6 +158,25 @@ impl Graph {
         if let Some(&id) = self.index.get(&node) {
             return id;
         }
+        if self.limit.is_some_and(|limit| self.nodes.len() >= limit) {
+            return self.placeholder();
+        }
+        self.push(node)
+    }
+
+    /// The leaf standing for every node asked for beyond the limit: created once,
+    /// one past the limit (a leaf, so that no constructor recurses through it).
+    #[cold]
+    fn placeholder(&mut self) -> Id {
+        self.exhausted = true;
+        let nan = Node::Const(f64::NAN.to_bits());
+        match self.index.get(&nan) {
+            Some(&id) => id,
+            None => self.push(nan),
+        }
+    }
+
+    fn push(&mut self, node: Node) -> Id {
         let id = self.nodes.len();
         self.nodes.push(node);
         let parametric = !matches!(node, Node::Var(_)) && Self::children_of(node).all(|c| self.parametric[c]);
@@ -662,6 +705,39 @@ impl Graph {
         Self::children_of(self.nodes[id])
     }
 
+    /// A new node for every node below `root` (itself included), made by
+    /// `make(graph, id, done)` once the new nodes of its operands are in `done` —
+    /// the operands of the nodes `descend` refuses are not visited. Returns
+    /// `root`'s. The nodes are visited in the order of the plain recursion (first
+    /// operand's subtree, then the second's, then the node), so `make` creates its
+    /// nodes in the same order as a recursive rewrite would; but on a stack of its
+    /// own, so that a graph of any depth (a chain of thousands of `let` bindings)
+    /// cannot overflow the thread's. Shared nodes are made once (`done` memoises).
+    /// Differentiation and substitution are such rewrites.
+    pub(crate) fn rewrite(
+        &mut self,
+        root: Id,
+        descend: impl Fn(Node) -> bool,
+        mut make: impl FnMut(&mut Graph, Id, &HashMap<Id, Id>) -> Id,
+    ) -> Id {
+        let mut done: HashMap<Id, Id> = HashMap::new();
+        // (node, whether its operands are done)
+        let mut stack = vec![(root, false)];
+        while let Some((id, ready)) = stack.pop() {
+            if ready {
+                let new = make(self, id, &done);
+                done.insert(id, new);
+            } else if !done.contains_key(&id) {
+                stack.push((id, true));
+                if descend(self.node(id)) {
+                    let children: Vec<Id> = self.children(id).collect();
+                    stack.extend(children.into_iter().rev().map(|c| (c, false)));
+                }
+            }
+        }
+        done[&root]
+    }
+
     /// Whether `id` depends on no variable (only on constants and parameters).
     pub fn is_parametric(&self, id: Id) -> bool {
         self.parametric[id]
@@ -815,13 +891,13 @@ mod tests {
         let x = g.var(Var::I1);
         let y = g.var(Var::J);
         let a = g.add(x, y);
-        let before = g.len();
+        let before = g.node_count();
         let b = g.add(y, x);
         assert_eq!(a, b);
         let la = g.ln(a);
         let lb = g.ln(b);
         assert_eq!(la, lb);
-        assert_eq!(g.len(), before + 1);
+        assert_eq!(g.node_count(), before + 1);
     }
 
     /// The rules that shrink a fibre law's derivatives, each exact up to the

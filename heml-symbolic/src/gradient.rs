@@ -166,11 +166,17 @@ pub fn reverse(g: &mut Graph, w: Id, vars: &[Var]) -> Vec<Id> {
 /// The sum of `shares`, equal shares gathered first (k·s for k equal ones: the
 /// two factors of a square x·x hand x the same share). `None` when empty.
 fn sum_shares(g: &mut Graph, shares: &[Id]) -> Option<Id> {
+    // in order of first appearance (a hash map finds them: a node may have
+    // thousands of readers)
     let mut distinct: Vec<(Id, u32)> = Vec::new();
+    let mut slot: std::collections::HashMap<Id, usize> = std::collections::HashMap::new();
     for &s in shares {
-        match distinct.iter_mut().find(|(t, _)| *t == s) {
-            Some((_, k)) => *k += 1,
-            None => distinct.push((s, 1)),
+        match slot.entry(s) {
+            std::collections::hash_map::Entry::Occupied(e) => distinct[*e.get()].1 += 1,
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(distinct.len());
+                distinct.push((s, 1));
+            }
         }
     }
     let mut sum = None;

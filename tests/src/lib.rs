@@ -6,6 +6,7 @@
 pub mod grouped;
 pub mod implicit;
 pub mod laws;
+pub mod warnings;
 
 use heml::nalgebra::{Matrix3, Rotation3};
 use heml::prelude::*;

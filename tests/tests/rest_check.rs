@@ -2,8 +2,6 @@
 //! reported once, when the registry is first consulted: through `log::warn!` and in
 //! `registry::rest_warnings()`; `allow_prestress` silences it.
 
-use std::sync::Mutex;
-
 /// w = c·(I1 − 3) + c·(J − 1)²: zero energy at rest but a stress P = 2c·I (the
 /// −2c·ln J or −2c·(J − 1) that would balance it is missing).
 #[heml::material(name = "test_prestressed")]
@@ -31,32 +29,17 @@ pub struct PrestressAllowed {
     pub p0: f64,
 }
 
-/// Keeps every warning logged by the library.
-struct Capture(Mutex<Vec<String>>);
-
-impl log::Log for Capture {
-    fn enabled(&self, metadata: &log::Metadata) -> bool {
-        metadata.level() <= log::Level::Warn
-    }
-    fn log(&self, record: &log::Record) {
-        if self.enabled(record.metadata()) {
-            self.0.lock().unwrap().push(record.args().to_string());
-        }
-    }
-    fn flush(&self) {}
-}
-
-static LOGGER: Capture = Capture(Mutex::new(Vec::new()));
-
 /// One test, so that the logger is installed before the registry's first listing in
 /// this process (the check runs once).
 #[test]
 fn laws_not_at_rest_are_reported_once_unless_allowed() {
-    log::set_logger(&LOGGER).unwrap();
-    log::set_max_level(log::LevelFilter::Warn);
+    assert!(
+        heml_tests::warnings::capture_warnings(),
+        "the first logger of this process"
+    );
 
     let all = heml::materials_list();
-    let logged = LOGGER.0.lock().unwrap().clone();
+    let logged = heml_tests::warnings::logged_warnings();
     let recorded = heml::heml_core::registry::rest_warnings();
     assert_eq!(logged, recorded, "every recorded warning is logged");
     let warned: Vec<&str> = all
@@ -86,5 +69,5 @@ fn laws_not_at_rest_are_reported_once_unless_allowed() {
     assert_eq!((rest.energy, rest.stress), (2.0, 4.0));
     // listing again does not warn again
     heml::materials_list();
-    assert_eq!(LOGGER.0.lock().unwrap().len(), 2);
+    assert_eq!(heml_tests::warnings::logged_warnings().len(), 2);
 }

@@ -265,6 +265,12 @@ fn bad_energies_are_clear_errors_with_a_column() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("parameter 'mu' is NaN, not a finite number"), "{e}");
+    // a long text is quoted cut, and shown around the column: the message stays
+    // short however long the text (a hostile one may have 64k characters)
+    let long = format!("mu*(I1-3) + lambda*(J-1)^2{}", " + 0*I1".repeat(2000));
+    let e = error(&long);
+    assert!(e.contains("column 25: unsupported operator"), "{e}");
+    assert!(e.contains("…\" (14026 characters)") && e.len() < 600, "{e}");
 }
 
 #[test]

@@ -588,6 +588,51 @@ fn energy_csv_is_appended_whole_rows_at_frame_boundaries() {
 }
 
 #[test]
+fn a_rerun_into_the_same_folder_leaves_only_its_own_frames() {
+    link();
+    let dir = temp_dir("rerun");
+    let run = |steps: usize| {
+        let text = format!(
+            "{BASE}dt = 1e-4\n[output]\ndir = {:?}\nevery = 1\n",
+            dir.to_string_lossy()
+        )
+        .replace("duration = 0.01", &format!("duration = {}", steps as f64 * 1e-4));
+        let mut sim = Scene::from_toml_str(&text, ".").unwrap().build().unwrap();
+        sim.run(|_| {}).unwrap();
+    };
+    let frames_on_disk = || {
+        let mut n: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("frame_") && n.ends_with(".vtu"))
+            .collect();
+        n.sort();
+        n
+    };
+    run(8);
+    assert_eq!(frames_on_disk().len(), 9);
+    // a file of the user's own is kept
+    std::fs::write(dir.join("notes.txt"), "mine").unwrap();
+    run(3);
+    let listed = read_pvd(&dir.join("frames.pvd")).unwrap();
+    assert_eq!(listed.len(), 4);
+    assert_eq!(frames_on_disk().len(), 4, "{:?}", frames_on_disk());
+    assert!(dir.join("notes.txt").exists());
+    // an output folder that is a file: refused by name
+    let file = dir.join("notes.txt");
+    let text = format!("{BASE}[output]\ndir = {:?}\n", file.to_string_lossy());
+    let e = match Scene::from_toml_str(&text, ".")
+        .and_then(|s| s.build())
+        .and_then(|mut s| s.run(|_| {}))
+    {
+        Ok(_) => panic!("an output folder that is a file must be refused"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("exists and is not a folder"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn the_run_plan_estimates_warns_and_refuses_naming_the_keys() {
     link();
     // 1e11 steps: refused before anything is built, naming the key
@@ -700,6 +745,54 @@ fn scene_messages_name_the_key_and_line() {
         "{BASE}[[prescribe]]\nnodes = [1]\ndisplacement = [0, 0, 0.01]\n"
     ));
     assert!(e.contains("`displacement` needs a `ramp`"), "{e}");
+}
+
+#[test]
+fn hostile_scene_values_are_named_in_the_scene_words_with_their_lines() {
+    // a repeated key names itself
+    let e = err_of(&format!("{BASE}dt = 1e-4\ndt = 2e-4\n"));
+    assert!(e.contains("duplicate key `dt`"), "{e}");
+    // no keyframe at all: the expected row is [t, ux, uy, uz]
+    let e = err_of(&format!("{BASE}[[prescribe]]\nnodes = [1]\nkeyframes = []\n"));
+    assert!(
+        e.contains("<scene>:11: [[prescribe]] #1: keyframes: at least one [t, ux, uy, uz]"),
+        "{e}"
+    );
+    // density, Prony terms and the safety factor: the entry and its line
+    let e = err_of(&BASE.replace("law = \"neo_hookean\"", "law = \"neo_hookean\"\ndensity = -1"));
+    assert!(
+        e.contains("<scene>:5: [[material]] #1: density = -1 must be a finite number > 0"),
+        "{e}"
+    );
+    let e = err_of(&BASE.replace(
+        "law = \"neo_hookean\"",
+        "law = \"neo_hookean\"\nprony = [{ alpha = 0.3, tau = 0.0 }]",
+    ));
+    assert!(
+        e.contains("<scene>:5: [[material]] #1: prony: Prony term 0: tau = 0"),
+        "{e}"
+    );
+    let e = err_of(&format!("{BASE}safety = 2\n"));
+    assert!(e.contains("<scene>:9: [solver]: safety = 2 must lie in (0, 1]"), "{e}");
+    // a mesh file that is not there: the key as written and the path as resolved
+    let e = err_of(
+        &BASE
+            .replace("[mesh]", "[mesh]\nfile = \"nope.msh\"")
+            .replace("generate = ", "# generate = "),
+    );
+    assert!(
+        e.contains("<scene>:2: [mesh]: file = \"nope.msh\": cannot read ./nope.msh"),
+        "{e}"
+    );
+    // surface loads and their selections as the scene writes them, not Rust's debug text
+    let load = |l: &str| format!("{BASE}[[surface_load]]\n{l}\n");
+    let e = err_of(&load("pressure = nan\ntag = 0"));
+    assert!(e.contains("surface load: pressure = NaN Pa is not finite"), "{e}");
+    let e = err_of(&load("pressure = 100.0\nbbox = { min = [5, 5, 5], max = [6, 6, 6] }"));
+    assert!(
+        e.contains("the selection bbox = { min = [5, 5, 5], max = [6, 6, 6] } (m) contains no boundary face"),
+        "{e}"
+    );
 }
 
 #[test]

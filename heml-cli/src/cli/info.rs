@@ -19,7 +19,8 @@ pub struct InfoArgs {
     /// Law for the stable time step (registry name, see `heml materials`).
     #[arg(long, default_value = "neo_hookean")]
     pub law: String,
-    /// Law parameter NAME=VALUE (repeatable). Default for Lamé laws: E=3000, nu=0.45.
+    /// Law parameter NAME=VALUE (repeatable). Default for laws set by E and nu: E=3000,
+    /// nu=0.45 (either given alone keeps the other's default).
     #[arg(long = "param", value_name = "NAME=VALUE")]
     pub params: Vec<String>,
     /// Mass density (kg/m³).
@@ -28,17 +29,30 @@ pub struct InfoArgs {
 }
 
 /// Parses `NAME=VALUE` pairs into [`Params`].
+/// A name without a value, a value without a name and a name given twice are
+/// errors naming the flag (a repeated name would otherwise silently keep the last).
 pub fn parse_params(pairs: &[String]) -> heml::Result<Params> {
     let mut p = Params::new();
     for pair in pairs {
         let (name, value) = pair
             .split_once('=')
             .ok_or_else(|| HemlError::Invalid(format!("--param '{pair}': expected NAME=VALUE, e.g. E=3000")))?;
+        let name = name.trim();
+        if name.is_empty() {
+            return Err(HemlError::Invalid(format!(
+                "--param '{pair}': the parameter name before '=' is missing (expected NAME=VALUE, e.g. E=3000)"
+            )));
+        }
         let value: f64 = value
             .trim()
             .parse()
             .map_err(|_| HemlError::Invalid(format!("--param '{pair}': '{value}' is not a number")))?;
-        p.set(name.trim(), value);
+        if let Some(first) = p.get(name) {
+            return Err(HemlError::Invalid(format!(
+                "--param {name} is given twice ({name}={first} and {name}={value}): give each parameter once"
+            )));
+        }
+        p.set(name, value);
     }
     Ok(p)
 }
@@ -115,8 +129,13 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
         .small_strain
         .as_ref()
         .is_some_and(|s| s.fields.len() == entry.params.len());
-    if params.0.is_empty() && from_moduli {
-        params = Params::from([("E", 3000.0), ("nu", 0.45)]);
+    // (each of E and nu the user leaves out keeps its default, as the help says)
+    if from_moduli && params.0.keys().all(|k| k == "E" || k == "nu") {
+        for (name, value) in [("E", 3000.0), ("nu", 0.45)] {
+            if params.get(name).is_none() {
+                params.set(name, value);
+            }
+        }
     }
     let shown: Vec<String> = params.0.iter().map(|(k, v)| format!("{k}={v}")).collect();
     let sys = heml::system(mesh)
@@ -133,4 +152,22 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
         args.density
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_params;
+
+    #[test]
+    fn params_need_a_name_a_number_and_each_name_once() {
+        let p = |a: &[&str]| parse_params(&a.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+        let ok = p(&["E = 5000", "nu=0.3"]).unwrap();
+        assert_eq!((ok.get("E"), ok.get("nu")), (Some(5000.0), Some(0.3)));
+        let e = p(&["=3"]).unwrap_err().to_string();
+        assert!(e.contains("name before '=' is missing"), "{e}");
+        let e = p(&["mu=1", "mu=2"]).unwrap_err().to_string();
+        assert!(e.contains("--param mu is given twice (mu=1 and mu=2)"), "{e}");
+        let e = p(&["mu=x"]).unwrap_err().to_string();
+        assert!(e.contains("'x' is not a number"), "{e}");
+    }
 }

@@ -5,6 +5,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 
 use heml::scene::Scene;
+use heml::HemlError;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 /// Options shared by `heml run` and `heml demo`.
@@ -43,9 +44,21 @@ pub fn execute(mut scene: Scene, opts: &RunOptions) -> heml::Result<()> {
         scene.output.dir = Some(out.to_string_lossy().into_owned());
     }
     if let Some(d) = opts.duration {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(HemlError::Invalid(format!(
+                "--duration {d}: expected a finite number of seconds > 0"
+            )));
+        }
         scene.solver.duration = d;
     }
-    let mut sim = scene.build()?;
+    // a refusal about `duration` names the flag when the flag set it (the scene's
+    // [solver] line would point at a value that is not the one used)
+    let mut sim = scene.build().map_err(|e| match opts.duration {
+        Some(d) if e.to_string().contains("duration") => {
+            HemlError::Invalid(format!("{e} (duration = {d:e} s from --duration)"))
+        }
+        _ => e,
+    })?;
     for w in &sim.warnings {
         eprintln!("heml warning: {w}");
     }

@@ -7,9 +7,10 @@ use std::path::PathBuf;
 /// Arguments of `heml validate`.
 #[derive(clap::Args, Debug)]
 pub struct ValidateArgs {
-    /// Run only this case (uniaxial, cantilever, p1_equivalence, op_count, mass_spring,
-    /// prony, inversion, energy, ogden).
-    #[arg(long, value_name = "NAME")]
+    /// Run only this case (the list below comes from the validation crate's table of
+    /// cases, so it names every case the binary has).
+    #[arg(long, value_name = "NAME",
+          value_parser = clap::builder::PossibleValuesParser::new(validation::CASES.iter().map(|c| c.name)))]
     pub case: Option<String>,
     /// Folder for the PNG plots.
     #[arg(long, value_name = "DIR", default_value = "heml-validation-output")]

@@ -363,9 +363,47 @@ impl<'a> LineCounter<'a> {
 /// `inf`, or a number such as `1e400` that overflows `f64`) with the node and the
 /// line: such a node would turn every tet around it into NaN volumes downstream.
 pub(crate) fn finite_point(c: &mut Cursor<'_>, node: impl std::fmt::Display) -> Result<crate::Vec3> {
+    point(c, node, None)
+}
+
+/// [`finite_point`] for formats with one node per line (`tag x y z`, the tag at
+/// `line`): the three coordinates must be on that line, and nothing after them.
+/// Read as a free token stream, a line short of a coordinate would take the next
+/// line's tag as its z and shift every later node, and the error would surface
+/// lines further on (as a duplicate tag, say) instead of at the short line.
+pub(crate) fn finite_point_on_line(
+    c: &mut Cursor<'_>,
+    node: impl std::fmt::Display,
+    line: usize,
+) -> Result<crate::Vec3> {
+    let p = point(c, &node, Some(line))?;
+    // a look-ahead on a copy: the next token must start a later line
+    if let Some((tok, l)) = c.clone().token()? {
+        if l == line {
+            return Err(c.err_at(
+                line,
+                format!(
+                    "node {node}: '{}' follows the 3 coordinates; a node line is 'tag x y z'",
+                    shorten(tok)
+                ),
+            ));
+        }
+    }
+    Ok(p)
+}
+
+fn point(c: &mut Cursor<'_>, node: impl std::fmt::Display, line: Option<usize>) -> Result<crate::Vec3> {
     let mut p = [0.0; 3];
     for (k, v) in p.iter_mut().enumerate() {
         let axis = ["x", "y", "z"][k];
+        if let Some(line) = line {
+            if c.line_of_next_token() != line {
+                return Err(c.err_at(
+                    line,
+                    format!("node {node}: the line ends after {k} of the 3 coordinates; a node line is 'tag x y z'"),
+                ));
+            }
+        }
         let (tok, line) = c.expect_token(&format!("the {axis} coordinate of node {node}"))?;
         let x: f64 = parse_at(c.file(), line, tok, &format!("the {axis} coordinate of node {node}"))?;
         if !x.is_finite() {

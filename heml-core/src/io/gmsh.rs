@@ -11,10 +11,14 @@
 //!   without physical groups.
 //! * 4-node tets (type 4) are read, and 8-node hexahedra (type 5), which the load
 //!   splits into tets ([`MeshData::split_hexes`]); points, lines and surface
-//!   elements are skipped and counted; other volume elements (prisms, pyramids,
-//!   quadratic tets and hexes, e.g. type 11) are an error, because dropping them
+//!   elements of any order are skipped and counted; other volume elements (prisms,
+//!   pyramids, polyhedra, quadratic and higher-order tets and hexes, e.g. type 11)
+//!   and numbers outside Gmsh's table of types are an error, because dropping them
 //!   would silently remove material. Re-export such meshes with linear elements
 //!   (`gmsh -3 -order 1`).
+//! * Node lines of versions 1 and 2 are `tag x y z`, one node per line: a line
+//!   with a coordinate missing or extra is an error at that line (read as a token
+//!   stream, it would shift every later node and be reported lines further on).
 //! * Binary records are checked against the bytes left in the file before they
 //!   are reserved or read (a header announcing 10¹⁸ nodes is an error, not an
 //!   allocation); errors in binary data name the line and the byte offset.
@@ -28,7 +32,7 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use super::atomic::write_atomic;
-use super::cursor::{capacity, finite_point, parse_at, shorten, Cursor};
+use super::cursor::{capacity, finite_point, finite_point_on_line, parse_at, shorten, Cursor};
 use super::gmsh_binary::Binary;
 use super::gmsh_data::{ElementData, ElementIds};
 use super::{no_tets_message, read_bytes, MeshData, MeshFormat};
@@ -53,56 +57,102 @@ enum Kind {
     Tet,
     /// A linear hexahedron, split into tets at load.
     Hex,
+    /// A point, line or surface element (of any order): skipped and counted.
     Skip(&'static str),
+    /// A volume element HEML does not simulate: an error.
     Volume(&'static str),
+    /// A number outside Gmsh's table: an error too, since it may be a volume.
+    Unknown,
 }
 
+/// Every Gmsh element type (`MSH_*` in Gmsh's `GmshDefines.h`, 1–140; the
+/// dimensions are `ElementType::getDimension`'s). Only the types known to be
+/// points, lines or surfaces are skipped: an unknown or volume type is refused,
+/// because skipping it would silently remove material from the body.
 fn kind(element_type: i64) -> Kind {
     match element_type {
         4 => Kind::Tet,
-        15 => Kind::Skip("point"),
-        1 | 8 | 26 | 27 | 28 => Kind::Skip("line"),
-        2 | 9 | 20 | 21 | 22 | 23 | 24 | 25 => Kind::Skip("triangle"),
-        3 | 10 | 16 | 36 | 37 | 38 => Kind::Skip("quadrangle"),
         5 => Kind::Hex,
-        12 | 17 | 92 | 93 => Kind::Volume("high-order hexahedron"),
-        6 | 13 | 18 => Kind::Volume("prism"),
-        7 | 14 | 19 => Kind::Volume("pyramid"),
-        11 | 29 | 30 | 31 => Kind::Volume("high-order tetrahedron"),
-        _ => Kind::Skip("other"),
+        // 0-D: MSH_PNT, MSH_PNT_SUB
+        15 | 133 => Kind::Skip("point"),
+        // 1-D: MSH_LIN_2..11, MSH_LIN_B, MSH_LIN_C, MSH_LIN_1, MSH_LIN_SUB
+        1 | 8 | 26..=28 | 62..=67 | 70 | 84 | 134 => Kind::Skip("line"),
+        // 2-D: triangles of every order, MSH_TRI_B, MSH_TRI_1, MSH_TRI_SUB, MSH_TRI_MINI
+        2 | 9 | 20..=25 | 42..=46 | 52..=56 | 68 | 85 | 135 | 138 => Kind::Skip("triangle"),
+        // 2-D: quadrangles of every order, MSH_QUA_1
+        3 | 10 | 16 | 36..=41 | 47..=51 | 57..=61 | 86 => Kind::Skip("quadrangle"),
+        // 2-D: MSH_POLYG_, MSH_POLYG_B
+        34 | 69 => Kind::Skip("polygon"),
+        // 3-D
+        11 | 29..=33 | 71..=75 | 79..=83 | 137 => Kind::Volume("high-order tetrahedron"),
+        87 | 136 | 139 => Kind::Volume("order-0, XFEM or MINI tetrahedron"),
+        12 | 17 | 88 | 92..=105 => Kind::Volume("hexahedron other than the 8-node linear one"),
+        6 | 13 | 18 | 89..=91 | 106..=117 => Kind::Volume("prism"),
+        7 | 14 | 19 | 118..=132 => Kind::Volume("pyramid"),
+        35 => Kind::Volume("polyhedron"),
+        140 => Kind::Volume("trihedron"),
+        _ => Kind::Unknown,
     }
 }
 
-/// Number of nodes of a Gmsh element type (needed to step over binary records;
-/// `None` for types this reader does not know).
+/// Number of nodes of a Gmsh element type (Gmsh's `ElementType::getNumVertices`),
+/// needed to step over binary records; `None` for the types whose count is not
+/// fixed (polygons, Bézier and XFEM elements, MINI triangles) and the types this
+/// reader refuses anyway (volumes other than the 4-node tet and 8-node hex).
 fn nodes_per_element(element_type: i64) -> Option<usize> {
     Some(match element_type {
-        15 => 1,
+        15 | 84..=86 => 1,
         1 => 2,
         2 | 8 => 3,
         3 | 4 | 26 => 4,
-        7 | 27 => 5,
-        6 | 9 | 28 => 6,
+        27 => 5,
+        9 | 28 => 6,
+        62..=66 => element_type as usize - 55,
         5 | 16 => 8,
         10 | 20 => 9,
-        11 | 21 => 10,
-        22 => 12,
-        14 => 14,
-        18 | 23 | 24 => 15,
-        13 => 18,
-        17 | 29 => 20,
-        25 => 21,
-        12 => 27,
-        36 => 16,
+        21 => 10,
+        22 | 39 => 12,
+        23 | 24 => 15,
+        36 | 40 => 16,
+        52 => 18,
+        41 => 20,
+        25 | 53 => 21,
+        54 | 57 => 24,
         37 => 25,
-        38 => 36,
-        30 => 35,
-        31 => 56,
-        19 => 13,
-        92 => 64,
-        93 => 125,
+        55 => 27,
+        42 | 58 => 28,
+        56 => 30,
+        59 => 32,
+        38 | 43 | 60 => 36,
+        61 => 40,
+        44 => 45,
+        47 => 49,
+        45 => 55,
+        48 => 64,
+        46 => 66,
+        49 => 81,
+        50 => 100,
+        51 => 121,
         _ => return None,
     })
+}
+
+/// Why element type `ty` cannot be read, or `None` for a tet, a hex or a skipped
+/// element; the callers add where (line or byte offset) and the file.
+fn refusal(ty: i64) -> Option<String> {
+    const ONLY: &str = "only linear tetrahedra (type 4) and linear hexahedra (type 5, split into tets at load) \
+                        are simulated";
+    match kind(ty) {
+        Kind::Tet | Kind::Hex | Kind::Skip(_) => None,
+        Kind::Volume(name) => Some(format!(
+            "element type {ty} ({name}) is a volume element HEML cannot simulate: {ONLY}; re-mesh with \
+             linear elements (gmsh -3 -order 1)"
+        )),
+        Kind::Unknown => Some(format!(
+            "element type {ty} is not a Gmsh element type (1 to 140, as in Gmsh's GmshDefines.h) and may be \
+             a volume, which must not be dropped: {ONLY}"
+        )),
+    }
 }
 
 /// The layout of the file being read: version family and, for binary files,
@@ -389,7 +439,7 @@ fn read_nodes_v2(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64,
     data.nodes.reserve(capacity(n, c.remaining(), 8));
     for k in 0..n {
         let (tag, ln) = c.record_number::<u64>(k, n, "nodes", header)?;
-        let p = finite_point(c, tag)?;
+        let p = finite_point_on_line(c, tag, ln)?;
         add_node(c, ln, tag, p, data, map)?;
     }
     Ok(())
@@ -482,15 +532,15 @@ fn store(data: &mut MeshData, ids: &mut ElementIds, k: Kind, nodes: &[usize], ta
     }
 }
 
-fn volume_error(c: &Cursor<'_>, ln: usize, ty: i64, name: &str) -> HemlError {
-    c.err_at(
-        ln,
-        format!(
-            "element type {ty} ({name}) is a volume element HEML cannot simulate; only 4-node tetrahedra \
-             (type 4) and 8-node hexahedra (type 5, split into tets at load) are supported: re-mesh with \
-             linear elements (gmsh -3 -order 1)"
-        ),
-    )
+/// Refuses element type `ty` at line `ln` when it is a volume other than the
+/// linear tet and hex, or unknown (see [`refusal`]).
+fn check_type(c: &Cursor<'_>, ln: usize, ty: i64) -> Result<()> {
+    refusal(ty).map_or(Ok(()), |why| Err(c.err_at(ln, why)))
+}
+
+/// As [`check_type`] for a binary file: the error names the byte offset of the type.
+fn check_binary_type(c: &Cursor<'_>, off: usize, ty: i64) -> Result<()> {
+    refusal(ty).map_or(Ok(()), |why| Err(c.err(format!("at byte {off}: {why}"))))
 }
 
 /// ASCII element lines, one per element: v2 `number type tag-count tags… nodes…`
@@ -513,6 +563,7 @@ fn read_element_lines(
         };
         let number: u64 = parse_at(c.file(), ln, next("number")?, "an element number")?;
         let ty: i64 = parse_at(c.file(), ln, next("type")?, "an element type")?;
+        check_type(c, ln, ty)?;
         let mut tag = 0;
         if v1 {
             tag = parse_at(c.file(), ln, next("physical region")?, "an integer physical region")?;
@@ -540,7 +591,8 @@ fn read_element_lines(
         match kind(ty) {
             k @ (Kind::Tet | Kind::Hex) => store(data, ids, k, &element_nodes(c, ln, f, map, k)?, tag, number),
             Kind::Skip(name) => data.skip(name),
-            Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
+            // refused by check_type above
+            Kind::Volume(_) | Kind::Unknown => {}
         }
     }
     Ok(())
@@ -563,11 +615,9 @@ fn read_elements_v41(
         let entity = c.parse::<i32>("the entity tag of an element block")?;
         let ty = c.parse::<i64>("the element type of a block")?;
         let ln = c.line_of_next_token();
+        check_type(c, ln, ty)?;
         let n = count(c, "the number of elements in a block")?;
         let k = kind(ty);
-        if let Kind::Volume(name) = k {
-            return Err(volume_error(c, ln, ty, name));
-        }
         for _ in 0..n {
             let (line, ln) = c.expect_line("an element line")?;
             let mut f = line.split_ascii_whitespace();
@@ -576,7 +626,7 @@ fn read_elements_v41(
             match k {
                 Kind::Tet | Kind::Hex => store(data, ids, k, &element_nodes(c, ln, f, map, k)?, entity, number),
                 Kind::Skip(name) => data.skip(name),
-                Kind::Volume(_) => {}
+                Kind::Volume(_) | Kind::Unknown => {}
             }
         }
         seen = seen.saturating_add(n);
@@ -616,10 +666,10 @@ struct Record {
 }
 
 /// Stores one binary element of type `ty` (node tags with their byte offsets;
-/// their number is the type's, as read).
+/// their number is the type's, as read; the type was checked with
+/// [`check_binary_type`]).
 fn store_binary_element(
     c: &Cursor<'_>,
-    ln: usize,
     ty: i64,
     r: &Record,
     data: &mut MeshData,
@@ -636,16 +686,19 @@ fn store_binary_element(
             store(data, ids, k, &nodes, r.tag, r.number);
         }
         Kind::Skip(name) => data.skip(name),
-        Kind::Volume(name) => return Err(volume_error(c, ln, ty, name)),
+        Kind::Volume(_) | Kind::Unknown => {}
     }
     Ok(())
 }
 
-/// The node count of a binary element type, which is needed to find the next record.
+/// The node count of a binary element type, which is needed to find the next
+/// record; the type is refused first when it is a volume or unknown.
 fn binary_nodes_per_element(c: &Cursor<'_>, off: usize, ty: i64) -> Result<usize> {
+    check_binary_type(c, off, ty)?;
     nodes_per_element(ty).ok_or_else(|| {
         c.err(format!(
-            "at byte {off}: unknown element type {ty}; its node count is needed to read the binary records"
+            "at byte {off}: element type {ty} has no fixed node count, which is needed to step over its \
+             binary records; re-save the file as ASCII, or without this element type"
         ))
     })
 }
@@ -697,7 +750,6 @@ fn read_elements_v2_bin(
             .unwrap_or(usize::MAX);
         b.check_room(c, follow, each, "element records")?;
         for _ in 0..follow {
-            let ln = c.line();
             let number = b.uint(c, "an element number")?;
             let mut tag = 0;
             for k in 0..ntags {
@@ -711,7 +763,7 @@ fn read_elements_v2_bin(
                 let off = c.offset();
                 nodes.push((b.uint(c, "a node number of an element")?, off));
             }
-            store_binary_element(c, ln, ty, &Record { number, tag, nodes }, data, ids, map)?;
+            store_binary_element(c, ty, &Record { number, tag, nodes }, data, ids, map)?;
         }
         read += follow;
     }
@@ -778,7 +830,6 @@ fn read_elements_v41_bin(
         let nn = binary_nodes_per_element(c, off, ty)?;
         b.check_room(c, n, b.size_t * (1 + nn), "element records")?;
         for _ in 0..n {
-            let ln = c.line();
             let number = b.size(c, "an element tag")?;
             let mut nodes = Vec::with_capacity(nn);
             for _ in 0..nn {
@@ -790,7 +841,7 @@ fn read_elements_v41_bin(
                 tag: entity,
                 nodes,
             };
-            store_binary_element(c, ln, ty, &r, data, ids, map)?;
+            store_binary_element(c, ty, &r, data, ids, map)?;
         }
         seen = seen.saturating_add(n);
     }

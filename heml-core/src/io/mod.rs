@@ -29,7 +29,9 @@
 //!   [`crate::mesh::hex_split`] for how each split stays conforming on an
 //!   unstructured hex mesh). Other *volume* elements (prisms, pyramids, quadratic
 //!   tets…) are rejected with an error: dropping them silently would remove
-//!   material from the body.
+//!   material from the body. So is a type number the format's own table does not
+//!   know (Gmsh's `GmshDefines.h`, VTK's `vtkCellType.h`): only types known to be
+//!   points, lines or surfaces are skipped, since an unknown one may be a volume.
 //! * **Every writer is atomic** ([`atomic`]): output goes to a temporary file in the
 //!   same directory that is renamed over the target, so a crash or an error never
 //!   leaves a half-written file behind.

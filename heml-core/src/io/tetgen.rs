@@ -117,7 +117,7 @@ pub fn parse_ele(path: &Path, bytes: &[u8], first: usize, n_nodes: usize) -> Res
             *v = id
                 .checked_sub(first)
                 .filter(|&i| i < n_nodes)
-                .ok_or_else(|| c.err_at(ln, format!("point number {id} is outside {first}..{}", first + n_nodes)))?;
+                .ok_or_else(|| c.err_at(ln, no_such_point(id, first, n_nodes)))?;
         }
         let mut tag = 0;
         for a in 0..nattr {
@@ -133,6 +133,18 @@ pub fn parse_ele(path: &Path, bytes: &[u8], first: usize, n_nodes: usize) -> Res
     }
     c.expect_no_more_records(n, "tetrahedra", header)?;
     Ok((tets, tags))
+}
+
+/// The error for a corner `id` that names no point: the valid numbers written
+/// as an inclusive range (`1..=5`), since `first..first + n` read as "up to 6".
+fn no_such_point(id: usize, first: usize, n_nodes: usize) -> String {
+    match n_nodes {
+        0 => format!("point number {id}: the .node file holds no points"),
+        n => format!(
+            "point number {id} is outside {first}..={} (the .node file has {n} point(s), numbered from {first})",
+            first + n - 1
+        ),
+    }
 }
 
 /// Writes both files (numbering from 1, TetGen's default; tags as the region

@@ -14,25 +14,55 @@ enum CellKind {
     Hex,
     /// VTK_VOXEL (11): corners in (x, y, z) bit order, permuted to the hex order.
     Voxel,
+    /// A vertex, line or surface cell (of any order): skipped and counted.
     Skip(&'static str),
+    /// A volume cell HEML does not simulate: an error.
     Volume(&'static str),
+    /// A number outside VTK's list: an error too, since it may be a volume.
+    Unknown,
 }
 
+/// Every VTK cell type (`VTKCellType` in VTK's `vtkCellType.h`, 0–81). Only the
+/// types known to be vertices, lines or surfaces are skipped: an unknown or volume
+/// type is refused, because skipping it would silently remove material.
 fn cell_kind(t: i64) -> CellKind {
     match t {
         10 => CellKind::Tet,
-        1 | 2 => CellKind::Skip("vertex"),
-        3 | 4 | 21 | 35 | 68 => CellKind::Skip("line"),
-        5 | 6 | 7 | 22 | 34 | 36 | 69 => CellKind::Skip("triangle/polygon"),
-        8 | 9 | 23 | 28 | 30 | 70 => CellKind::Skip("quad"),
-        12 => CellKind::Hex,
         11 => CellKind::Voxel,
-        25 | 29 | 33 | 72 => CellKind::Volume("quadratic/Lagrange hexahedron"),
-        13 | 26 | 31 | 32 | 73 => CellKind::Volume("wedge"),
-        14 | 27 | 37 | 74 => CellKind::Volume("pyramid"),
-        24 | 71 => CellKind::Volume("quadratic/Lagrange tetrahedron"),
-        15 | 16 | 42 => CellKind::Volume("polyhedron/prism"),
-        _ => CellKind::Skip("other"),
+        12 => CellKind::Hex,
+        0 => CellKind::Skip("empty cell"),
+        1 | 2 => CellKind::Skip("vertex"),
+        // line, poly-line, quadratic and cubic edges, parametric, higher-order,
+        // Lagrange and Bézier curves
+        3 | 4 | 21 | 35 | 51 | 60 | 68 | 75 => CellKind::Skip("line"),
+        // triangles, strips and polygons of every order, parametric surfaces
+        5 | 6 | 7 | 22 | 34 | 36 | 52 | 53 | 61 | 63 | 69 | 76 => CellKind::Skip("triangle/polygon"),
+        // pixel and quadrilaterals of every order
+        8 | 9 | 23 | 28 | 30 | 54 | 62 | 70 | 77 => CellKind::Skip("quad"),
+        24 | 55 | 64 | 71 | 78 => CellKind::Volume("quadratic/higher-order tetrahedron"),
+        25 | 29 | 33 | 56 | 67 | 72 | 79 => CellKind::Volume("quadratic/higher-order hexahedron"),
+        13 | 26 | 31 | 32 | 65 | 73 | 80 => CellKind::Volume("wedge"),
+        14 | 27 | 37 | 66 | 74 | 81 => CellKind::Volume("pyramid"),
+        15 | 16 => CellKind::Volume("pentagonal/hexagonal prism"),
+        41 | 42 => CellKind::Volume("convex point set/polyhedron"),
+        _ => CellKind::Unknown,
+    }
+}
+
+/// Why cell `c` of VTK type `ty` cannot be read, or `None` for a tet, a hex or a
+/// skipped cell; the readers add where (line) and the file.
+fn refusal(c: usize, ty: f64) -> Option<String> {
+    const ONLY: &str = "only linear tetrahedra (type 10) and linear hexahedra (types 11 and 12, split into tets \
+                        at load) are simulated";
+    match cell_kind(ty as i64) {
+        CellKind::Tet | CellKind::Hex | CellKind::Voxel | CellKind::Skip(_) => None,
+        CellKind::Volume(name) => Some(format!(
+            "cell {c} has VTK type {ty} ({name}), a volume cell HEML cannot simulate: {ONLY}"
+        )),
+        CellKind::Unknown => Some(format!(
+            "cell {c} has VTK type {ty}, which is not a VTK cell type (0 to 81, as in VTK's vtkCellType.h) and \
+             may be a volume, which must not be dropped: {ONLY}"
+        )),
     }
 }
 
@@ -122,6 +152,9 @@ pub(crate) fn assemble(
         if ty.fract() != 0.0 {
             return Err(err(At::Type(c), format!("cell {c}: cell type {ty} is not an integer")));
         }
+        if let Some(why) = refusal(c, ty) {
+            return Err(err(At::Type(c), why));
+        }
         let kind = cell_kind(ty as i64);
         let (want, name) = match kind {
             CellKind::Tet => (4, "a tetrahedron (type 10)"),
@@ -180,18 +213,8 @@ pub(crate) fn assemble(
             }
             continue;
         }
-        match kind {
-            CellKind::Tet | CellKind::Hex | CellKind::Voxel => {}
-            CellKind::Skip(name) => data.skip(name),
-            CellKind::Volume(name) => {
-                return Err(err(
-                    At::Type(c),
-                    format!(
-                        "cell {c} has VTK type {ty} ({name}), a volume cell HEML cannot simulate; only linear \
-                         tetrahedra (type 10) and hexahedra (types 11, 12: split into tets at load) are supported"
-                    ),
-                ))
-            }
+        if let CellKind::Skip(name) = kind {
+            data.skip(name);
         }
     }
     Ok(data)

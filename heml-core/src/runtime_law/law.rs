@@ -3,7 +3,7 @@
 
 use super::tape::Tape;
 use crate::error::{HemlError, Result};
-use crate::law::{Derivs, InvariantLaw, MaterialInfo, OpCount, ParamInfo};
+use crate::law::{Derivs, InvariantLaw, MaterialInfo, OpCount, ParamInfo, RestState};
 use crate::params::Params;
 use heml_symbolic::derivatives::{Derivatives, InvariantKernels};
 use heml_symbolic::expr::{Graph, Id};
@@ -107,6 +107,13 @@ impl RuntimeLaw {
     /// Errors say where the text is wrong (column, with the line shown) and what is
     /// allowed there, as the macro's errors do; a parameter the energy does not use
     /// is an error too (a misspelt name would otherwise pass silently).
+    ///
+    /// The law is then evaluated at rest with its values: an energy or a first
+    /// derivative that is not finite there is an error naming it (the run would
+    /// otherwise stop at its first step with NaN forces, or report an infinite
+    /// energy), and a law that is stressed or stores energy at rest gets the
+    /// registry's warning for compiled laws, logged with `log::warn!` (see
+    /// [`Self::rest_check`]).
     pub fn from_energy(energy: &str, params: &Params) -> Result<Self> {
         Self::with_inversion_fix(energy, params, true)
     }
@@ -115,7 +122,7 @@ impl RuntimeLaw {
     /// `no_inversion_fix` (for an energy finite for J ≤ 0).
     pub fn with_inversion_fix(energy: &str, params: &Params, inversion_fix: bool) -> Result<Self> {
         let names: Vec<String> = params.0.keys().cloned().collect();
-        let bad = |problem: String| HemlError::Invalid(format!("energy \"{energy}\": {problem}"));
+        let bad = |problem: String| HemlError::Invalid(format!("energy {}: {problem}", quoted(energy)));
         if names.len() > MAX_PARAMS {
             return Err(bad(format!(
                 "{} parameters given, at most {MAX_PARAMS} are supported",
@@ -130,10 +137,57 @@ impl RuntimeLaw {
         for (slot, v) in values.iter_mut().zip(params.0.values()) {
             *slot = *v;
         }
-        Ok(Self {
+        let law = Self {
             compiled: Some(compiled),
             values,
-        })
+        };
+        law.finite_at_rest().map_err(bad)?;
+        if let Some(w) = law.rest_check() {
+            log::warn!("{w}");
+        }
+        Ok(law)
+    }
+
+    /// The energy and the stress factor 2w₁ + 4w₂ + w_J of P = (2w₁ + 4w₂ + w_J)·I at
+    /// rest (I1 = I2 = 3, J = 1) with the law's values: what
+    /// [`crate::law::rest_state_invariant`] gives a compiled law.
+    pub fn rest_state(&self) -> RestState {
+        RestState::of_invariant_law(self)
+    }
+
+    /// The registry's warning for a law not at rest when undeformed
+    /// ([`crate::registry::MaterialEntry::rest_check`]: same threshold, same text),
+    /// for this law with its own values; `None` when it is at rest. Logged when the
+    /// law is built.
+    pub fn rest_check(&self) -> Option<String> {
+        crate::registry::rest_warning(
+            &format!("energy {}", quoted(self.energy())),
+            self.param_info(),
+            self.values(),
+            self.rest_state(),
+            "",
+        )
+    }
+
+    /// An error naming the first of w, ∂w/∂I1, ∂w/∂I2, ∂w/∂J that is not finite at
+    /// rest: the forces of every undeformed tet would be NaN.
+    fn finite_at_rest(&self) -> std::result::Result<(), String> {
+        let d = self.dw(3.0, 3.0, 1.0);
+        let quantities = [
+            ("energy", d.w),
+            ("dw/dI1", d.d[0]),
+            ("dw/dI2", d.d[1]),
+            ("dw/dJ", d.d[2]),
+        ];
+        let Some((name, v)) = quantities.into_iter().find(|(_, v)| !v.is_finite()) else {
+            return Ok(());
+        };
+        let with = crate::registry::with_values(self.param_info(), self.values(), "");
+        let sep = if with.is_empty() { "" } else { "; " };
+        Err(format!(
+            "{name} at rest is {v} (I1 = I2 = 3, J = 1{sep}{with}): a law must have a finite energy and finite \
+             derivatives when undeformed"
+        ))
     }
 
     /// The energy as given.
@@ -361,5 +415,17 @@ impl InvariantLaw for RuntimeLaw {
         t.dw.run::<N, true, _>([*i1, *i2, *j, [0.0; N]], &self.values, |o| {
             [o.get(0), o.get(1), o.get(2), o.get(3)]
         })
+    }
+}
+
+/// Longest energy text quoted whole in a message; a longer one is cut (its errors
+/// point into it by column anyway, and a hostile text can be 64k characters long).
+const QUOTED_CHARS: usize = 120;
+
+/// `text` in quotes for messages, cut to its first [`QUOTED_CHARS`] characters.
+fn quoted(text: &str) -> String {
+    match text.char_indices().nth(QUOTED_CHARS) {
+        None => format!("\"{text}\""),
+        Some((cut, _)) => format!("\"{}…\" ({} characters)", &text[..cut], text.chars().count()),
     }
 }

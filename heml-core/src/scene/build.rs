@@ -118,7 +118,17 @@ impl Scene {
         let mut data = match (&m.file, &m.generate) {
             (Some(file), None) => {
                 let path = self.base_dir.join(file);
-                let mut data = read_mesh_data(&path)?.0;
+                // a file that cannot be opened is named as the scene wrote it and as
+                // resolved (relative paths are against the scene's folder)
+                let mut data = read_mesh_data(&path)
+                    .map_err(|e| match e {
+                        HemlError::Io { path, source } => HemlError::Invalid(format!(
+                            "{what}: file = {file:?}: cannot read {}: {source}",
+                            path.display()
+                        )),
+                        e => e,
+                    })?
+                    .0;
                 super::fibres::check_fibre_fields(&self.materials, &data, &path)?;
                 data.split_hexes(m.hex_split.unwrap_or_default())
                     .map_err(|e| HemlError::Invalid(format!("{what}: {}: {e}", path.display())))?;
@@ -253,6 +263,10 @@ impl Scene {
             .energy_every(0)
             .lazy_energy(!self.output.csv);
         if let Some(safety) = s.safety {
+            // checked here too (the builder checks it), so that the error has its line
+            if !(safety.is_finite() && safety > 0.0 && safety <= 1.0) {
+                return invalid(format!("{solver_what}: safety = {safety} must lie in (0, 1]"));
+            }
             b = b.safety(safety);
         }
         if self.materials.is_empty() {
@@ -358,9 +372,9 @@ impl Scene {
             None if stable.is_finite() => stable,
             None if (0..system.mesh().n_nodes()).any(|i| system.is_free(i)) => {
                 return invalid(format!(
-                    "{solver_what}: no dt given, and the stable estimate is {stable}: the materials give no \
-                     stiffness at rest (a zero modulus or spring constant in [[material]] params?): fix the \
-                     parameters, or set dt"
+                    "{solver_what}: no dt given, and the stable estimate is {stable}: {}: fix the parameters, \
+                     or set dt",
+                    system.infinite_estimate_reason()
                 ))
             }
             None => {
@@ -380,9 +394,14 @@ impl Scene {
         };
         if steps > limits.max_steps as f64 {
             // refused before the cast: duration / dt may not even fit a u64
+            // when the step is the estimate, say what sets it if that is the damping
+            let why = match (s.dt, system.damping_note()) {
+                (None, Some(note)) => format!(" (the stable estimate; {note})"),
+                _ => String::new(),
+            };
             return invalid(format!(
-                "{solver_what}: duration / dt = {:e} / {requested:e} = {steps:e} steps, above max_steps = {}: \
-                 shorten `duration`, raise `dt`, or raise `max_steps` if you mean it",
+                "{solver_what}: duration / dt = {:e} / {requested:e}{why} = {steps:e} steps, above max_steps = \
+                 {}: shorten `duration`, raise `dt`, or raise `max_steps` if you mean it",
                 s.duration, limits.max_steps
             ));
         }
@@ -528,6 +547,9 @@ fn prescribed_motion(p: &PrescribeSpec, what: &str) -> Result<(Vec3, Ramp)> {
 /// ramp r_k = u_k·u*/|u*|²; an error when a keyframe leaves the direction of u*
 /// (by more than 1e-9 |u*|: round-off of the user's decimals, not a second direction).
 fn keyframed(k: &[[f64; 4]]) -> std::result::Result<(Vec3, Ramp), String> {
+    if k.is_empty() {
+        return Err("at least one [t, ux, uy, uz] is needed".into());
+    }
     if k.iter().flatten().any(|c| !c.is_finite()) {
         return Err("every time and displacement must be finite".into());
     }
@@ -566,6 +588,16 @@ fn registry_hint(empty: bool) -> &'static str {
 /// Adds one `[[material]]` to the builder, with a "did you mean" for misspelt
 /// parameter names.
 fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec, mesh: &TetMesh) -> Result<SystemBuilder> {
+    // checked before the law is built (the builder checks them too), so that the
+    // errors name the [[material]] entry and its line
+    if let Some(d) = m.density {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(HemlError::Invalid(format!(
+                "density = {d} must be a finite number > 0 (kg/m³)"
+            )));
+        }
+    }
+    crate::system::validate_prony(&m.prony).map_err(|e| HemlError::Invalid(format!("prony: {e}")))?;
     let law = match &m.energy {
         Some(energy) if m.law.is_empty() => Box::new(crate::RuntimeLaw::from_energy(energy, &m.params)?),
         Some(_) => {

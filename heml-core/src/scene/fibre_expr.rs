@@ -60,7 +60,8 @@ impl DirectionExpr {
                         _ => {}
                     }
                 }
-                let ex = exmex::parse::<f64>(text).map_err(|e| HemlError::Invalid(format!("{}: {e}", at())))?;
+                let ex = exmex::parse::<f64>(text)
+                    .map_err(|e| HemlError::Invalid(format!("{}: {}", at(), parse_failure(text, &e.to_string()))))?;
                 let slots = ex
                     .var_names()
                     .iter()
@@ -97,6 +98,29 @@ impl DirectionExpr {
     }
 }
 
+/// Why `text` does not parse, in the scene's words: a name called like a function
+/// that is none (exmex would say "a number/variable cannot be on the right of a
+/// closing parenthesis"), else exmex's own message without its "wlog" prefix.
+fn parse_failure(text: &str, exmex_message: &str) -> String {
+    let mut rest = text;
+    while let Some(start) = rest.find(|c: char| c.is_ascii_alphabetic()) {
+        let tail = &rest[start..];
+        let end = tail
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .unwrap_or(tail.len());
+        let (name, after) = tail.split_at(end);
+        let is_call = after.trim_start().starts_with('(');
+        // a function of one or two arguments parses with literal arguments
+        let known = |args: &str| exmex::parse::<f64>(&format!("{name}({args})")).is_ok();
+        if is_call && !known("1") && !known("1, 1") {
+            return format!("unknown function '{name}'");
+        }
+        rest = after;
+    }
+    let m = exmex_message.trim();
+    format!("cannot parse: {}", m.strip_prefix("wlog ").unwrap_or(m))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,6 +145,12 @@ mod tests {
         let s = |a: &str, b: &str, c: &str| [a.to_string(), b.to_string(), c.to_string()];
         assert!(msg(s("r", "0", "0")).contains("unknown variable 'r'"));
         assert!(msg(s("1 +", "0", "0")).contains("component x \"1 +\""));
+        let unknown = msg(s("0", "foo(x)", "0"));
+        assert!(
+            unknown.contains("component y \"foo(x)\": unknown function 'foo'"),
+            "{unknown}"
+        );
+        assert!(!msg(s("foo(", "0", "0")).contains("wlog"));
         assert!(msg(s("0", &"(".repeat(40), "0")).contains("nested deeper than 32"));
         assert!(msg(s("0", "0", &"1+".repeat(300))).contains("longer than 512"));
         let ln = parse(["ln(x)", "0", "0"]).unwrap();

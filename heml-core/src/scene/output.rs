@@ -57,6 +57,35 @@ pub(crate) struct Output {
     file_order: Option<(Permutation, Vec<[u32; 4]>)>,
 }
 
+/// Removes the frames (`frame_NNNNN.vtu`, the names [`Output`] writes) an earlier
+/// run left in `dir`, with a warning: the new `frames.pvd` lists only this run's
+/// frames, and a folder holding both runs' files reads as one series in viewers
+/// that open `frame_*.vtu` as a group. Other files are kept. Returns how many were
+/// removed.
+fn remove_earlier_frames(dir: &Path) -> Result<usize> {
+    let entries = std::fs::read_dir(dir).map_err(|e| HemlError::io(dir, e))?;
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let is_frame = name
+            .to_str()
+            .and_then(|n| n.strip_prefix("frame_"))
+            .and_then(|n| n.strip_suffix(".vtu"))
+            .is_some_and(|digits| digits.len() >= 5 && digits.bytes().all(|b| b.is_ascii_digit()));
+        if is_frame && entry.path().is_file() {
+            std::fs::remove_file(entry.path()).map_err(|e| HemlError::io(entry.path(), e))?;
+            removed += 1;
+        }
+    }
+    if removed > 0 {
+        log::warn!(
+            "removed {removed} frame_*.vtu of an earlier run from {} (this run writes its own series)",
+            dir.display()
+        );
+    }
+    Ok(removed)
+}
+
 impl Output {
     /// Creates the directory and the empty series. `node_order` is the renumbering
     /// of `sys`'s nodes ([`super::Simulation::node_order`]), undone in every frame.
@@ -69,8 +98,17 @@ impl Output {
         node_order: Option<&Permutation>,
         tools: Vec<(ToolId, String)>,
     ) -> Result<Output> {
+        if dir.exists() && !dir.is_dir() {
+            return Err(HemlError::Invalid(format!(
+                "output folder {} exists and is not a folder: choose another `out`",
+                dir.display()
+            )));
+        }
         std::fs::create_dir_all(dir).map_err(|e| HemlError::io(dir, e))?;
         crate::io::atomic::remove_stale_temporaries(dir);
+        if vtu {
+            remove_earlier_frames(dir)?;
+        }
         let pvd = if vtu {
             Some(PvdWriter::create(dir.join("frames.pvd"))?)
         } else {

@@ -12,6 +12,17 @@ use crate::registry::closest;
 pub(crate) fn toml_error(origin: &Path, text: &str, e: &toml::de::Error) -> HemlError {
     let line = e.span().map_or(0, |s| line_of(text, s.start));
     let mut msg = e.message().trim().replace('\n', " ");
+    // toml says "duplicate key" (or table) without the name; its span covers it
+    if msg.starts_with("duplicate") && !msg.contains('`') {
+        if let Some(name) = e
+            .span()
+            .and_then(|s| text.get(s))
+            .map(str::trim)
+            .filter(|n| !n.is_empty())
+        {
+            msg = format!("{msg} `{name}`");
+        }
+    }
     // a wrong value ("invalid type: string \"1.0\", expected f64") names its key
     if let Some(key) = e.span().and_then(|s| key_before(text, s.start)) {
         if !msg.contains(&format!("`{key}`")) {
@@ -94,5 +105,13 @@ mod tests {
         assert_eq!(key_before(t, t.find('"').unwrap()), Some("E"));
         assert_eq!(key_before("dt = x", 5), Some("dt"));
         assert_eq!(key_before("[1, 2]", 1), None);
+    }
+
+    #[test]
+    fn names_the_duplicate_key_and_its_line() {
+        let text = "[solver]\nduration = 0.05\nduration = 0.1\n";
+        let e = toml::from_str::<toml::Table>(text).unwrap_err();
+        let msg = toml_error(Path::new("s.toml"), text, &e).to_string();
+        assert!(msg.starts_with("s.toml:3: duplicate key `duration`"), "{msg}");
     }
 }

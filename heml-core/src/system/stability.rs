@@ -32,7 +32,11 @@
 //! stiffening with wave speeds, calibrated to the rest estimate.
 //!
 //! Damping lowers the limit: with the modal damping ratio ξ = α/(2ω) + βω/2 at
-//! ω = ω_max, dt_crit = (2/ω)(√(1+ξ²) − ξ). The estimate returned is
+//! ω = ω_max, dt_crit = (2/ω)(√(1+ξ²) − ξ), evaluated as (2/ω)/(hypot(1, ξ) + ξ):
+//! the same number without the cancellation, and without the overflow of ξ² that
+//! made an absurd damping (`[damping] mass = 1e200`) give an infinite estimate,
+//! reported as a law without stiffness. Heavy damping gives a tiny step instead
+//! (dt ≲ 2/α), which [`System::damping_note`] names. The estimate returned is
 //! `safety × dt_crit` ([`DEFAULT_SAFETY`] = 0.9, configurable). Explicit (forward)
 //! Euler is unstable for undamped oscillations at any dt; the estimate concerns the
 //! symplectic schemes.
@@ -267,15 +271,86 @@ pub(crate) fn damped_safe(sys: &System, dt: f64) -> f64 {
         if !dt.is_finite() {
             return dt;
         }
-        let omega = 2.0 / dt;
-        let xi = d.alpha / (2.0 * omega) + d.beta * omega / 2.0;
-        return sys.safety() * dt * ((1.0 + xi * xi).sqrt() - xi);
+        return sys.safety() * dt * damping_factor(d.alpha, d.beta, 2.0 / dt);
     }
     let omega_el = if dt.is_finite() { 2.0 / dt } else { 0.0 };
     let omega = (omega_el * omega_el + gk).sqrt();
     if omega == 0.0 {
         return f64::INFINITY;
     }
-    let xi = (d.alpha + gc) / (2.0 * omega) + d.beta * omega / 2.0;
-    sys.safety() * (2.0 / omega) * ((1.0 + xi * xi).sqrt() - xi)
+    sys.safety() * (2.0 / omega) * damping_factor(d.alpha + gc, d.beta, omega)
+}
+
+/// √(1+ξ²) − ξ, the factor by which Rayleigh damping (mass α, stiffness β) cuts the
+/// critical step of the mode ω (ξ = α/(2ω) + βω/2), written 1/(hypot(1, ξ) + ξ):
+/// no cancellation for large ξ and no overflow of ξ² (an infinite ξ gives 0).
+fn damping_factor(alpha: f64, beta: f64, omega: f64) -> f64 {
+    let xi = alpha / (2.0 * omega) + beta * omega / 2.0;
+    1.0 / (1.0_f64.hypot(xi) + xi)
+}
+
+impl System {
+    /// A note for messages about the step when the system's damping is what makes the
+    /// stable estimate small (it cuts the undamped step by more than half): without
+    /// it, a huge `[damping]` value shows up only as a step count too large to run.
+    pub(crate) fn damping_note(&self) -> Option<String> {
+        let sys = self;
+        let d = sys.damping();
+        let dt = sys.stepping.critical_dt;
+        if !(dt.is_finite() && dt > 0.0) || (d.alpha == 0.0 && d.beta == 0.0) {
+            return None;
+        }
+        let omega = 2.0 / dt;
+        let factor = damping_factor(d.alpha, d.beta, omega);
+        (factor < 0.5).then(|| {
+            format!(
+                "the Rayleigh damping (mass {:e} 1/s, stiffness {:e} s) sets it: its damping ratio {:.3e} at the \
+                 highest frequency ({omega:.3e} rad/s) cuts the undamped stable step {dt:.3e} s by a factor \
+                 {:.3e}; lower the damping",
+                d.alpha,
+                d.beta,
+                d.alpha / (2.0 * omega) + d.beta * omega / 2.0,
+                1.0 / factor
+            )
+        })
+    }
+
+    /// Why the stable estimate is infinite although some node is free: a region
+    /// whose forces are not finite a little away from the rest shape (a parameter too
+    /// large to evaluate, such as an Ogden exponent of 1e300: the estimate then
+    /// measures nothing), else no stiffness at rest (a zero modulus). The two used to
+    /// be reported alike, as the second.
+    pub(crate) fn infinite_estimate_reason(&self) -> String {
+        let sys = self;
+        let rest = sys.rest_positions();
+        let eps = 1e-6 * sys.model.length_scale;
+        let mut next = crate::sampling::uniform(0x9E37_79B9_7F4A_7C15_u64);
+        let x: Vec<Vec3> = rest
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let u = Vec3::new(next(), next(), next());
+                if sys.is_free(i) {
+                    p + u * eps
+                } else {
+                    *p
+                }
+            })
+            .collect();
+        let mut f = vec![Vec3::zeros(); x.len()];
+        for r in sys.regions() {
+            let finite = sys.elastic_forces_at(&x, &mut f, |q| std::ptr::eq(q, r)).is_ok()
+                && f.iter().all(|v| v.iter().all(|c| c.is_finite()));
+            if !finite {
+                let m = &r.material;
+                return format!(
+                    "the forces of material law '{}' ({}) are not finite within {eps:.1e} m of the rest shape: a \
+                 parameter too large to evaluate in floating point",
+                    m.name(),
+                    crate::registry::with_values(m.param_info(), &m.param_values(), "")
+                );
+            }
+        }
+        "the materials give no stiffness at rest (a zero modulus or spring constant in [[material]] params?)".into()
+    }
 }

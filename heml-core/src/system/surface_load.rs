@@ -100,6 +100,44 @@ pub enum FaceSelection {
     },
 }
 
+/// As a user writes it (`tag = 2`, `bbox = { min = [..], max = [..] }`, a plane), for
+/// messages: the error of an empty selection names what was asked in the words of
+/// the scene file, not in Rust's debug notation.
+///
+/// ```
+/// use heml_core::system::surface_load::FaceSelection;
+/// use heml_core::Vec3;
+/// let b = FaceSelection::Box { min: Vec3::new(0.0, 0.0, 0.5), max: Vec3::new(1.0, 1.0, 1.0) };
+/// assert_eq!(b.to_string(), "bbox = { min = [0, 0, 0.5], max = [1, 1, 1] } (m)");
+/// assert_eq!(FaceSelection::Tag(3).to_string(), "tag = 3");
+/// ```
+impl std::fmt::Display for FaceSelection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = |v: &Vec3| format!("[{}, {}, {}]", v.x, v.y, v.z);
+        match self {
+            FaceSelection::Tag(t) => write!(f, "tag = {t}"),
+            FaceSelection::Box { min, max } => write!(f, "bbox = {{ min = {}, max = {} }} (m)", v(min), v(max)),
+            FaceSelection::Plane {
+                point,
+                normal,
+                distance,
+                max_angle,
+            } => {
+                write!(
+                    f,
+                    "plane = {{ point = {}, normal = {}, tolerance = {distance}",
+                    v(point),
+                    v(normal)
+                )?;
+                if let Some(a) = max_angle {
+                    write!(f, ", max_angle = {} deg", a.to_degrees())?;
+                }
+                write!(f, " }} (m)")
+            }
+        }
+    }
+}
+
 /// What a surface load applies.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SurfaceLoad {
@@ -107,6 +145,21 @@ pub enum SurfaceLoad {
     Pressure(f64),
     /// Dead traction per unit rest area (N/m²).
     Traction(Vec3),
+}
+
+/// As a user writes it (`pressure = 1000 Pa`, `traction = [..] N/m²`), for messages.
+///
+/// ```
+/// use heml_core::system::surface_load::SurfaceLoad;
+/// assert_eq!(SurfaceLoad::Pressure(f64::NAN).to_string(), "pressure = NaN Pa");
+/// ```
+impl std::fmt::Display for SurfaceLoad {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SurfaceLoad::Pressure(p) => write!(f, "pressure = {p} Pa"),
+            SurfaceLoad::Traction(t) => write!(f, "traction = [{}, {}, {}] N/m²", t.x, t.y, t.z),
+        }
+    }
 }
 
 impl SurfaceLoad {
@@ -118,7 +171,7 @@ impl SurfaceLoad {
         if ok {
             Ok(())
         } else {
-            Err(HemlError::Invalid(format!("surface load {self:?} is not finite")))
+            Err(HemlError::Invalid(format!("surface load: {self} is not finite")))
         }
     }
 }
@@ -334,7 +387,7 @@ impl System {
         let (faces, owners) = select(self, sel)?;
         if faces.is_empty() {
             return Err(HemlError::Invalid(format!(
-                "surface load: the selection {sel:?} contains no boundary face"
+                "surface load: the selection {sel} contains no boundary face"
             )));
         }
         let rest = self.model.mesh.nodes();
