@@ -149,6 +149,9 @@ pub(crate) mod tests {
         a.node_count() == b.node_count() && (0..a.node_count()).all(|i| a.node(i) == b.node(i))
     }
 
+    /// What a rewrite makes of a node once its operands are done (see [`Graph::rewrite`]).
+    pub(crate) type Make<'a> = dyn FnMut(&mut Graph, Id, &HashMap<Id, Id>) -> Id + 'a;
+
     /// [`Graph::rewrite`] as the plain recursion it replaced (each operand's subtree
     /// first, in order, then the node): the oracle of the walks' order, for
     /// differentiation here and substitution (`taylor`).
@@ -156,7 +159,7 @@ pub(crate) mod tests {
         g: &mut Graph,
         id: Id,
         descend: &dyn Fn(Node) -> bool,
-        make: &mut dyn FnMut(&mut Graph, Id, &HashMap<Id, Id>) -> Id,
+        make: &mut Make<'_>,
         memo: &mut HashMap<Id, Id>,
     ) -> Id {
         if let Some(&d) = memo.get(&id) {
