@@ -14,7 +14,7 @@
 use crate::expr::{Graph, Id, Node, Var};
 use std::collections::HashMap;
 
-/// ∂`root`/∂`var` ([`Graph::rewrite`]: the rule of each node once its operands'
+/// ∂`root`/∂`var` (`Graph::rewrite`: the rule of each node once its operands'
 /// derivatives are known; the derivatives of sign and step are 0, so their operands
 /// are not visited).
 pub fn diff(g: &mut Graph, root: Id, var: Var) -> Id {
