@@ -285,8 +285,13 @@ pub(crate) fn damped_safe(sys: &System, dt: f64) -> f64 {
 /// critical step of the mode ω (ξ = α/(2ω) + βω/2), written 1/(hypot(1, ξ) + ξ):
 /// no cancellation for large ξ and no overflow of ξ² (an infinite ξ gives 0).
 fn damping_factor(alpha: f64, beta: f64, omega: f64) -> f64 {
-    let xi = alpha / (2.0 * omega) + beta * omega / 2.0;
+    let xi = damping_ratio(alpha, beta, omega);
     1.0 / (1.0_f64.hypot(xi) + xi)
+}
+
+/// The modal damping ratio ξ = α/(2ω) + βω/2 of Rayleigh damping at the mode ω.
+fn damping_ratio(alpha: f64, beta: f64, omega: f64) -> f64 {
+    alpha / (2.0 * omega) + beta * omega / 2.0
 }
 
 impl System {
@@ -294,9 +299,8 @@ impl System {
     /// stable estimate small (it cuts the undamped step by more than half): without
     /// it, a huge `[damping]` value shows up only as a step count too large to run.
     pub(crate) fn damping_note(&self) -> Option<String> {
-        let sys = self;
-        let d = sys.damping();
-        let dt = sys.stepping.critical_dt;
+        let d = self.damping();
+        let dt = self.stepping.critical_dt;
         if !(dt.is_finite() && dt > 0.0) || (d.alpha == 0.0 && d.beta == 0.0) {
             return None;
         }
@@ -309,7 +313,7 @@ impl System {
                  {:.3e}; lower the damping",
                 d.alpha,
                 d.beta,
-                d.alpha / (2.0 * omega) + d.beta * omega / 2.0,
+                damping_ratio(d.alpha, d.beta, omega),
                 1.0 / factor
             )
         })
@@ -321,16 +325,15 @@ impl System {
     /// measures nothing), else no stiffness at rest (a zero modulus). The two used to
     /// be reported alike, as the second.
     pub(crate) fn infinite_estimate_reason(&self) -> String {
-        let sys = self;
-        let rest = sys.rest_positions();
-        let eps = 1e-6 * sys.model.length_scale;
+        let rest = self.rest_positions();
+        let eps = 1e-6 * self.model.length_scale;
         let mut next = crate::sampling::uniform(0x9E37_79B9_7F4A_7C15_u64);
         let x: Vec<Vec3> = rest
             .iter()
             .enumerate()
             .map(|(i, p)| {
                 let u = Vec3::new(next(), next(), next());
-                if sys.is_free(i) {
+                if self.is_free(i) {
                     p + u * eps
                 } else {
                     *p
@@ -338,8 +341,8 @@ impl System {
             })
             .collect();
         let mut f = vec![Vec3::zeros(); x.len()];
-        for r in sys.regions() {
-            let finite = sys.elastic_forces_at(&x, &mut f, |q| std::ptr::eq(q, r)).is_ok()
+        for r in self.regions() {
+            let finite = self.elastic_forces_at(&x, &mut f, |q| std::ptr::eq(q, r)).is_ok()
                 && f.iter().all(|v| v.iter().all(|c| c.is_finite()));
             if !finite {
                 let m = &r.material;
