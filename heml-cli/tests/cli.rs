@@ -217,8 +217,20 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
     let dir = support::temp_dir("cli", "haptic");
     let path = dir.join("block_mm.vtu");
     write_mesh(&path, &box_mesh([40.0, 40.0, 20.0], [4, 4, 2], HexSplit::Six).unwrap()).unwrap();
-    let (ok, out, err) = heml(&["bench", "--haptic", "--threads", "1", "--mesh", path.to_str().unwrap()]);
+    // 0.3 s of device time per run (the default 3 s makes this test a minute long)
+    let mesh = path.to_str().unwrap();
+    let (ok, out, err) = heml(&[
+        "bench",
+        "--haptic",
+        "--haptic-seconds",
+        "0.3",
+        "--threads",
+        "1",
+        "--mesh",
+        mesh,
+    ]);
     assert!(ok, "{err}");
+    assert!(out.contains("0.3 s of device time per run"), "{out}");
     // one "-- variant" header per device setting, then a report per integrator
     let variants = out.lines().filter(|l| l.starts_with("-- device sleep")).count();
     assert!(variants >= 4, "{out}");
@@ -226,7 +238,7 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
         let head = format!("block_mm.vtu (192 tets), {name}, device sleep");
         let runs: Vec<&str> = out.lines().filter(|l| l.starts_with(&head)).collect();
         assert_eq!(runs.len(), variants, "{head}\n{out}");
-        assert!(runs.iter().all(|l| l.contains(": 3000 device ticks")), "{out}");
+        assert!(runs.iter().all(|l| l.contains(": 300 device ticks")), "{out}");
         // both spin settings and both priorities (real time granted, or refused and said so)
         assert!(runs.iter().any(|l| l.contains("device sleep, ")), "{out}");
         assert!(runs.iter().any(|l| l.contains("µs spin, ")), "{out}");
@@ -235,6 +247,14 @@ fn bench_haptic_reports_both_integrators_and_names_missing_meshes() {
     }
     assert_eq!(out.matches("sim iteration:  p50").count(), 2 * variants, "{out}");
     assert_names_missing_shared_mesh("--haptic", &dir);
+    for bad in ["0", "0.05", "-1", "NaN", "inf", "601"] {
+        let flag = format!("--haptic-seconds={bad}"); // `=`: "-1" is a value, not a flag
+        let (ok, _, err) = heml(&["bench", "--haptic", &flag, "--mesh", mesh]);
+        assert!(
+            !ok && err.contains("--haptic-seconds") && err.contains("from 0.1 to 600"),
+            "{bad}: {err}"
+        );
+    }
 }
 
 /// `heml bench FLAG` with $HEML_MESHES at `dir` (no shared meshes there) fails and

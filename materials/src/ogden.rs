@@ -1,4 +1,5 @@
 use heml_core::force::fastmath;
+use heml_core::force::spectral::power_divided_difference;
 use heml_core::law::{
     MaterialInfo, Moduli, OpCount, ParamInfo, SmallStrain, StretchDerivs, StretchLaw, StretchSecond, STRETCH_PAIRS,
 };
@@ -144,18 +145,6 @@ impl JPoint {
     }
 }
 
-/// (x^b − y^b)/(x − y) without cancellation, b·x^(b−1) at x = y: with y the larger
-/// and d = (x − y)/y ∈ (−1, 0], it is y^(b−1)·expm1(b·ln_1p(d))/d, each factor
-/// accurate to a few ulp however close x and y are.
-pub(crate) fn power_divided_difference(x: f64, y: f64, b: f64) -> f64 {
-    let (x, y) = if x <= y { (x, y) } else { (y, x) };
-    let d = (x - y) / y;
-    if d == 0.0 {
-        return b * y.powf(b - 1.0);
-    }
-    y.powf(b - 1.0) * (b * d.ln_1p()).exp_m1() / d
-}
-
 impl Ogden {
     /// The non-zero terms (μ_p, α_p).
     fn terms(&self) -> impl Iterator<Item = (f64, f64)> {
@@ -289,63 +278,5 @@ impl StretchLaw for Ogden {
             }
         }
         out
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The batch kernels' four-lane law is the plain one lane by lane, to the bit
-    /// (the plain and batched force paths of a tet then agree exactly): Treloar's
-    /// three terms, lanes at and below J0 (extended), stretched and compressed.
-    #[test]
-    fn lanes_equal_the_plain_law_bit_for_bit() {
-        let law = Ogden {
-            mu1: 0.63e6,
-            alpha1: 1.3,
-            mu2: 0.0012e6,
-            alpha2: 5.0,
-            mu3: -0.01e6,
-            alpha3: -2.0,
-            kappa: 2e8,
-        };
-        let e = [[1.0, 1.44, 0.3, 2.5], [1.0, 0.8, 0.3, 0.04], [1.0, 0.81, 1.7, 1.1]];
-        let j = [1.0, 0.97, 0.2, -0.1];
-        let ext = [None, None, Some(0.25), Some(0.25)];
-        let d = law.dw_lanes(&e, &j, &ext);
-        for l in 0..4 {
-            let plain = law.dw([e[0][l], e[1][l], e[2][l]], j[l], ext[l]);
-            assert!(
-                plain.w.is_finite() && plain.de.iter().all(|x| x.is_finite()),
-                "lane {l}"
-            );
-            assert_eq!(d[l], plain, "lane {l}");
-            for (a, b) in [(d[l].w, plain.w), (d[l].dj, plain.dj)] {
-                assert_eq!(a.to_bits(), b.to_bits(), "lane {l}");
-            }
-        }
-    }
-
-    #[test]
-    fn divided_difference_is_accurate_near_and_at_coincidence() {
-        // against the difference quotient in exact-enough form: for x, y apart
-        // (1e-2 relative) the plain quotient loses only ~1e-14 relative; near
-        // coincidence compare with the Taylor series b·y^(b−1)(1 + (b−1)d/2 + …)
-        for b in [-2.0, -0.35, 0.5, 1.5, 4.0] {
-            let (x, y) = (1.0, 1.01);
-            let plain = (f64::powf(x, b) - f64::powf(y, b)) / (x - y);
-            let got = power_divided_difference(x, y, b);
-            assert!((got - plain).abs() <= 1e-12 * plain.abs(), "{b}: {got} vs {plain}");
-            assert_eq!(power_divided_difference(y, x, b), got);
-            let y = 2.0;
-            let x = y * (1.0 - 1e-9);
-            let d = (x - y) / y;
-            let series = b * f64::powf(y, b - 1.0) * (1.0 + (b - 1.0) * d / 2.0 + (b - 1.0) * (b - 2.0) * d * d / 6.0);
-            let got = power_divided_difference(x, y, b);
-            assert!((got - series).abs() <= 1e-14 * series.abs(), "{b}: {got} vs {series}");
-            let at = power_divided_difference(y, y, b);
-            assert!((at - b * f64::powf(y, b - 1.0)).abs() <= 1e-15 * at.abs());
-        }
     }
 }

@@ -10,7 +10,12 @@ use heml::prelude::*;
 /// Central difference of P with ε = 1e-6: truncation ε²·|P'''| ~ 1e-12·(μ+λ) and
 /// round-off ~1e-16·|P|/ε ~ 1e-10·(μ+λ); 1e-7 relative to μ + λ leaves margin and
 /// still catches any wrong coefficient (which would be off by O(1)).
-fn check(name: &str, law: &dyn Material, mu: f64, lambda: f64) {
+///
+/// Generic rather than `&dyn Material`: a law coerced to a trait object needs its
+/// whole vtable, every force field's kernels for that law, compiled into this test
+/// crate (two minutes of the release build for these ten laws); called statically,
+/// only `stress` is.
+fn check<L: Material + ?Sized>(name: &str, law: &L, mu: f64, lambda: f64) {
     let opts = ForceOptions::default();
     let h = Matrix3::new(0.3, -0.2, 0.5, 0.1, -0.4, 0.2, -0.3, 0.6, 0.25);
     let eps = 1e-6;

@@ -59,6 +59,10 @@ pub struct BenchArgs {
     /// compute time and period p50/p99/max.
     #[arg(long)]
     pub haptic: bool,
+    /// Device time of each --haptic run, in seconds (default 3; from 0.1 to 600): at
+    /// 1 kHz, a thousand device ticks per second.
+    #[arg(long, value_name = "SECONDS", default_value_t = super::haptic::DEFAULT_SECONDS)]
+    pub haptic_seconds: f64,
     /// Instead of the usual table: backward Euler at dt = 10 ms (--implicit-dt) on these meshes
     /// (liver-like tissue, ν = 0.49) against the best explicit integrator at its stable
     /// step on the same scene, at 1 and --threads threads. Without a mesh:
@@ -276,7 +280,8 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     };
     if args.haptic {
         let pinned = placement_for(threads, placement) == Placement::Pinned;
-        return super::haptic::run(args.mesh.as_ref(), &pool, threads, pinned);
+        let seconds = super::haptic::checked_seconds(args.haptic_seconds)?;
+        return super::haptic::run(args.mesh.as_ref(), &pool, threads, pinned, seconds);
     }
     if let Some(meshes) = &args.implicit {
         let meshes = super::bench_implicit::meshes(meshes, args.implicit_scale)?;

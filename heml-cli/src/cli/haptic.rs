@@ -27,8 +27,26 @@ use thread_priority::{
     ThreadSchedulePolicy,
 };
 
-/// Device time of each run (s).
-const SECONDS: f64 = 3.0;
+/// Device time of each run (s), unless `--haptic-seconds` says otherwise.
+pub const DEFAULT_SECONDS: f64 = 3.0;
+
+/// Bounds of `--haptic-seconds`: a run shorter than 0.1 s has too few ticks for its
+/// percentiles; ten minutes per run is already hours for the 22 runs of one mesh.
+const SECONDS_RANGE: std::ops::RangeInclusive<f64> = 0.1..=600.0;
+
+/// `seconds` if it is a device time `--haptic-seconds` accepts, else an error naming
+/// the flag and the range.
+pub fn checked_seconds(seconds: f64) -> heml::Result<f64> {
+    if SECONDS_RANGE.contains(&seconds) {
+        Ok(seconds)
+    } else {
+        Err(HemlError::Invalid(format!(
+            "--haptic-seconds {seconds}: expected the device time of each run in seconds, from {} to {}",
+            SECONDS_RANGE.start(),
+            SECONDS_RANGE.end()
+        )))
+    }
+}
 
 /// The meshes: `mesh` alone, or the two kidneys of the shared collection.
 fn meshes(mesh: Option<&PathBuf>) -> heml::Result<Vec<PathBuf>> {
@@ -152,14 +170,15 @@ fn device_setup(cpu: Option<core_affinity::CoreId>, timing: Timing) -> String {
 
 /// Runs the loop for each device [`Timing`] on each mesh with both integrators, the
 /// simulation on pools from `pool` (`threads` workers, pinned to the first CPUs
-/// when `pinned`), and prints the reports.
+/// when `pinned`), `seconds` of device time each, and prints the reports.
 pub fn run(
     mesh: Option<&PathBuf>,
     pool: &dyn Fn(usize) -> heml::Result<rayon::ThreadPool>,
     threads: usize,
     pinned: bool,
+    seconds: f64,
 ) -> heml::Result<()> {
-    outln!("haptic loop: 1 kHz device, {SECONDS} s of device time per run, {threads} simulation thread(s)");
+    outln!("haptic loop: 1 kHz device, {seconds} s of device time per run, {threads} simulation thread(s)");
     let cores = core_affinity::get_core_ids().unwrap_or_default();
     let all = pool(threads)?;
     // with a CPU of its own the device takes the last one the pinned pool leaves
@@ -199,12 +218,12 @@ pub fn run(
                 };
                 let (tool, palpation) = Palpation::on_top(&mut sys, 0.004, 0.01, law, 1.0)?;
                 let (mut integrator, opts): (Box<dyn Integrator>, _) = if explicit {
-                    (Box::new(SymplecticEuler), HapticOptions::explicit(&sys, SECONDS))
+                    (Box::new(SymplecticEuler), HapticOptions::explicit(&sys, seconds))
                 } else {
                     (
                         Box::new(BackwardEuler::default()),
                         HapticOptions {
-                            duration: SECONDS,
+                            duration: seconds,
                             ..HapticOptions::default()
                         },
                     )
