@@ -23,6 +23,7 @@ pub mod runtime_law;
 mod sampling;
 pub mod scene;
 pub mod system;
+mod warn_once;
 
 /// 3-vectors of f64: positions, velocities, forces.
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -100,6 +100,51 @@ fn gmsh41_refuses_a_volume_block_at_its_header_line() {
     assert!(msg.contains("element type 118 (pyramid)"), "{msg}");
 }
 
+/// Gmsh 4.1 node blocks list the tags, then one coordinate line per node: a line
+/// short of a number or with one too many is reported at that line, in plain and
+/// parametric blocks (line 11 holds node 1's coordinates).
+#[test]
+fn a_gmsh41_coordinate_line_short_or_long_is_reported_at_that_line() {
+    let nodes = |block: &str, coords: [&str; 4]| {
+        format!(
+            "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n{block}\n1\n2\n3\n4\n{}\n$EndNodes\n\
+             $Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n",
+            coords.join("\n")
+        )
+    };
+    let good = ["0 0 0", "1 0 0", "0 1 0", "0 0 1"];
+    assert!(gmsh::parse(&path("v41.msh"), nodes("3 1 0 4", good).as_bytes()).is_ok());
+    let error = |text: String| parse_error(gmsh::parse(&path("v41.msh"), text.as_bytes()).unwrap_err(), "v41.msh");
+    // node 2 loses its z: before, its z was node 3's x, and the error came nowhere
+    // near (or, with one more node line, not at all)
+    let (line, msg) = error(nodes("3 1 0 4", ["0 0 0", "1 0", "0 1 0", "0 0 1"]));
+    assert_eq!(line, 12, "{msg}");
+    assert!(
+        msg.contains("node 2: the line ends after 2 of the 3 coordinates; a node line is 'x y z'"),
+        "{msg}"
+    );
+    let (line, msg) = error(nodes("3 1 0 4", ["0 0 0", "1 0 0", "0 1 0 5", "0 0 1"]));
+    assert_eq!(line, 13, "{msg}");
+    assert!(msg.contains("node 3: '5' follows the 3 coordinates"), "{msg}");
+    // a parametric surface block (dimension 2): x y z u v per line
+    let param = ["0 0 0 0 0", "1 0 0 1 0", "0 1 0 0 1", "0 0 1 1 1"];
+    assert!(gmsh::parse(&path("v41.msh"), nodes("2 1 1 4", param).as_bytes()).is_ok());
+    let (line, msg) = error(nodes("2 1 1 4", ["0 0 0 0 0", "1 0 0 1", "0 1 0 0 1", "0 0 1 1 1"]));
+    assert_eq!(line, 12, "{msg}");
+    assert!(
+        msg.contains(
+            "node 2: the line ends after 3 + 1 of its 3 + 2 numbers; a node line of this block is 'x y z u v'"
+        ),
+        "{msg}"
+    );
+    let (line, msg) = error(nodes("2 1 1 4", ["0 0 0 0 0 9", "1 0 0 1 0", "0 1 0 0 1", "0 0 1 1 1"]));
+    assert_eq!(line, 11, "{msg}");
+    assert!(
+        msg.contains("node 1: '9' follows the node's numbers; a node line is 'x y z u v'"),
+        "{msg}"
+    );
+}
+
 /// A little-endian binary Gmsh 2.2 file: two tets, then a block of one element of
 /// type `ty` with `nn` nodes.
 fn gmsh22_binary(ty: i32, nn: usize) -> Vec<u8> {

@@ -1,7 +1,7 @@
 //! Laws given as text are checked at rest with their parameter values, as the
 //! compiled laws are at the first registry look-up (QA D3): a non-finite energy or
 //! first derivative there is an error naming it; stress or energy at rest is the
-//! registry's warning, logged with `log::warn!`.
+//! registry's warning, logged with `log::warn!` once per process and law.
 
 use heml::prelude::*;
 use heml::scene::Scene;
@@ -64,6 +64,17 @@ fn stress_or_energy_at_rest_is_the_registry_warning() {
         offset.len() == 1 && offset[0].contains("its energy is 2e0 and its stress 0e0"),
         "{offset:?}"
     );
+
+    // the same law built again (a loop, a sweep) is not reported again; with other
+    // values it is another warning
+    let again = warnings_during("\"2*mu*(I1-3)\"", || {
+        for _ in 0..50 {
+            RuntimeLaw::from_energy("2*mu*(I1-3)", &Params::from([("mu", 5.0)])).unwrap();
+        }
+        RuntimeLaw::from_energy("2*mu*(I1-3)", &Params::from([("mu", 6.0)])).unwrap();
+    });
+    assert_eq!(again.len(), 2, "{again:?}");
+    assert!(again[0].contains("mu=5") && again[1].contains("mu=6"), "{again:?}");
 
     // a law at rest is silent, with large parameters too (the threshold scales)
     let text = "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)";

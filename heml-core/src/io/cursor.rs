@@ -376,31 +376,92 @@ pub(crate) fn finite_point_on_line(
     node: impl std::fmt::Display,
     line: usize,
 ) -> Result<crate::Vec3> {
-    let p = point(c, &node, Some(line))?;
-    // a look-ahead on a copy: the next token must start a later line
-    if let Some((tok, l)) = c.clone().token()? {
-        if l == line {
+    let p = point(c, &node, Some((line, NodeLine::TAGGED)))?;
+    expect_line_end(c, &node, line, NodeLine::TAGGED)?;
+    Ok(p)
+}
+
+/// What a node's line holds, for [`finite_point_on_line`] and
+/// [`coordinates_line`]: the layout named in errors and the parametric
+/// coordinates that follow x y z.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NodeLine {
+    /// The line's layout as errors name it, e.g. `tag x y z`.
+    pub layout: &'static str,
+    /// Numbers after the three coordinates (Gmsh 4.1's parametric u, v, w).
+    pub extra: usize,
+}
+
+impl NodeLine {
+    /// `tag x y z` (Gmsh 1 and 2).
+    const TAGGED: NodeLine = NodeLine {
+        layout: "tag x y z",
+        extra: 0,
+    };
+}
+
+/// A node's coordinates on a line of their own (Gmsh 4.1's node blocks: the tags
+/// first, then one `x y z` line per node, `x y z u [v [w]]` in parametric blocks):
+/// the line starting at the next token holds exactly the coordinates `what` says,
+/// else the error is at that line. Returns the point, finite, and the line.
+pub(crate) fn coordinates_line(
+    c: &mut Cursor<'_>,
+    node: impl std::fmt::Display,
+    what: NodeLine,
+) -> Result<(crate::Vec3, usize)> {
+    let line = c.line_of_next_token();
+    let p = point(c, &node, Some((line, what)))?;
+    for k in 0..what.extra {
+        if c.line_of_next_token() != line {
             return Err(c.err_at(
                 line,
                 format!(
-                    "node {node}: '{}' follows the 3 coordinates; a node line is 'tag x y z'",
-                    shorten(tok)
+                    "node {node}: the line ends after 3 + {k} of its 3 + {} numbers; a node line of this block is '{}'",
+                    what.extra, what.layout
+                ),
+            ));
+        }
+        c.parse::<f64>("a parametric coordinate")?;
+    }
+    expect_line_end(c, &node, line, what)?;
+    Ok((p, line))
+}
+
+/// An error at `line` if the next token is on it: the node's line holds more than
+/// `what` says (a look-ahead on a copy of the cursor).
+fn expect_line_end(c: &Cursor<'_>, node: impl std::fmt::Display, line: usize, what: NodeLine) -> Result<()> {
+    if let Some((tok, l)) = c.clone().token()? {
+        if l == line {
+            let after = if what.extra == 0 {
+                "the 3 coordinates"
+            } else {
+                "the node's numbers"
+            };
+            return Err(c.err_at(
+                line,
+                format!(
+                    "node {node}: '{}' follows {after}; a node line is '{}'",
+                    shorten(tok),
+                    what.layout
                 ),
             ));
         }
     }
-    Ok(p)
+    Ok(())
 }
 
-fn point(c: &mut Cursor<'_>, node: impl std::fmt::Display, line: Option<usize>) -> Result<crate::Vec3> {
+fn point(c: &mut Cursor<'_>, node: impl std::fmt::Display, line: Option<(usize, NodeLine)>) -> Result<crate::Vec3> {
     let mut p = [0.0; 3];
     for (k, v) in p.iter_mut().enumerate() {
         let axis = ["x", "y", "z"][k];
-        if let Some(line) = line {
+        if let Some((line, what)) = line {
             if c.line_of_next_token() != line {
                 return Err(c.err_at(
                     line,
-                    format!("node {node}: the line ends after {k} of the 3 coordinates; a node line is 'tag x y z'"),
+                    format!(
+                        "node {node}: the line ends after {k} of the 3 coordinates; a node line is '{}'",
+                        what.layout
+                    ),
                 ));
             }
         }

@@ -16,9 +16,11 @@
 //!   and numbers outside Gmsh's table of types are an error, because dropping them
 //!   would silently remove material. Re-export such meshes with linear elements
 //!   (`gmsh -3 -order 1`).
-//! * Node lines of versions 1 and 2 are `tag x y z`, one node per line: a line
-//!   with a coordinate missing or extra is an error at that line (read as a token
-//!   stream, it would shift every later node and be reported lines further on).
+//! * Node lines of versions 1 and 2 are `tag x y z`, one node per line, and the
+//!   coordinate lines of a 4.1 node block `x y z` (`x y z u …` in parametric
+//!   blocks): a line with a number missing or extra is an error at that line (read
+//!   as a token stream, it would shift every later node and be reported lines
+//!   further on, or not at all).
 //! * Binary records are checked against the bytes left in the file before they
 //!   are reserved or read (a header announcing 10¹⁸ nodes is an error, not an
 //!   allocation); errors in binary data name the line and the byte offset.
@@ -32,7 +34,7 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use super::atomic::write_atomic;
-use super::cursor::{capacity, finite_point, finite_point_on_line, parse_at, shorten, Cursor};
+use super::cursor::{capacity, coordinates_line, finite_point_on_line, parse_at, shorten, Cursor, NodeLine};
 use super::gmsh_binary::Binary;
 use super::gmsh_data::{ElementData, ElementIds};
 use super::{no_tets_message, read_bytes, MeshData, MeshFormat};
@@ -459,6 +461,10 @@ fn read_nodes_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64
         let parametric = c.parse::<i64>("the parametric flag (0 or 1) of a node block")?;
         let n = count(c, "the number of nodes in a block")?;
         let extra = if parametric == 1 { dim.clamp(0, 3) as usize } else { 0 };
+        let what = NodeLine {
+            layout: ["x y z", "x y z u", "x y z u v", "x y z u v w"][extra],
+            extra,
+        };
         // a node tag and its separator: 2 bytes at least
         let mut tags = Vec::with_capacity(capacity(n, c.remaining(), 2));
         for _ in 0..n {
@@ -466,11 +472,7 @@ fn read_nodes_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64
             tags.push((parse_at::<u64>(c.file(), ln, tok, "a node tag")?, ln));
         }
         for &(tag, _) in &tags {
-            let ln = c.line_of_next_token();
-            let p = finite_point(c, tag)?;
-            for _ in 0..extra {
-                c.parse::<f64>("a parametric coordinate")?;
-            }
+            let (p, ln) = coordinates_line(c, tag, what)?;
             add_node(c, ln, tag, p, data, map)?;
         }
     }

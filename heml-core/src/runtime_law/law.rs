@@ -113,7 +113,8 @@ impl RuntimeLaw {
     /// otherwise stop at its first step with NaN forces, or report an infinite
     /// energy), and a law that is stressed or stores energy at rest gets the
     /// registry's warning for compiled laws, logged with `log::warn!` (see
-    /// [`Self::rest_check`]).
+    /// [`Self::rest_check`]) the first time the process builds that law with those
+    /// values.
     pub fn from_energy(energy: &str, params: &Params) -> Result<Self> {
         Self::with_inversion_fix(energy, params, true)
     }
@@ -143,7 +144,7 @@ impl RuntimeLaw {
         };
         law.finite_at_rest().map_err(bad)?;
         if let Some(w) = law.rest_check() {
-            log::warn!("{w}");
+            crate::warn_once::warn_once(&w);
         }
         Ok(law)
     }
