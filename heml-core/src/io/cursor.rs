@@ -376,9 +376,7 @@ pub(crate) fn finite_point_on_line(
     node: impl std::fmt::Display,
     line: usize,
 ) -> Result<crate::Vec3> {
-    let p = point(c, &node, Some((line, NodeLine::TAGGED)))?;
-    expect_line_end(c, &node, line, NodeLine::TAGGED)?;
-    Ok(p)
+    point_on_line(c, node, line, NodeLine::TAGGED)
 }
 
 /// What a node's line holds, for [`finite_point_on_line`] and
@@ -410,6 +408,12 @@ pub(crate) fn coordinates_line(
     what: NodeLine,
 ) -> Result<(crate::Vec3, usize)> {
     let line = c.line_of_next_token();
+    Ok((point_on_line(c, node, line, what)?, line))
+}
+
+/// The point of `node` read from `line`, which must hold exactly what `what` says:
+/// the three coordinates (finite), its extra numbers, nothing after them.
+fn point_on_line(c: &mut Cursor<'_>, node: impl std::fmt::Display, line: usize, what: NodeLine) -> Result<crate::Vec3> {
     let p = point(c, &node, Some((line, what)))?;
     for k in 0..what.extra {
         if c.line_of_next_token() != line {
@@ -424,7 +428,7 @@ pub(crate) fn coordinates_line(
         c.parse::<f64>("a parametric coordinate")?;
     }
     expect_line_end(c, &node, line, what)?;
-    Ok((p, line))
+    Ok(p)
 }
 
 /// An error at `line` if the next token is on it: the node's line holds more than
