@@ -49,3 +49,18 @@ if echo "$out" | grep -q '^warning'; then
   exit 1
 fi
 echo "$out" | grep Packaged
+
+# 4. The wheel build reuses the test build: every crate in heml-py's dependency tree
+#    gets, under `-p heml-py` (how pip/maturin build it), a feature set that the
+#    workspace's build (`cargo test --workspace`) also compiles. A crate that fails
+#    this is compiled again by pip, with everything above it (before
+#    heml-workspace-hack: ~200 s of CI). Fix: `cargo install cargo-hakari`, then
+#    `cargo hakari generate` (it rewrites heml-workspace-hack/Cargo.toml).
+features() { cargo tree --locked "$@" -e normal,build -f '{p} [{f}]' --prefix none | sed 's/ (\*)$//' | grep -v '^heml-workspace-hack ' | sort -u; }
+missing=$(comm -13 <(features --workspace -e dev) <(features -p heml-py))
+if [ -n "$missing" ]; then
+  echo "$missing" >&2
+  echo "error: heml-py's build would compile these crates with other features than the workspace's (above): run cargo hakari generate" >&2
+  exit 1
+fi
+echo "heml-py's $(features -p heml-py | wc -l) crate builds are all among the workspace's"

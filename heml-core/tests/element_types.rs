@@ -145,6 +145,32 @@ fn a_gmsh41_coordinate_line_short_or_long_is_reported_at_that_line() {
     );
 }
 
+/// Gmsh 4.1 node blocks list one tag per line: a tag line holding two numbers, or a
+/// block short of a tag (its first coordinate line `0 0 0` would read as three more
+/// tags), is reported at that line (the tags are lines 7-10).
+#[test]
+fn a_gmsh41_node_tag_line_with_more_than_a_tag_is_reported_at_that_line() {
+    let text = |tags: &str, coords: &str| {
+        format!(
+            "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n3 1 0 4\n{tags}\n{coords}\n$EndNodes\n\
+             $Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n"
+        )
+    };
+    let coords = "0 0 0\n1 0 0\n0 1 0\n0 0 1";
+    let error = |t: String| parse_error(gmsh::parse(&path("v41.msh"), t.as_bytes()).unwrap_err(), "v41.msh");
+    assert!(gmsh::parse(&path("v41.msh"), text("1\n2\n3\n4", coords).as_bytes()).is_ok());
+    let (line, msg) = error(text("1\n2 3\n4", coords));
+    assert_eq!(line, 8, "{msg}");
+    assert!(
+        msg.contains("'3' follows node tag 2 (tag 2 of 4 in its block); a node block lists one tag per line"),
+        "{msg}"
+    );
+    // three tag lines for four nodes: the first coordinate line is not a tag line
+    let (line, msg) = error(text("1\n2\n3", coords));
+    assert_eq!(line, 10, "{msg}");
+    assert!(msg.contains("'0' follows node tag 0 (tag 4 of 4"), "{msg}");
+}
+
 /// A little-endian binary Gmsh 2.2 file: two tets, then a block of one element of
 /// type `ty` with `nn` nodes.
 fn gmsh22_binary(ty: i32, nn: usize) -> Vec<u8> {

@@ -467,16 +467,37 @@ fn read_nodes_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64
         };
         // a node tag and its separator: 2 bytes at least
         let mut tags = Vec::with_capacity(capacity(n, c.remaining(), 2));
-        for _ in 0..n {
-            let (tok, ln) = c.expect_token("a node tag")?;
-            tags.push((parse_at::<u64>(c.file(), ln, tok, "a node tag")?, ln));
+        for k in 0..n {
+            tags.push(tag_line(c, k, n)?);
         }
-        for &(tag, _) in &tags {
+        for &tag in &tags {
             let (p, ln) = coordinates_line(c, tag, what)?;
             add_node(c, ln, tag, p, data, map)?;
         }
     }
     check_total(c, header_line, "$Nodes", total, data.nodes.len(), "nodes")
+}
+
+/// The `k`-th of a v4.1 node block's `n` tag lines: one tag alone on its line. Read
+/// as a token stream, a line with two numbers (or a block short of a tag, whose first
+/// coordinate line `0 0 0` reads as three tags) would shift every later tag and
+/// coordinate, and the error would come lines further on, or not at all.
+fn tag_line(c: &mut Cursor<'_>, k: usize, n: usize) -> Result<u64> {
+    let (tok, ln) = c.expect_token("a node tag")?;
+    let tag = parse_at::<u64>(c.file(), ln, tok, "a node tag")?;
+    if let Some((next, l)) = c.clone().token()? {
+        if l == ln {
+            return Err(c.err_at(
+                ln,
+                format!(
+                    "'{}' follows node tag {tag} (tag {} of {n} in its block); a node block lists one tag per line, then one coordinate line per node",
+                    shorten(next),
+                    k + 1
+                ),
+            ));
+        }
+    }
+    Ok(tag)
 }
 
 /// The v4.1 header count of a section (at `header_line`) against what its
