@@ -37,7 +37,8 @@ enum Command {
     /// The simulation live in a browser page (or a finished run played back).
     View(cli::view::ViewArgs),
     /// Force-evaluation throughput of HEML vs the standard P1 path, and step time.
-    Bench(cli::bench::BenchArgs),
+    // boxed: its many options would make every `Command` that large
+    Bench(Box<cli::bench::BenchArgs>),
 }
 
 fn main() -> ExitCode {
@@ -49,7 +50,7 @@ fn main() -> ExitCode {
         Command::Run(args) => cli::run::run(args),
         Command::Demo(opts) => cli::demo::run(opts),
         Command::Validate(args) => cli::validate::run(args),
-        Command::Bench(args) => cli::bench::run(args),
+        Command::Bench(args) => cli::bench::run(*args),
         Command::View(args) => cli::view::run(args),
     };
     match result {

@@ -138,14 +138,9 @@ fn bench_prints_a_complete_side_by_side_table() {
     assert!(out.contains("memory: HEML") && out.contains("full step"), "{out}");
 }
 
-/// `heml bench --nodal` on a small box: a row per thread count with the element and
-/// nodal cost per tet, each median inside its own range and the ratio positive; a
-/// link law (no volumetric part) is refused with an error naming the law.
-#[test]
-fn bench_nodal_reports_the_formulations_and_refuses_link_laws() {
-    let (ok, out, err) = heml(&["bench", "--nodal", "--tets", "3000", "--repeats", "3", "--threads", "2"]);
-    assert!(ok, "{err}");
-    assert!(out.contains("element (standard) vs nodal and patch (k = 6)"), "{out}");
+/// The rows for 1 and 2 threads of a `--nodal` or `--tangent` table hold `columns`
+/// values, each "median [min–max]" with the median inside its range and positive.
+fn assert_spread_rows(out: &str, columns: usize) {
     for threads in ["1", "2"] {
         let nums: Vec<f64> = out
             .lines()
@@ -156,8 +151,7 @@ fn bench_nodal_reports_the_formulations_and_refuses_link_laws() {
             .skip(1)
             .map(|v| v.parse().unwrap())
             .collect();
-        // element, nodal, patch and the two ratios, each as median [min–max]
-        assert_eq!(nums.len(), 15, "{out}");
+        assert_eq!(nums.len(), 3 * columns, "{out}");
         for m in nums.chunks(3) {
             assert!(
                 m[1] > 0.0 && m[1] <= m[0] && m[0] <= m[2],
@@ -165,6 +159,18 @@ fn bench_nodal_reports_the_formulations_and_refuses_link_laws() {
             );
         }
     }
+}
+
+/// `heml bench --nodal` on a small box: a row per thread count with the element and
+/// nodal cost per tet, each median inside its own range and the ratio positive; a
+/// link law (no volumetric part) is refused with an error naming the law.
+#[test]
+fn bench_nodal_reports_the_formulations_and_refuses_link_laws() {
+    let (ok, out, err) = heml(&["bench", "--nodal", "--tets", "3000", "--repeats", "3", "--threads", "2"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("element (standard) vs nodal and patch (k = 6)"), "{out}");
+    // element, nodal, patch and the two ratios
+    assert_spread_rows(&out, 5);
     let (ok, _, err) = heml(&[
         "bench",
         "--nodal",
@@ -179,6 +185,41 @@ fn bench_nodal_reports_the_formulations_and_refuses_link_laws() {
         !ok && err.contains("mass_spring") && err.contains("volumetric"),
         "{err}"
     );
+}
+
+/// `heml bench --tangent` on a small box: a row per thread count with the force
+/// evaluation, the projected and exact tangent updates, the product and the update's
+/// ratio to the forces, each median inside its own range; `--against` adds the
+/// comparison lines naming both laws; an unknown law is an error naming it.
+#[test]
+fn bench_tangent_reports_update_and_product_per_thread_count() {
+    let args = [
+        "bench",
+        "--tangent",
+        "--law",
+        "holzapfel_gasser_ogden",
+        "--against",
+        "neo_hookean",
+        "--tets",
+        "3000",
+        "--repeats",
+        "3",
+        "--threads",
+        "2",
+    ];
+    let (ok, out, err) = heml(&args);
+    assert!(ok, "{err}");
+    assert!(out.contains("tangent stiffness of holzapfel_gasser_ogden"), "{out}");
+    // forces, PSD update, exact update, product, update/forces
+    assert_spread_rows(&out, 5);
+    for what in ["PSD tangent update", "forces"] {
+        assert!(
+            out.contains(&format!("holzapfel_gasser_ogden vs neo_hookean ({what}, 1 thread)")),
+            "{out}"
+        );
+    }
+    let (ok, _, err) = heml(&["bench", "--tangent", "--against", "no_such_law", "--tets", "3000"]);
+    assert!(!ok && err.contains("no_such_law"), "{err}");
 }
 
 /// A reader that stops early (`heml bench | head -1`) must end the command quietly:

@@ -4,7 +4,7 @@
 
 use crate::threads::{placement_for, thread_pool, Placement};
 use clap::Args;
-use heml::force::{Assembly, ElasticForces, SimdLevel};
+use heml::force::{Assembly, ElasticForces, SimdLevel, TangentOperator};
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;
 use heml::registry::MaterialEntry;
@@ -12,6 +12,7 @@ use heml_validation::fixtures::{
     self, renumbered_at_load, shuffled, smooth_deformation as deformed, with_bench_fibres,
 };
 use std::path::PathBuf;
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// Arguments of `heml bench`.
@@ -112,6 +113,12 @@ pub struct BenchArgs {
     /// ν = 0.49, cost per tet and ratio, at 1 and --threads threads, timed round-robin.
     #[arg(long)]
     pub nodal: bool,
+    /// Instead of the usual table: the tangent stiffness of --law (and of --against),
+    /// what implicit steps pay per tet: the update at a deformed state (projected to
+    /// positive semi-definite, as by default, and exact) and the product K·dx,
+    /// against the law's force evaluation, at 1 and --threads threads, timed round-robin.
+    #[arg(long)]
+    pub tangent: bool,
     /// Tets per patch of the patch formulation in --nodal.
     #[arg(long, value_name = "K", default_value_t = heml::force::patch_volume::DEFAULT_PATCH_SIZE)]
     pub patch_size: usize,
@@ -138,15 +145,76 @@ pub(super) fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// One timed case: a field evaluated at `x` on `pool`, `inner` calls per sample,
-/// with its energy (`add_forces`) or without (`add_forces_only`, what an explicit
-/// step evaluates).
+/// "median [min–max]" of `v` with `digits` decimals.
+pub(super) fn spread(v: &[f64], digits: usize) -> String {
+    format!(
+        "{:.d$} [{:.d$}–{:.d$}]",
+        median(&mut v.to_vec()),
+        min(v),
+        max(v),
+        d = digits
+    )
+}
+
+pub(super) fn min(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+pub(super) fn max(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// One timed case: `work` at `x` on `pool`, `inner` calls per sample.
 pub(super) struct Case<'a> {
     pub(super) pool: &'a rayon::ThreadPool,
-    pub(super) field: &'a dyn ElasticForces,
+    pub(super) work: Work<'a>,
     pub(super) x: &'a [Vec3],
     pub(super) inner: usize,
-    pub(super) energy: bool,
+}
+
+/// What a [`Case`] times.
+pub(super) enum Work<'a> {
+    /// A field's forces with its energy (`add_forces`) or without (`add_forces_only`,
+    /// what an explicit step evaluates).
+    Forces { field: &'a dyn ElasticForces, energy: bool },
+    /// A tangent operator's update at `x` (what an implicit step's refactorisation
+    /// starts with).
+    TangentUpdate(&'a Mutex<Box<dyn TangentOperator>>),
+    /// The tangent's product y += K·x (what CG applies each iteration).
+    TangentProduct(&'a Mutex<Box<dyn TangentOperator>>),
+}
+
+impl<'a> Case<'a> {
+    /// The forces of `field` at `x`, with the energy when `energy`.
+    pub(super) fn forces(
+        pool: &'a rayon::ThreadPool,
+        field: &'a dyn ElasticForces,
+        x: &'a [Vec3],
+        inner: usize,
+        energy: bool,
+    ) -> Self {
+        Case {
+            pool,
+            work: Work::Forces { field, energy },
+            x,
+            inner,
+        }
+    }
+
+    /// One call of the work, its output in `f` (cleared first).
+    fn call(&self, f: &mut [Vec3]) -> heml::Result<()> {
+        f.fill(Vec3::zeros());
+        match &self.work {
+            Work::Forces { field, energy: true } => {
+                std::hint::black_box(field.add_forces(self.x, f)?);
+            }
+            Work::Forces { field, energy: false } => field.add_forces_only(self.x, f)?,
+            Work::TangentUpdate(op) => op.lock().expect("not poisoned").update(self.x)?,
+            Work::TangentProduct(op) => op.lock().expect("not poisoned").add_product(self.x, f)?,
+        }
+        std::hint::black_box(&f);
+        Ok(())
+    }
 }
 
 /// Seconds per call of every case, `repeats` samples each, taken round-robin (one
@@ -160,7 +228,7 @@ pub(super) struct Case<'a> {
 pub(super) fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<Vec<Vec<f64>>> {
     let mut bufs: Vec<Vec<Vec3>> = cases.iter().map(|c| vec![Vec3::zeros(); c.x.len()]).collect();
     for (c, f) in cases.iter().zip(&mut bufs) {
-        c.pool.install(|| c.field.add_forces(c.x, f))?; // warm-up (allocates scratch)
+        c.pool.install(|| c.call(f))?; // warm-up (allocates scratch; updates tangents)
     }
     let mut samples = vec![Vec::with_capacity(repeats); cases.len()];
     for round in 0..repeats {
@@ -169,13 +237,7 @@ pub(super) fn time_round_robin(cases: &[Case], repeats: usize) -> heml::Result<V
             let t = c.pool.install(|| -> heml::Result<f64> {
                 let t = Instant::now();
                 for _ in 0..c.inner {
-                    f.fill(Vec3::zeros());
-                    if c.energy {
-                        std::hint::black_box(c.field.add_forces(c.x, f)?);
-                    } else {
-                        c.field.add_forces_only(c.x, f)?;
-                        std::hint::black_box(&f);
-                    }
+                    c.call(f)?;
                 }
                 Ok(t.elapsed().as_secs_f64() / c.inner as f64)
             })?;
@@ -234,13 +296,15 @@ fn scaling(
     let timed: Vec<Case> = fields
         .iter()
         .zip(&xs)
-        .map(|(fl, x)| Case {
-            pool,
-            field: fl.as_ref(),
-            x,
-            // about 20 ms per sample whatever the size
-            inner: (2_000_000 / fl.n_tets().max(1)).clamp(1, 1000),
-            energy: true,
+        // about 20 ms per sample whatever the size
+        .map(|(fl, x)| {
+            Case::forces(
+                pool,
+                fl.as_ref(),
+                x,
+                (2_000_000 / fl.n_tets().max(1)).clamp(1, 1000),
+                true,
+            )
         })
         .collect();
     let repeats = args.repeats.max(1);
@@ -348,6 +412,10 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     if args.nodal {
         return super::bench_nodal::run(entry, &mesh, &x, &pools, repeats, inner, args.patch_size);
     }
+    if args.tangent {
+        let against = args.against.as_deref().map(heml::find_material).transpose()?;
+        return super::bench_tangent::run(entry, against, &mesh, &x, &pools, repeats);
+    }
 
     let law = with_bench_fibres(law, &mesh)?;
     let heml_field = law.force_field(&mesh, None, &opts)?;
@@ -366,21 +434,9 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
     // the HEML/P1 ratio are taken sample by sample under the same machine load
     let mut cases = Vec::new();
     for p in &pools {
-        cases.push(Case {
-            pool: p,
-            field: heml_field.as_ref(),
-            x: &x,
-            inner,
-            energy: true,
-        });
+        cases.push(Case::forces(p, heml_field.as_ref(), &x, inner, true));
         if let Some(fem) = &fem_field {
-            cases.push(Case {
-                pool: p,
-                field: fem.as_ref(),
-                x: &x,
-                inner,
-                energy: true,
-            });
+            cases.push(Case::forces(p, fem.as_ref(), &x, inner, true));
         }
     }
     // --against: the other law's HEML field on one thread, last in the round-robin
@@ -400,13 +456,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
             (heml_field.as_ref(), false),
             (field.as_ref(), false),
         ] {
-            cases.push(Case {
-                pool: &pools[0],
-                field,
-                x: &x,
-                inner,
-                energy,
-            });
+            cases.push(Case::forces(&pools[0], field, &x, inner, energy));
         }
     }
     let samples = time_round_robin(&cases, repeats)?;
@@ -482,13 +532,7 @@ pub fn run(args: BenchArgs) -> heml::Result<()> {
         }
         let cases: Vec<Case> = list
             .iter()
-            .map(|b| Case {
-                pool: &pools[0],
-                field: b.as_ref(),
-                x: &x,
-                inner: (inner / 4).max(1),
-                energy: true,
-            })
+            .map(|b| Case::forces(&pools[0], b.as_ref(), &x, (inner / 4).max(1), true))
             .collect();
         let t: Vec<f64> = time_round_robin(&cases, repeats.min(7))?
             .iter_mut()

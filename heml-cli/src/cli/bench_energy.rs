@@ -49,13 +49,7 @@ pub fn run(args: &BenchArgs, energy: &str, pool: &rayon::ThreadPool) -> heml::Re
     }
     let cases: Vec<Case> = fields
         .iter()
-        .map(|f| Case {
-            pool,
-            field: f.as_ref(),
-            x: &x,
-            inner,
-            energy: true,
-        })
+        .map(|f| Case::forces(pool, f.as_ref(), &x, inner, true))
         .collect();
     outln!("mesh: {} tets   law: {}   energy: {energy}", n_tets, entry.name);
     outln!("1 thread, {repeats} × {inner} calls (medians), tape: {} ops", {

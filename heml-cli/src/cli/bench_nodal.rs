@@ -3,7 +3,7 @@
 //! ν = 0.49 on the same mesh, timed round-robin at 1 and `--threads` threads, so
 //! that their ratio is taken sample by sample under the same machine load.
 
-use super::bench::{median, median_ratio, time_round_robin, Case};
+use super::bench::{max, median_ratio, min, spread, time_round_robin, Case};
 use heml::law::Volumetric;
 use heml::prelude::*;
 use heml::registry::MaterialEntry;
@@ -38,13 +38,7 @@ pub(super) fn run(
     let mut cases = Vec::new();
     for pool in pools {
         for field in [&element, &nodal, &patch] {
-            cases.push(Case {
-                pool,
-                field: field.as_ref(),
-                x,
-                inner,
-                energy: true,
-            });
+            cases.push(Case::forces(pool, field.as_ref(), x, inner, true));
         }
     }
     let samples = time_round_robin(&cases, repeats)?;
@@ -87,23 +81,4 @@ pub(super) fn run(
         );
     }
     Ok(())
-}
-
-/// "median [min–max]" of `v` with `digits` decimals.
-fn spread(v: &[f64], digits: usize) -> String {
-    format!(
-        "{:.d$} [{:.d$}–{:.d$}]",
-        median(&mut v.to_vec()),
-        min(v),
-        max(v),
-        d = digits
-    )
-}
-
-fn min(v: &[f64]) -> f64 {
-    v.iter().copied().fold(f64::INFINITY, f64::min)
-}
-
-fn max(v: &[f64]) -> f64 {
-    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
 }

@@ -16,6 +16,7 @@ pub mod bench;
 pub mod bench_energy;
 pub mod bench_implicit;
 pub mod bench_nodal;
+pub mod bench_tangent;
 pub mod demo;
 pub mod device_tuning;
 pub mod haptic;

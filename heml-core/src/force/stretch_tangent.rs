@@ -14,10 +14,11 @@
 //! and at uniaxial and equibiaxial states. (C_e')_ij = C_e : sym(r_i r_jᵀ) with
 //! r_i = V⁻¹ n_i, evaluated by the same edge contraction as the forces.
 
+use super::eigensystem::EdgeHessian;
 use super::field::selection;
 use super::heml::volume_terms;
 use super::stretch::{c_of_lengths, edge_contraction, spectral_state};
-use super::tangent::{stiffness_from_q, TangentField, TetHessian, TetStiffness};
+use super::tangent::{edge_hessian_from_q, EdgeSpaceHessian, TangentField};
 use super::ForceOptions;
 use crate::error::Result;
 use crate::law::{StretchLaw, STRETCH_PAIRS};
@@ -34,8 +35,8 @@ pub struct StretchHessian<M: StretchLaw> {
     rest: Vec<(Matrix3<f64>, f64)>,
 }
 
-impl<M: StretchLaw> TetHessian for StretchHessian<M> {
-    fn hessian(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
+impl<M: StretchLaw> EdgeSpaceHessian for StretchHessian<M> {
+    fn edge_hessian(&self, k: usize, p: &[Vec3; 4]) -> EdgeHessian {
         let (vinv, vol) = self.rest[k];
         let v = edge_vectors(p);
         let l = v.map(|e| e.norm_squared());
@@ -72,7 +73,7 @@ impl<M: StretchLaw> TetHessian for StretchHessian<M> {
         }
         hq[(6, 6)] = vol * h.djj;
         let ge: [f64; 6] = std::array::from_fn(|e| vol * (0..3).map(|i| d.de[i] * diag[i][e]).sum::<f64>());
-        stiffness_from_q(&hq, &ge, &v, vol, Some((crosses, d.dj)))
+        edge_hessian_from_q(&hq, &ge, &v, vol, Some((crosses, d.dj)))
     }
 }
 

@@ -227,49 +227,6 @@ pub(super) fn add_length_curvature(k: &mut TetStiffness, c: &[f64; 6]) {
     }
 }
 
-/// Adds c·∇²vol, vol = v1·(v2×v3)/6 with v_i = x_i − x0: in the v_i the Hessian has
-/// zero diagonal blocks and ∂²vol/∂v_i∂v_j = −[v_k]×/6 for (i, j, k) cyclic; the
-/// node-0 rows and columns follow from v_i = x_i − x0.
-pub(super) fn add_volume_curvature(k: &mut TetStiffness, v: &[Vec3; 6], c: f64) {
-    let s = c / 6.0;
-    // hv[i][j]: the 3×3 block (v_{i+1}, v_{j+1})
-    let mut hv = [[Matrix3::zeros(); 3]; 3];
-    for i in 0..3 {
-        let (j, m) = ((i + 1) % 3, (i + 2) % 3);
-        let b = -v[m].cross_matrix() * s;
-        hv[i][j] = b;
-        hv[j][i] = b.transpose();
-    }
-    // x-blocks: node a ↔ coefficient of x_a in v_i (−1 for node 0, δ_ai otherwise)
-    let coef = |i: usize, a: usize| -> f64 {
-        if a == 0 {
-            -1.0
-        } else if a == i + 1 {
-            1.0
-        } else {
-            0.0
-        }
-    };
-    for a in 0..4 {
-        for b in 0..4 {
-            let mut blk = Matrix3::zeros();
-            for i in 0..3 {
-                for j in 0..3 {
-                    let c = coef(i, a) * coef(j, b);
-                    if c != 0.0 {
-                        blk += hv[i][j] * c;
-                    }
-                }
-            }
-            for r in 0..3 {
-                for q in 0..3 {
-                    k[(3 * a + r, 3 * b + q)] += blk[(r, q)];
-                }
-            }
-        }
-    }
-}
-
 /// The stiffness of an invariant law's tets: rest data of its own, one [`RestTet`]
 /// per tet (`Mtr` is needed here: the I2 curvature is w2·(vtr vtrᵀ − Mtr)).
 #[derive(Debug, Clone)]
@@ -388,40 +345,126 @@ impl<M: InvariantLaw> InvariantHessian<M> {
 }
 
 /// K = G H Gᵀ + Σ_e g_e ∇²l_e + w_J ∇²vol of a tet whose energy is a function of
-/// q = (l_1..l_6, J): `hq` = ∂²W/∂q², `ge` = ∂W/∂l_e, `v` the edge vectors, `vol`
-/// the rest volume, and `volume` = (the cross products of [`volume_terms`], ∂W/∂J)
-/// when W depends on J. Shared by the invariant and principal-stretch tangents.
-pub(super) fn stiffness_from_q(
+/// q = (l_1..l_6, J), in the edge vectors v_i = x_i − x0 (i = 1..3): `hq` = ∂²W/∂q²,
+/// `ge` = ∂W/∂l_e, `v` the edge vectors, `vol` the rest volume, and `volume` = (the
+/// cross products of [`volume_terms`], ∂W/∂J) when W depends on J. Returns P₉, with
+/// K = Bᵀ P₉ B ([`expand_translation_free`]): W depends on the positions
+/// through the v_i only, so the chain rule runs on 9 coordinates instead of 12 (the
+/// products G H Gᵀ cost 9·7·16 multiply-adds instead of 12·7·19), and P₉ is what
+/// the projection works on. Shared by the fibre and principal-stretch tangents.
+pub(super) fn edge_hessian_from_q(
     hq: &SMatrix<f64, 7, 7>,
     ge: &[f64; 6],
     v: &[Vec3; 6],
     vol: f64,
     volume: Option<([Vec3; 3], f64)>,
-) -> TetStiffness {
-    let gl = length_gradients(v);
-    let mut g = SMatrix::<f64, 12, 7>::zeros();
-    for e in 0..6 {
-        for i in 0..12 {
-            g[(i, e)] = gl[e][i];
-        }
-    }
-    if let Some((crosses, _)) = volume {
-        // ∇J = ∇vol/Vol: crosses/6 on nodes 1..3, minus their sum on node 0
-        let s = 1.0 / (6.0 * vol);
-        for (c, cross) in crosses.iter().enumerate() {
-            for ax in 0..3 {
-                g[(3 * (c + 1) + ax, 6)] = cross[ax] * s;
-                g[(ax, 6)] -= cross[ax] * s;
+) -> EdgeHessian {
+    // ∇l_e = ±2 v_e on the edge's nodes other than node 0 (whose coordinates are
+    // not among the v_i)
+    let mut g = SMatrix::<f64, 9, 7>::zeros();
+    for (e, &(tail, head)) in EDGES.iter().enumerate() {
+        for (node, sign) in [(head, 2.0), (tail, -2.0)] {
+            if node > 0 {
+                for a in 0..3 {
+                    g[(3 * (node - 1) + a, e)] = sign * v[e][a];
+                }
             }
         }
     }
-    let mut k = g * hq * g.transpose();
-    add_length_curvature(&mut k, ge);
-    if let Some((_, wj)) = volume {
-        // W = Vol·w with J = vol/Vol: the Vol cancels in ∂W/∂J · ∇²J
-        add_volume_curvature(&mut k, v, wj);
+    if let Some((crosses, _)) = volume {
+        // ∇J = ∇vol/Vol, ∂vol/∂v_c = the c-th cross product / 6
+        let s = 1.0 / (6.0 * vol);
+        for (c, cross) in crosses.iter().enumerate() {
+            for a in 0..3 {
+                g[(3 * c + a, 6)] = cross[a] * s;
+            }
+        }
     }
-    k
+    let mut p = g * hq * g.transpose();
+    // Σ_e g_e ∇²l_e: 2 g_e [[I, −I], [−I, I]] on the edge's (tail, head) blocks
+    for (e, &(tail, head)) in EDGES.iter().enumerate() {
+        let c = 2.0 * ge[e];
+        for (n1, n2, sign) in [(tail, tail, c), (head, head, c), (tail, head, -c), (head, tail, -c)] {
+            if n1 > 0 && n2 > 0 {
+                for a in 0..3 {
+                    p[(3 * (n1 - 1) + a, 3 * (n2 - 1) + a)] += sign;
+                }
+            }
+        }
+    }
+    if let Some((_, wj)) = volume {
+        // W = Vol·w with J = vol/Vol: the Vol cancels in ∂W/∂J · ∇²J;
+        // ∂²vol/∂v_i∂v_j = −[v_k]×/6 for (i, j, k) cyclic, zero diagonal blocks
+        let s = wj / 6.0;
+        for i in 0..3 {
+            let (j, m) = ((i + 1) % 3, (i + 2) % 3);
+            let b = -v[m].cross_matrix() * s;
+            for r in 0..3 {
+                for c in 0..3 {
+                    p[(3 * i + r, 3 * j + c)] += b[(r, c)];
+                    p[(3 * j + c, 3 * i + r)] += b[(r, c)];
+                }
+            }
+        }
+    }
+    p
+}
+
+/// The edge Hessian `p9` symmetrised and, when `project`, projected to positive
+/// semi-definite as [`project_psd`] projects K = Bᵀ P₉ B (P₉ is K's K₉): kept when
+/// semi-definite (the Cholesky test of [`is_semi_definite`]), else with its negative
+/// eigenvalues set to zero. A non-finite `p9` is returned as it is (as
+/// [`TetHessian::projected`] leaves a non-finite stiffness).
+fn symmetric_edge_hessian(p9: &EdgeHessian, project: bool) -> EdgeHessian {
+    if !p9.iter().all(|c| c.is_finite()) {
+        return *p9;
+    }
+    let sym = (p9 + p9.transpose()) * 0.5;
+    if !project || semi_definite_9(&sym) {
+        return sym;
+    }
+    clamped(sym).unwrap_or(sym)
+}
+
+/// A tet stiffness computed as the Hessian P₉ in the edge vectors v_i = x_i − x0
+/// ([`edge_hessian_from_q`]): the fibre and principal-stretch tangents, which have
+/// no closed-form projection. [`TetHessian`] follows: K = Bᵀ P₉ B, projected on P₉,
+/// and the blocks written straight from P₉ (no 12×12 matrix formed, symmetrised and
+/// cut into blocks again).
+pub(super) trait EdgeSpaceHessian: Send + Sync {
+    /// The `k`-th tet's Hessian in its edge vectors at vertex positions `p`.
+    fn edge_hessian(&self, k: usize, p: &[Vec3; 4]) -> EdgeHessian;
+}
+
+impl<T: EdgeSpaceHessian> TetHessian for T {
+    fn hessian(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
+        expand_translation_free(&symmetric_edge_hessian(&self.edge_hessian(k, p), false))
+    }
+
+    fn projected(&self, k: usize, p: &[Vec3; 4]) -> TetStiffness {
+        expand_translation_free(&symmetric_edge_hessian(&self.edge_hessian(k, p), true))
+    }
+
+    fn blocks_into(&self, k: usize, p: &[Vec3; 4], project: bool, out: &mut TetBlocks) {
+        edge_hessian_blocks(&symmetric_edge_hessian(&self.edge_hessian(k, p), project), out);
+    }
+}
+
+/// The blocks ([`BLOCK_PAIRS`]) of K = Bᵀ P₉ B for a symmetric edge Hessian `p9`,
+/// written into `out` without forming the 12×12 K: blocks (a, b) of nodes 1..3 are
+/// P₉'s, node 0's are minus the sums over the others (K's rows and columns sum to
+/// zero: W does not change under a translation).
+fn edge_hessian_blocks(p9: &EdgeHessian, out: &mut TetBlocks) {
+    let blk = |i: usize, j: usize| -> Matrix3<f64> { p9.fixed_view::<3, 3>(3 * i, 3 * j).into_owned() };
+    // column sums over the row blocks: c[j] = Σ_i P(i, j), the block (0, j + 1) negated
+    let c: [Matrix3<f64>; 3] = std::array::from_fn(|j| blk(0, j) + blk(1, j) + blk(2, j));
+    for (m, &(a, b)) in BLOCK_PAIRS.iter().enumerate() {
+        out[m] = match (a, b) {
+            (0, 0) => c[0] + c[1] + c[2],
+            (0, b) => -c[b - 1],
+            (a, b) => blk(a - 1, b - 1),
+        };
+    }
 }
 
 /// The stiffness of a link law's tets: the rest squared lengths of each tet's edges.
@@ -467,26 +510,39 @@ impl<M: LinkLaw> TetHessian for LinkHessian<M> {
 /// fraction of the cost of the eigen-decomposition, and they are returned unchanged.
 pub fn project_psd(k: &TetStiffness) -> TetStiffness {
     let sym = (k + k.transpose()) * 0.5;
-    if is_semi_definite(&sym) {
+    let k9: EdgeHessian = sym.fixed_view::<9, 9>(3, 3).into_owned();
+    if semi_definite_9(&k9) {
         return sym;
     }
-    let k9: SMatrix<f64, 9, 9> = sym.fixed_view::<9, 9>(3, 3).into_owned();
-    let eig = SymmetricEigen::new(k9);
-    if eig.eigenvalues.iter().all(|&e| e >= 0.0) {
-        return sym;
+    match clamped(k9) {
+        Some(p) => expand_translation_free(&p),
+        None => sym,
     }
-    let d = eig.eigenvalues.map(|e| e.max(0.0));
-    let q = &eig.eigenvectors;
-    expand_translation_free(&(q * SMatrix::<f64, 9, 9>::from_diagonal(&d) * q.transpose()))
 }
 
 /// Whether the symmetric tet stiffness `sym` is semi-definite: a Cholesky
 /// factorisation of its K₉ + εI succeeds (ε = 1e-12 × the largest diagonal entry,
 /// far above the round-off of the rotational zero eigenvalues at rest).
 pub(super) fn is_semi_definite(sym: &TetStiffness) -> bool {
-    let k9: SMatrix<f64, 9, 9> = sym.fixed_view::<9, 9>(3, 3).into_owned();
+    semi_definite_9(&sym.fixed_view::<9, 9>(3, 3).into_owned())
+}
+
+/// [`is_semi_definite`] on the edge Hessian K₉ itself.
+fn semi_definite_9(k9: &EdgeHessian) -> bool {
     let shift = 1e-12 * k9.diagonal().amax();
-    (k9 + SMatrix::<f64, 9, 9>::identity() * shift).cholesky().is_some()
+    (k9 + EdgeHessian::identity() * shift).cholesky().is_some()
+}
+
+/// The symmetric `k9` with its negative eigenvalues set to zero, or `None` when it
+/// has none.
+fn clamped(k9: EdgeHessian) -> Option<EdgeHessian> {
+    let eig = SymmetricEigen::new(k9);
+    if eig.eigenvalues.iter().all(|&e| e >= 0.0) {
+        return None;
+    }
+    let d = eig.eigenvalues.map(|e| e.max(0.0));
+    let q = &eig.eigenvectors;
+    Some(q * EdgeHessian::from_diagonal(&d) * q.transpose())
 }
 
 /// K = Bᵀ P₉ B for a 9×9 Hessian P₉ in the edge vectors from node 0: the rows and
