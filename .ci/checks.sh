@@ -64,3 +64,4 @@ if [ -n "$missing" ]; then
   exit 1
 fi
 echo "heml-py's $(features -p heml-py | wc -l) crate builds are all among the workspace's"
+

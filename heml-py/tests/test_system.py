@@ -206,7 +206,7 @@ def test_cholesky_linear_solver_reaches_the_cg_steps_and_reuses_its_factor():
 
     Bound: each step meets |r| ≤ 1e-9·max(|r0|, |loads|) with both solvers, so the
     states differ by ~1e-8 of the sag after 20 steps (the Rust test's argument,
-    tests/tests/implicit_cholesky.rs); 1e-6 leaves margin, while a wrong or stale
+    tests/tests/suite/implicit_cholesky.rs); 1e-6 leaves margin, while a wrong or stale
     matrix taken as converged leaves O(1e-2)."""
     converged = dict(newton_iterations=30, newton_tolerance=1e-9, cg_tolerance=1e-12)
     runs = {}

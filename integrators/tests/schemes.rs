@@ -1,11 +1,20 @@
 //! Convergence orders, energy behaviour and force caching of the three integrators.
 
-use heml_core::material::{Invariant, Link};
+use heml_core::material::Material;
 use heml_core::mesh::generate::{box_mesh, HexSplit};
+use heml_core::params::Params;
 use heml_core::system::{Integrator, System};
 use heml_core::{TetMesh, Vec3};
 use heml_integrators::{ExplicitEuler, SymplecticEuler, VelocityVerlet};
-use heml_materials::{MassSpring, NeoHookean};
+
+/// The built-in law `name` with `params`, from the registry: its fields are the
+/// ones heml-materials compiled. (`Box::new(Invariant(law))` here would instantiate
+/// every field of the law again in this test binary, ~20 s of release build.)
+fn registered<const N: usize>(name: &str, params: [(&str, f64); N]) -> Box<dyn Material> {
+    heml_materials::__link();
+    let entry = heml_core::registry::find_material(name).unwrap();
+    entry.instantiate(&Params::from(params)).unwrap()
+}
 
 /// A regular tetrahedron of edge 1: base (nodes 0–2) in z = 0, apex (node 3) above.
 fn regular_tet() -> TetMesh {
@@ -33,7 +42,7 @@ fn oscillator_error(integrator: &mut dyn Integrator, steps: usize) -> f64 {
     let m = rho * mesh.tet_volume(0) / 4.0;
     let omega = (2.0 * k / m).sqrt();
     let mut sys = System::builder(mesh)
-        .material_law(Box::new(Link(MassSpring { k })))
+        .material_law(registered("mass_spring", [("k", k)]))
         .density(rho)
         .fix_nodes([0, 1, 2])
         .energy_every(0)
@@ -88,7 +97,7 @@ fn energy_run(integrator: &mut dyn Integrator, dt_fraction: f64, steps: usize) -
     let mesh = box_mesh([1.0, 0.25, 0.25], [6, 2, 2], HexSplit::Six).unwrap();
     let (mu, lambda) = heml_core::params::lame(1e4, 0.3);
     let mut sys = System::builder(mesh)
-        .material_law(Box::new(Invariant(NeoHookean { mu, lambda })))
+        .material_law(registered("neo_hookean", [("mu", mu), ("lambda", lambda)]))
         .density(1000.0)
         .fix_where(|p| p.x < 1e-9)
         .initial_velocity(|p| Vec3::new(0.0, 0.2 * p.x * p.x, 0.3 * p.x))
@@ -140,7 +149,7 @@ fn verlet_recomputes_forces_after_the_system_is_edited() {
         let mesh = box_mesh([1.0, 0.3, 0.3], [3, 1, 1], HexSplit::Six).unwrap();
         let (mu, lambda) = heml_core::params::lame(1e4, 0.3);
         System::builder(mesh)
-            .material_law(Box::new(Invariant(NeoHookean { mu, lambda })))
+            .material_law(registered("neo_hookean", [("mu", mu), ("lambda", lambda)]))
             .fix_where(|p| p.x < 1e-9)
             .build()
             .unwrap()

@@ -1,6 +1,6 @@
 //! One suite for both grouped volumetric formulations (nodal and patch, which share
 //! one implementation in `heml::force::grouped`): each check takes the
-//! [`Volumetric`] to test, and `tests/nodal_volume.rs` and `tests/patch_volume.rs`
+//! [`Volumetric`] to test, and `tests/suite/nodal_volume.rs` and `tests/suite/patch_volume.rs`
 //! run it on theirs.
 
 use crate::{fd_gradient, invert_first_tet, jittered_box, max_diff, max_norm, random_deformation, rng};
@@ -60,7 +60,7 @@ pub fn forces_are_minus_the_energy_gradient(cells: [usize; 3], v: impl Fn(u64) -
             let minus_g: Vec<Vec3> = g.iter().map(|v| -v).collect();
             let scale = max_norm(&f).max(1.0);
             let err = max_diff(&f, &minus_g);
-            // as tests/forces.rs: h = 1e-6 central differences, 1e-6 of the largest force
+            // as tests/suite/forces.rs: h = 1e-6 central differences, 1e-6 of the largest force
             assert!(
                 err <= 1e-6 * scale,
                 "{name} seed {seed}: |f + ∇E| = {err:e} vs {scale:e}"

@@ -49,7 +49,7 @@ pub fn sample_params(entry: &MaterialEntry, rng: &mut impl Rng) -> Params {
 /// `law` with random unit fibre directions in every tet of `mesh` when it is a
 /// fibre law (unchanged otherwise): under the tests' random deformations (stretches
 /// 0.6–1.6 along random axes) some fibres are stretched and some compressed, so
-/// both sides of a tension-only switch are sampled (`tests/fibres.rs` counts them).
+/// both sides of a tension-only switch are sampled (`tests/suite/fibres.rs` counts them).
 pub fn fibred(law: Box<dyn Material>, mesh: &TetMesh, rng: &mut impl Rng) -> Box<dyn Material> {
     if law.fibre_families() == 0 {
         return law;

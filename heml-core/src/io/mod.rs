@@ -20,7 +20,7 @@
 //! Design choices, and why:
 //! * **Hand-written parsers.** Every error must name the file and the line, and no
 //!   input may make the reader panic; owning the parsers makes both easy to
-//!   guarantee and to test (see `tests/mesh_io.rs`, which fuzzes truncations).
+//!   guarantee and to test (see `tests/integration/mesh_io.rs`, which fuzzes truncations).
 //! * **Only linear tetrahedra are simulated.** Lower-dimensional elements (points,
 //!   lines, triangles, quads: typically boundary surfaces) are skipped and counted
 //!   in [`MeshData::skipped`]. Linear hexahedra (Gmsh type 5, VTK hexahedron and

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerates the binary fixtures of tests/mesh_io.rs (the text fixtures are
+"""Regenerates the binary fixtures of tests/integration/mesh_io.rs (the text fixtures are
 hand-written). Mesh: the 5-node, 2-tet "tiny" mesh used by every fixture,
 tags [1, 2], plus one triangle that readers must skip."""
 import base64, struct, zlib

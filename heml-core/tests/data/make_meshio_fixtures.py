@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerates the meshio-written fixtures of tests/mesh_io.rs: the 5-node,
+"""Regenerates the meshio-written fixtures of tests/integration/mesh_io.rs: the 5-node,
 2-tet "tiny" mesh (tags [1, 2], plus one triangle that readers must skip) as
 meshio (5.3.5) writes it by default: binary Gmsh 2.2 (`gmsh22`), binary Gmsh 4.1
 (`gmsh`), and VTU with lzma compression. Run from this directory with a Python

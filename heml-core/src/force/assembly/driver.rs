@@ -307,7 +307,8 @@ fn run_block<K: BatchKernel>(
     // separate references, so that the driver knows the buffers do not alias
     let (tets, x, f) = blk.into_parts();
     match isa {
-        #[cfg(target_arch = "x86_64")]
+        // (only with the `avx512` feature: see `simd::SimdLevel::Avx512`)
+        #[cfg(all(target_arch = "x86_64", feature = "avx512"))]
         // SAFETY: the token proves the CPU has avx512f, avx512dq, avx512vl, avx2 and
         // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
         // of one `BlockBuffers`, so every index is below both buffers' length.
@@ -340,6 +341,8 @@ macro_rules! block_with_features {
     ($name:ident, $features:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
+        // type-checked in every build, instantiated only where called
+        #[cfg_attr(not(feature = "avx512"), allow(dead_code))]
         #[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
         unsafe fn $name<K: BatchKernel, const ENERGY: bool>(
             io: Avx2,

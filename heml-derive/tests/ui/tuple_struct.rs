@@ -1,5 +1,5 @@
 /// Parameters need names.
-#[heml::material(name = "tuple")]
+#[heml_derive::material(name = "tuple")]
 #[energy(I1 - 3.0)]
 pub struct Tuple(pub f64);
 

@@ -1,6 +1,10 @@
-//! Compile-fail tests of `#[heml::material]`: each file in `ui/` must fail to
-//! compile with the error in its `.stderr` (regenerate with `TRYBUILD=overwrite`
-//! and review the messages and the spans they point at).
+//! Compile-fail tests of `#[heml::material]` (the attribute of this crate, re-exported
+//! by `heml`): each file in `tests/ui/` must fail to compile with the error in its
+//! `.stderr` (regenerate with `TRYBUILD=overwrite` and review the messages and the
+//! spans they point at). They live here rather than beside the facade's tests
+//! because trybuild checks the crate under test and all its dependencies in a
+//! target of its own: the macro's errors need nothing but the macro, and checking
+//! the facade's tree (faer, nalgebra, heml-core, the laws) cost ~145 s of CI time.
 
 /// The flags trybuild gives rustc when it checks the test files (its `rustflags.rs`
 /// and `cargo.rs`), for its first pass over the dependencies too. trybuild checks the
@@ -23,5 +27,5 @@ fn material_macro_errors() {
     // one test in this binary: nothing else reads the environment concurrently
     std::env::set_var("CARGO_ENCODED_RUSTFLAGS", TRYBUILD_RUSTFLAGS.join("\x1f"));
     let t = trybuild::TestCases::new();
-    t.compile_fail("ui/*.rs");
+    t.compile_fail("tests/ui/*.rs");
 }

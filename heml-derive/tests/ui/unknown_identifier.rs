@@ -1,5 +1,5 @@
 /// A typo in a parameter name.
-#[heml::material(name = "typo")]
+#[heml_derive::material(name = "typo")]
 #[energy(mu / 2.0 * (I1 - 3.0) + kapa / 2.0 * (J - 1.0).powi(2))]
 pub struct Typo {
     pub mu: f64,

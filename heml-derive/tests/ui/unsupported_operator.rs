@@ -1,5 +1,5 @@
 /// `^` is not a power in Rust (nor here).
-#[heml::material(name = "caret")]
+#[heml_derive::material(name = "caret")]
 #[energy(mu * (I1 - 3.0) ^ 2.0)]
 pub struct Caret {
     pub mu: f64,

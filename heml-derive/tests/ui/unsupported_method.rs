@@ -1,5 +1,5 @@
 /// Only ln, exp, sqrt, abs, powi and powf are differentiable here.
-#[heml::material(name = "trig")]
+#[heml_derive::material(name = "trig")]
 #[energy(mu * (I1 - 3.0).sin())]
 pub struct Trig {
     pub mu: f64,

@@ -1,5 +1,5 @@
 /// The registry name is required.
-#[heml::material(no_inversion_fix)]
+#[heml_derive::material(no_inversion_fix)]
 #[energy(mu * (I1 - 3.0))]
 pub struct Anonymous {
     pub mu: f64,

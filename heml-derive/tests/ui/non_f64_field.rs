@@ -1,5 +1,5 @@
 /// Parameters are f64.
-#[heml::material(name = "integer_param")]
+#[heml_derive::material(name = "integer_param")]
 #[energy(mu * (I1 - 3.0))]
 pub struct IntegerParam {
     pub mu: f64,

@@ -36,13 +36,16 @@ fn random_tets(rng: &mut TestRng, n: usize) -> (TetMesh, Vec<Vec3>) {
 }
 
 /// The compiled law `M` with registry parameters, and the runtime law of its
-/// declared energy text with the same parameters (and inversion fix).
-fn pair<M: InvariantLaw>(rng: &mut TestRng) -> (M, RuntimeLaw) {
+/// declared energy text with the same parameters (and inversion fix). The compiled
+/// law is built through the registry, so its fields are the ones heml-materials
+/// compiled (`Invariant<M>` builds `HemlField<M>`, `P1Field<M>` and
+/// `TangentField::invariant` of `M`, the typed paths): instantiating them again in
+/// this test binary cost about a minute of CI's release build.
+fn pair<M: InvariantLaw>(rng: &mut TestRng) -> (Box<dyn Material>, RuntimeLaw) {
     let entry = heml::find_material(M::NAME).unwrap();
     let params = sample_params(entry, rng);
-    let values: Vec<f64> = M::PARAMS.iter().map(|p| params.get(p.name).unwrap()).collect();
     let runtime = RuntimeLaw::with_inversion_fix(M::ENERGY, &params, M::INVERSION_FIX).unwrap();
-    (M::from_params(&values), runtime)
+    (entry.instantiate(&params).unwrap(), runtime)
 }
 
 /// Largest per-tet difference of `a` and `b` (four nodes per tet), relative to the
@@ -71,7 +74,7 @@ fn check_equal<M: InvariantLaw>(seed: u64) {
     let (compiled, runtime) = pair::<M>(&mut rng);
     let opts = ForceOptions::default();
     for assembly in [Assembly::Parallel, Assembly::Batched, Assembly::Reference] {
-        let mut c = HemlField::new(compiled, &mesh, opts).unwrap();
+        let mut c = compiled.force_field(&mesh, None, &opts).unwrap();
         let mut r = HemlField::new(runtime, &mesh, opts).unwrap();
         c.set_assembly(assembly);
         r.set_assembly(assembly);
@@ -82,7 +85,9 @@ fn check_equal<M: InvariantLaw>(seed: u64) {
         assert!((ec - er).abs() <= TOL * ec.abs(), "{}: energy {ec} vs {er}", M::NAME);
     }
     // the P1 FEM path and the tangent (second derivatives)
-    let (_, fc) = P1Field::on_tets(compiled, &mesh, None, opts)
+    let (_, fc) = compiled
+        .fem_field(&mesh, None, &opts)
+        .unwrap()
         .unwrap()
         .forces(&x)
         .unwrap();
@@ -93,7 +98,7 @@ fn check_equal<M: InvariantLaw>(seed: u64) {
     let err = max_tet_relative(&fc, &fr);
     assert!(err <= TOL, "{} (P1): forces differ by {err:e}", M::NAME);
     let tets: Vec<usize> = (0..500).collect();
-    let mut kc = TangentField::invariant(compiled, &mesh, Some(&tets), opts, false).unwrap();
+    let mut kc = compiled.tangent(&mesh, Some(&tets), &opts, false).unwrap().unwrap();
     let mut kr = TangentField::invariant(runtime, &mesh, Some(&tets), opts, false).unwrap();
     kc.update(&x).unwrap();
     kr.update(&x).unwrap();
@@ -138,7 +143,7 @@ fn check_equal_as_material<M: InvariantLaw>(seed: u64) {
     let (mesh, x) = random_tets(&mut rng, 2_000);
     let (compiled, runtime) = pair::<M>(&mut rng);
     let opts = ForceOptions::default();
-    let (c, r): (&dyn Material, &dyn Material) = (&heml::law::Invariant(compiled), &runtime);
+    let (c, r): (&dyn Material, &dyn Material) = (compiled.as_ref(), &runtime);
     let (_, fc) = c.force_field(&mesh, None, &opts).unwrap().forces(&x).unwrap();
     let (_, fr) = r.force_field(&mesh, None, &opts).unwrap().forces(&x).unwrap();
     let err = max_tet_relative(&fc, &fr);
