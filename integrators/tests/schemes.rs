@@ -1,19 +1,17 @@
 //! Convergence orders, energy behaviour and force caching of the three integrators.
 
-use heml_core::material::Material;
 use heml_core::mesh::generate::{box_mesh, HexSplit};
 use heml_core::params::Params;
 use heml_core::system::{Integrator, System};
 use heml_core::{TetMesh, Vec3};
 use heml_integrators::{ExplicitEuler, SymplecticEuler, VelocityVerlet};
 
-/// The built-in law `name` with `params`, from the registry: its fields are the
-/// ones heml-materials compiled. (`Box::new(Invariant(law))` here would instantiate
-/// every field of the law again in this test binary, ~20 s of release build.)
-fn registered<const N: usize>(name: &str, params: [(&str, f64); N]) -> Box<dyn Material> {
+/// Laws are taken by name (`SystemBuilder::material`), so that their fields are the
+/// ones heml-materials compiled: `material_law(Box::new(Invariant(law)))` here would
+/// instantiate every field of the law again in this test binary (~20 s of release
+/// build). The reference keeps heml-materials, and its registrations, linked.
+fn link_materials() {
     heml_materials::__link();
-    let entry = heml_core::registry::find_material(name).unwrap();
-    entry.instantiate(&Params::from(params)).unwrap()
 }
 
 /// A regular tetrahedron of edge 1: base (nodes 0–2) in z = 0, apex (node 3) above.
@@ -41,8 +39,10 @@ fn oscillator_error(integrator: &mut dyn Integrator, steps: usize) -> f64 {
     let mesh = regular_tet();
     let m = rho * mesh.tet_volume(0) / 4.0;
     let omega = (2.0 * k / m).sqrt();
+    link_materials();
     let mut sys = System::builder(mesh)
-        .material_law(registered("mass_spring", [("k", k)]))
+        .material("mass_spring", Params::from([("k", k)]))
+        .unwrap()
         .density(rho)
         .fix_nodes([0, 1, 2])
         .energy_every(0)
@@ -96,8 +96,10 @@ fn velocity_verlet_is_second_order() {
 fn energy_run(integrator: &mut dyn Integrator, dt_fraction: f64, steps: usize) -> (f64, f64) {
     let mesh = box_mesh([1.0, 0.25, 0.25], [6, 2, 2], HexSplit::Six).unwrap();
     let (mu, lambda) = heml_core::params::lame(1e4, 0.3);
+    link_materials();
     let mut sys = System::builder(mesh)
-        .material_law(registered("neo_hookean", [("mu", mu), ("lambda", lambda)]))
+        .material("neo_hookean", Params::from([("mu", mu), ("lambda", lambda)]))
+        .unwrap()
         .density(1000.0)
         .fix_where(|p| p.x < 1e-9)
         .initial_velocity(|p| Vec3::new(0.0, 0.2 * p.x * p.x, 0.3 * p.x))
@@ -148,8 +150,10 @@ fn verlet_recomputes_forces_after_the_system_is_edited() {
     let build = || {
         let mesh = box_mesh([1.0, 0.3, 0.3], [3, 1, 1], HexSplit::Six).unwrap();
         let (mu, lambda) = heml_core::params::lame(1e4, 0.3);
+        link_materials();
         System::builder(mesh)
-            .material_law(registered("neo_hookean", [("mu", mu), ("lambda", lambda)]))
+            .material("neo_hookean", Params::from([("mu", mu), ("lambda", lambda)]))
+            .unwrap()
             .fix_where(|p| p.x < 1e-9)
             .build()
             .unwrap()
