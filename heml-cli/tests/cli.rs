@@ -222,6 +222,45 @@ fn bench_tangent_reports_update_and_product_per_thread_count() {
     assert!(!ok && err.contains("no_such_law"), "{err}");
 }
 
+/// `heml bench --law L --against M` prints L's cost relative to M with the energy and
+/// without it (forces only), each the median of per-round ratios inside their printed
+/// range, with both laws' ns/tet.
+#[test]
+fn bench_against_reports_both_ratios_inside_their_ranges() {
+    let args = [
+        "bench",
+        "--law",
+        "holzapfel_gasser_ogden",
+        "--against",
+        "neo_hookean",
+        "--tets",
+        "3000",
+        "--repeats",
+        "3",
+        "--threads",
+        "1",
+    ];
+    let (ok, out, err) = heml(&args);
+    assert!(ok, "{err}");
+    for what in ["HEML, forces and energy", "HEML, forces only as explicit steps"] {
+        let head = format!("holzapfel_gasser_ogden vs neo_hookean ({what}, 1 thread): ");
+        let line = out.lines().find_map(|l| l.strip_prefix(head.as_str()));
+        let line = line.unwrap_or_else(|| panic!("no line {head:?}:\n{out}"));
+        // "1.44× (per-round ratios 1.33–1.76); holzapfel_gasser_ogden 45.12, neo_hookean 31.26 ns/tet"
+        let nums: Vec<f64> = line
+            .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .filter_map(|v| v.parse().ok())
+            .collect();
+        assert_eq!(nums.len(), 5, "{line}");
+        let (ratio, lo, hi, mine, other) = (nums[0], nums[1], nums[2], nums[3], nums[4]);
+        assert!(
+            lo > 0.0 && lo <= ratio && ratio <= hi,
+            "median outside its range: {line}"
+        );
+        assert!(mine > 0.0 && other > 0.0, "{line}");
+    }
+}
+
 /// A reader that stops early (`heml bench | head -1`) must end the command quietly:
 /// no panic, success, nothing on standard error.
 #[test]
