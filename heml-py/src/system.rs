@@ -266,7 +266,7 @@ impl System {
     /// `factorizations` count its refreshes), `cholesky_ordering` (its fill-reducing
     /// ordering: `"auto"`, the default — nested dissection from 3000 unknowns, AMD
     /// below —, `"amd"`, `"node_amd"` or `"nested_dissection"`), `factor_precision`
-    /// (its precision: `"auto"`, the default — f32 for time steps from 3000 unknowns,
+    /// (its precision: `"auto"`, the default — f32 for time steps from 256 unknowns,
     /// f64 below —, `"f64"` or `"f32"`; the factor only preconditions iterations on
     /// exact residuals, so it changes the speed, not the converged state),
     /// `newton_iterations`, `newton_tolerance`, `cg_tolerance`, `cg_max_iterations`.

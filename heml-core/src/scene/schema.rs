@@ -339,7 +339,7 @@ pub struct SolverSpec {
     /// `"nested_dissection"`.
     pub cholesky_ordering: Option<CholeskyOrdering>,
     /// Implicit integrators with `linear_solver = "cholesky"`: the factor's
-    /// precision, `"auto"` (default: f32 for time steps from 3000 unknowns on, f64
+    /// precision, `"auto"` (default: f32 for time steps from 256 unknowns on, f64
     /// otherwise), `"f64"` or `"f32"`.
     pub factor_precision: Option<FactorPrecision>,
     /// Volumetric formulation of every material that does not set its own:

@@ -671,13 +671,13 @@ fn nested_dissection_ends_on_the_converged_state_and_replays() {
     assert_eq!(differing, 0, "{differing} nodes differ between 1 and 2 threads");
 }
 
-/// An f32 factor (`factor_precision`, the default for time steps from 3000
-/// unknowns, forced here on the 8 × 6 × 5 block's ~1100) changes the bits of a
+/// An f32 factor (`factor_precision`, the default for time steps from
+/// `AUTO_SINGLE` (256) unknowns, as the 8 × 6 × 5 block's ~1100) changes the bits of a
 /// run, not its converged state nor its replay: converged backward Euler ends on
 /// the f64 factor's state (bound as in [`assert_matches_cg`]: both meet the same
 /// Newton criterion on exact residuals), the chord preset under the pressing tool
-/// gives the same bits on 1 and 2 threads, and below the threshold the default
-/// keeps the f64 factor's bits.
+/// gives the same bits on 1 and 2 threads, and the default takes the f32 factor's
+/// bits there.
 #[test]
 fn single_precision_factor_ends_on_the_converged_state_and_replays() {
     link();
@@ -730,10 +730,8 @@ fn single_precision_factor_ends_on_the_converged_state_and_replays() {
     let differing = one.iter().zip(&two).filter(|(a, b)| a != b).count();
     assert_eq!(differing, 0, "{differing} nodes differ between 1 and 2 threads");
     let (auto, double) = (in_pool(1, FactorPrecision::Auto), in_pool(1, FactorPrecision::Double));
-    assert!(
-        auto == double,
-        "below 3000 unknowns the default must keep the f64 factor's bits"
-    );
+    assert!(auto == one, "from AUTO_SINGLE unknowns the default must be the f32 factor");
+    assert!(auto != double, "the f32 and f64 factors gave the same bits: was f32 used?");
 }
 
 /// A body at rest without loads (the viewer's kidney between two interactions)

@@ -24,7 +24,7 @@
 #[serde(rename_all = "snake_case")]
 pub enum FactorPrecision {
     /// f32 for time steps (a mass term on the diagonal) from [`AUTO_SINGLE`] free
-    /// coordinates on, f64 otherwise (the default): small systems and static solves
+    /// coordinates on, f64 otherwise (the default): tiny systems and static solves
     /// keep the factor, and the bits, they had before session 18.
     #[default]
     Auto,
@@ -37,11 +37,18 @@ pub enum FactorPrecision {
     Single,
 }
 
-/// Free coordinates from which [`FactorPrecision::Auto`] factors time steps in f32:
-/// the threshold of nested dissection ([`super::AUTO_NESTED_DISSECTION`]), below
-/// which a factorisation costs well under a millisecond and the solves are
-/// dominated by other work (measured in `docs/journal/implicit-steps.md`, session 18).
-pub const AUTO_SINGLE: usize = super::AUTO_NESTED_DISSECTION;
+/// Free coordinates from which [`FactorPrecision::Auto`] factors time steps in f32.
+/// Session 18 took nested dissection's threshold (3000), the liver's gain (513
+/// unknowns) being within that day's noise; session 35 measured it again in
+/// alternated pairs of long runs (`heml bench --implicit --factor-precision
+/// f64,f32`, same binary): f32 made the liver's run 6–12 % faster in all eight
+/// pairs (four runs at 1 and 2 threads; factorisations −19 to −30 %, solves −7 to
+/// −24 %, the same Newton iterations), and gen_kidney_2k's and gen_blob_2k's (~1400
+/// unknowns) 10–23 % in six of eight (the other two were slower in their unchanged
+/// force phase too: the machine).
+/// Below a few hundred unknowns a factorisation and a solve take microseconds and
+/// nothing is left to gain: such systems keep the f64 factor and their bits.
+pub const AUTO_SINGLE: usize = 256;
 
 impl FactorPrecision {
     /// Whether a system of `unknowns` free coordinates, with a mass term when

@@ -165,9 +165,9 @@ pub struct ImplicitSettings {
     /// AMD used before session 17 (gen_kidney_100k 0.63×); faer's AMD below).
     pub cholesky_ordering: CholeskyOrdering,
     /// [`LinearSolver::Cholesky`]: the precision of the factor (default
-    /// [`FactorPrecision::Auto`]: f32 for time steps from 3000 unknowns on, which on
-    /// gen_kidney_20k factors ~2× and solves ~1.8× faster; f64 for static solves and
-    /// small systems). The factor preconditions iterations on exact f64 residuals, so
+    /// [`FactorPrecision::Auto`]: f32 for time steps from 256 unknowns on, which on
+    /// gen_kidney_20k factors ~2× and solves ~1.8× faster, the liver's long run
+    /// 6–12 %; f64 for static solves and tiny systems). The factor preconditions iterations on exact f64 residuals, so
     /// the precision changes how fast a step converges, never what it converges to.
     pub factor_precision: FactorPrecision,
 }

@@ -99,7 +99,7 @@ impl ImplicitSolver {
     }
 
     /// Whether the Cholesky factor currently held is in f32 (see
-    /// [`super::FactorPrecision`]: `auto` takes it for time steps from 3000 unknowns,
+    /// [`super::FactorPrecision`]: `auto` takes it for time steps from 256 unknowns,
     /// and an f32 factorisation that meets a non-positive pivot is redone in f64);
     /// false without a factor.
     pub fn factor_is_single(&self) -> bool {
