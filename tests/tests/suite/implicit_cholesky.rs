@@ -730,8 +730,14 @@ fn single_precision_factor_ends_on_the_converged_state_and_replays() {
     let differing = one.iter().zip(&two).filter(|(a, b)| a != b).count();
     assert_eq!(differing, 0, "{differing} nodes differ between 1 and 2 threads");
     let (auto, double) = (in_pool(1, FactorPrecision::Auto), in_pool(1, FactorPrecision::Double));
-    assert!(auto == one, "from AUTO_SINGLE unknowns the default must be the f32 factor");
-    assert!(auto != double, "the f32 and f64 factors gave the same bits: was f32 used?");
+    assert!(
+        auto == one,
+        "from AUTO_SINGLE unknowns the default must be the f32 factor"
+    );
+    assert!(
+        auto != double,
+        "the f32 and f64 factors gave the same bits: was f32 used?"
+    );
 }
 
 /// A body at rest without loads (the viewer's kidney between two interactions)
