@@ -145,7 +145,7 @@ impl InvariantLaw for NeoHookean {
     }
 }
 
-fn neo(mu: f64, lambda: f64) -> Box<dyn crate::Material> {
+pub(super) fn neo(mu: f64, lambda: f64) -> Box<dyn crate::Material> {
     Box::new(Invariant(NeoHookean { mu, lambda }))
 }
 
@@ -179,7 +179,7 @@ fn regular_tet() -> TetMesh {
     .unwrap()
 }
 
-fn cube() -> TetMesh {
+pub(super) fn cube() -> TetMesh {
     box_mesh([1.0, 1.0, 1.0], [2, 2, 2], HexSplit::Six).unwrap()
 }
 

@@ -87,6 +87,9 @@ pub(super) struct ImplicitStep<'a> {
     pub first_dx: Option<Vec<f64>>,
     /// Seconds spent in [`NewtonProblem::merit`] (a `&self` method).
     pub merit_time: std::cell::Cell<f64>,
+    /// The merit's inertia term at the positions of the last evaluation (taken by
+    /// the merit; `None` once taken or after an evaluation that failed).
+    pub inertia_at_eval: std::cell::Cell<Option<f64>>,
     /// The inverted tets at the predictor, when the predictor counted them.
     pub start_inverted: Option<usize>,
     /// Positions, velocities and â at the start of the step.
@@ -147,17 +150,35 @@ impl ImplicitStep<'_> {
     /// not compute them again (one force evaluation per step saved).
     pub fn set_velocities(&self, sys: &mut System) {
         let mut changed = false;
-        for i in 0..sys.state.x.len() {
-            if sys.model.inv_mass[i] > 0.0 {
-                let v = self.v(sys, i);
+        // zipped slices (no bounds checks per node): the same operations as
+        // [`Self::v`], node by node
+        let (x, v) = (&sys.state.x, &mut sys.state.v);
+        let start = self.x0.iter().zip(self.v0);
+        for (((vi, xi), (x0, v0)), &im) in v.iter_mut().zip(x).zip(start).zip(&sys.model.inv_mass) {
+            if im > 0.0 {
+                let vn = v0 + (xi - x0 - v0 * self.h) * self.cv;
                 // `!=` is true for NaN, so a non-finite velocity always counts as new
-                changed |= v != sys.state.v[i];
-                sys.state.v[i] = v;
+                changed |= vn != *vi;
+                *vi = vn;
             }
         }
         if changed {
             sys.eval.forces_current = false;
         }
+    }
+
+    /// The merit's inertia term Σ ½ m_i (|a⁺_i|²/c_a + α |v⁺_i|²/c_v) over the free
+    /// nodes: the incremental potential of the inertia, and of the mass damping
+    /// −α M v⁺ (whose gradient it is too).
+    fn inertia(&self, sys: &System) -> f64 {
+        let alpha = sys.model.damping.alpha;
+        let mut inertia = 0.0;
+        for i in (0..sys.state.x.len()).filter(|&i| sys.model.inv_mass[i] > 0.0) {
+            let d = self.d(sys, i);
+            let a = d * self.ca - self.a0[i];
+            inertia += node_inertia(sys.model.mass[i], &a, &self.v_of(i, d), (self.ca, self.cv, alpha));
+        }
+        inertia
     }
 
     /// a⁺ = c_a d − â on the free nodes, zero on the constrained ones.
@@ -282,6 +303,13 @@ impl ImplicitStep<'_> {
     }
 }
 
+/// One free node's term of the merit's inertia ([`ImplicitStep::inertia`]) at mass
+/// `m`, a⁺ `a` and v⁺ `v`, with the step's c_a, c_v and the mass damping α.
+#[inline]
+fn node_inertia(m: f64, a: &Vec3, v: &Vec3, (ca, cv, alpha): (f64, f64, f64)) -> f64 {
+    0.5 * m * (a.norm_squared() / ca + alpha * v.norm_squared() / cv)
+}
+
 fn norm(f: &[Vec3]) -> f64 {
     f.iter().map(|v| v.norm_squared()).sum::<f64>().sqrt()
 }
@@ -398,17 +426,9 @@ impl NewtonProblem for ImplicitStep<'_> {
         let e = sys.energies();
         self.merit_time.set(self.merit_time.get() + t0.elapsed().as_secs_f64());
         let e = e?;
-        let alpha = sys.model.damping.alpha;
-        let inertia: f64 = (0..sys.state.x.len())
-            .filter(|&i| sys.model.inv_mass[i] > 0.0)
-            .map(|i| {
-                let d = self.d(sys, i);
-                let a = d * self.ca - self.a0[i];
-                // mass damping −α M v⁺ is the gradient of α/(2 c_v)·|v⁺|²_M too
-                let v = self.v_of(i, d);
-                0.5 * sys.model.mass[i] * (a.norm_squared() / self.ca + alpha * v.norm_squared() / self.cv)
-            })
-            .sum();
+        // the evaluation at these positions summed it (the line search always
+        // evaluates before it asks for the merit); computed here otherwise
+        let inertia = self.inertia_at_eval.take().unwrap_or_else(|| self.inertia(sys));
         // the grasp dampers' −c v⁺ is the gradient of c/(2 c_v)·|v⁺|² (a constrained
         // node's imposed velocity does not depend on x⁺: a constant there)
         let v_plus = |i: usize| {
@@ -473,6 +493,7 @@ const SEQUENTIAL_TETS: usize = 8192;
 impl ImplicitStep<'_> {
     /// [`NewtonProblem::evaluate`] without the timing.
     fn evaluate_inner(&mut self, sys: &mut System) -> Result<()> {
+        self.inertia_at_eval.set(None);
         self.set_velocities(sys);
         sys.invalidate();
         // no rollback here: a failed line-search trial must leave the step going
@@ -480,14 +501,137 @@ impl ImplicitStep<'_> {
         // r = f − M a⁺ with a⁺ of [`Self::accelerations`] computed in place (the
         // same operations per node, so the same bits): no vector allocated and one
         // pass over the nodes less per evaluation (a chord step evaluates twice)
-        for i in 0..self.r.len() {
-            self.r[i] = if sys.model.inv_mass[i] > 0.0 {
-                let a = self.d(sys, i) * self.ca - self.a0[i];
-                sys.eval.force[i] - a * sys.model.mass[i]
+        // The merit's inertia term ½ m (|a⁺|²/c_a + α |v⁺|²/c_v) is summed in the same
+        // pass, node by node in the same order as [`Self::inertia`] (so the same
+        // bits): the line search asks for the merit right after each evaluation.
+        let alpha = sys.model.damping.alpha;
+        let mut inertia = 0.0;
+        let start = self.x0.iter().zip(self.v0).zip(self.a0);
+        let node = sys
+            .state
+            .x
+            .iter()
+            .zip(&sys.eval.force)
+            .zip(sys.model.inv_mass.iter().zip(&sys.model.mass));
+        for ((ri, ((x0, v0), a0)), ((xi, fi), (&im, &m))) in self.r.iter_mut().zip(start).zip(node) {
+            *ri = if im > 0.0 {
+                let d = xi - x0 - v0 * self.h;
+                let a = d * self.ca - a0;
+                inertia += node_inertia(m, &a, &(v0 + d * self.cv), (self.ca, self.cv, alpha));
+                fi - a * m
             } else {
                 Vec3::zeros()
             };
         }
+        self.inertia_at_eval.set(Some(inertia));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::system::tests::{cube, neo};
+
+    /// A damped, gravity-loaded cube with its bottom fixed, moved off its start, and
+    /// an implicit step's problem on it (backward Euler, h = 10 ms).
+    fn problem_at(sys: &mut System, h: f64) -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) {
+        let n = sys.state.x.len();
+        let x0 = sys.state.x.clone();
+        let v0: Vec<Vec3> = (0..n).map(|i| Vec3::new(0.01 * i as f64, -0.02, 0.03)).collect();
+        for i in 0..n {
+            if sys.model.inv_mass[i] > 0.0 {
+                let s = i as f64;
+                sys.state.x[i] += v0[i] * h + Vec3::new(1e-3 * s.sin(), 2e-3 * s.cos(), -1e-3);
+            }
+        }
+        (x0, v0, vec![Vec3::zeros(); n])
+    }
+
+    fn damped_cube() -> System {
+        let bottom: Vec<usize> = (0..27).filter(|&i| cube().nodes()[i].z == 0.0).collect();
+        System::builder(cube())
+            .material_law(neo(1e3, 4e3))
+            .density(1e3)
+            .gravity(Vec3::new(0.0, 0.0, -9.81))
+            .rayleigh(3.0, 0.0)
+            .fix_nodes(bottom)
+            .build()
+            .unwrap()
+    }
+
+    /// The merit takes the inertia term the evaluation summed at the same positions
+    /// (one pass over the nodes less per line-search trial): it must be the value the
+    /// merit computes on its own, to the bit, and the merit's gradient must be −r
+    /// (checked by central differences along one direction; tolerance: the
+    /// difference quotient's truncation, O(ε²·|∇³merit|), and round-off
+    /// |merit|·1e-16/ε, both far below 1e-6 of the directional derivative here).
+    #[test]
+    fn merit_inertia_from_the_evaluation_is_the_merits_own() {
+        let h = 0.01;
+        let mut sys = damped_cube();
+        let (x0, v0, a0) = problem_at(&mut sys, h);
+        let (settings, mut cache, mut anderson) =
+            (ImplicitSettings::default(), SolveCache::default(), Anderson::default());
+        let n = x0.len();
+        let mut p = ImplicitStep {
+            settings: &settings,
+            tangents: &mut [],
+            cache: &mut cache,
+            guess: None,
+            first_dx: None,
+            merit_time: std::cell::Cell::new(0.0),
+            inertia_at_eval: std::cell::Cell::new(None),
+            start_inverted: None,
+            x0: &x0,
+            v0: &v0,
+            a0: &a0,
+            h,
+            ca: 1.0 / (h * h),
+            cv: 1.0 / h,
+            load_norm: 1.0,
+            r: vec![Vec3::zeros(); n],
+            r0: None,
+            cg_iterations: 0,
+            warnings: Vec::new(),
+            last_solve: None,
+            reused: false,
+            fresh_iterations: 0,
+            chord_iterations: 0,
+            anderson: &mut anderson,
+        };
+        p.evaluate(&mut sys).unwrap();
+        assert!(p.inertia_at_eval.get().is_some_and(|e| e > 0.0));
+        let fused = p.merit(&sys).unwrap();
+        assert!(
+            p.inertia_at_eval.get().is_none(),
+            "the merit takes the evaluation's value"
+        );
+        let own = p.merit(&sys).unwrap();
+        assert_eq!(fused.to_bits(), own.to_bits());
+
+        // −∇merit = r along a direction on the free nodes
+        let dir: Vec<Vec3> = (0..n)
+            .map(|i| {
+                let s = i as f64;
+                if sys.model.inv_mass[i] > 0.0 {
+                    Vec3::new((1.3 * s).cos(), (0.7 * s).sin(), 0.5)
+                } else {
+                    Vec3::zeros()
+                }
+            })
+            .collect();
+        let slope: f64 = -p.r.iter().zip(&dir).map(|(r, d)| r.dot(d)).sum::<f64>();
+        let x = sys.state.x.clone();
+        let eps = 1e-6;
+        let mut merit_at = |t: f64| {
+            for i in 0..n {
+                sys.state.x[i] = x[i] + dir[i] * t;
+            }
+            p.evaluate(&mut sys).unwrap();
+            p.merit(&sys).unwrap()
+        };
+        let fd = (merit_at(eps) - merit_at(-eps)) / (2.0 * eps);
+        assert!((fd - slope).abs() <= 1e-6 * slope.abs(), "fd {fd} vs −r·dir {slope}");
     }
 }

@@ -281,6 +281,7 @@ impl ImplicitSolver {
             guess: if settings.warm_start { self.last_dx.take() } else { None },
             first_dx: None,
             merit_time: std::cell::Cell::new(0.0),
+            inertia_at_eval: std::cell::Cell::new(None),
             start_inverted,
             x0: &x0,
             v0: &v0,

@@ -92,6 +92,8 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
     // likewise the infeasibility count of the accepted trial
     let mut accepted_infeasibility: Option<Option<usize>> = problem.starting_infeasibility();
     let max_iterations = problem.max_iterations();
+    // the iterate a line search starts from (one buffer for all iterations)
+    let mut x0: Vec<Vec3> = Vec::new();
     for it in 0..=max_iterations {
         if let Some(report) = problem.converged(sys, it, step_taken) {
             return Ok(Some(report));
@@ -103,7 +105,7 @@ pub(in crate::system) fn newton<P: NewtonProblem>(
         if !problem.solve_linear(sys, dofs, &mut dx)? {
             return Ok(None);
         }
-        let x0 = sys.state.x.clone();
+        x0.clone_from(&sys.state.x);
         let r0 = norm2(problem.residual(sys));
         let e0 = match accepted_merit.take() {
             Some(e) => e,
