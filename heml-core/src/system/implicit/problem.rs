@@ -539,10 +539,11 @@ mod tests {
         let n = sys.state.x.len();
         let x0 = sys.state.x.clone();
         let v0: Vec<Vec3> = (0..n).map(|i| Vec3::new(0.01 * i as f64, -0.02, 0.03)).collect();
-        for i in 0..n {
-            if sys.model.inv_mass[i] > 0.0 {
+        let free = sys.model.inv_mass.iter().map(|&im| im > 0.0);
+        for (i, ((x, v), free)) in sys.state.x.iter_mut().zip(&v0).zip(free).enumerate() {
+            if free {
                 let s = i as f64;
-                sys.state.x[i] += v0[i] * h + Vec3::new(1e-3 * s.sin(), 2e-3 * s.cos(), -1e-3);
+                *x += v * h + Vec3::new(1e-3 * s.sin(), 2e-3 * s.cos(), -1e-3);
             }
         }
         (x0, v0, vec![Vec3::zeros(); n])
