@@ -92,13 +92,8 @@ pub(super) struct ImplicitStep<'a> {
     pub inertia_at_eval: std::cell::Cell<Option<f64>>,
     /// The inverted tets at the predictor, when the predictor counted them.
     pub start_inverted: Option<usize>,
-    /// Positions, velocities and â at the start of the step.
-    pub x0: &'a [Vec3],
-    pub v0: &'a [Vec3],
-    pub a0: &'a [Vec3],
-    pub h: f64,
-    pub ca: f64,
-    pub cv: f64,
+    /// Where the step starts, and the scheme's coefficients.
+    pub start: StepStart<'a>,
     /// Norm of the external loads on the free nodes (tolerance scale).
     pub load_norm: f64,
     /// Residual per node (zero on constrained nodes).
@@ -124,11 +119,56 @@ pub(super) struct ImplicitStep<'a> {
     pub anderson: &'a mut Anderson,
 }
 
+/// Where a step starts: positions, velocities and â at the start of the step, the
+/// step h and the scheme's coefficients c_a, c_v (see the module doc).
+pub(super) struct StepStart<'a> {
+    pub x0: &'a [Vec3],
+    pub v0: &'a [Vec3],
+    pub a0: &'a [Vec3],
+    pub h: f64,
+    pub ca: f64,
+    pub cv: f64,
+}
+
+impl<'a> ImplicitStep<'a> {
+    /// The problem of a step from `start`, with no Newton history yet (no warm start
+    /// and no inverted-tet count: the caller sets `guess` and `start_inverted`).
+    pub fn new(
+        settings: &'a ImplicitSettings,
+        (tangents, cache, anderson): (&'a mut [Box<dyn TangentOperator>], &'a mut SolveCache, &'a mut Anderson),
+        start: StepStart<'a>,
+        load_norm: f64,
+    ) -> Self {
+        let n = start.x0.len();
+        ImplicitStep {
+            settings,
+            tangents,
+            cache,
+            guess: None,
+            first_dx: None,
+            merit_time: std::cell::Cell::new(0.0),
+            inertia_at_eval: std::cell::Cell::new(None),
+            start_inverted: None,
+            start,
+            load_norm,
+            r: vec![Vec3::zeros(); n],
+            r0: None,
+            cg_iterations: 0,
+            warnings: Vec::new(),
+            last_solve: None,
+            reused: false,
+            fresh_iterations: 0,
+            chord_iterations: 0,
+            anderson,
+        }
+    }
+}
+
 impl ImplicitStep<'_> {
     /// d_i = x_i − x0_i − h v0_i on a free node.
     #[inline]
     fn d(&self, sys: &System, i: usize) -> Vec3 {
-        sys.state.x[i] - self.x0[i] - self.v0[i] * self.h
+        sys.state.x[i] - self.start.x0[i] - self.start.v0[i] * self.start.h
     }
 
     /// v⁺_i = v0_i + c_v d_i on a free node.
@@ -140,7 +180,7 @@ impl ImplicitStep<'_> {
     /// v⁺_i from a d_i already computed ([`Self::d`]).
     #[inline]
     fn v_of(&self, i: usize, d: Vec3) -> Vec3 {
-        self.v0[i] + d * self.cv
+        self.start.v0[i] + d * self.start.cv
     }
 
     /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
@@ -153,10 +193,10 @@ impl ImplicitStep<'_> {
         // zipped slices (no bounds checks per node): the same operations as
         // [`Self::v`], node by node
         let (x, v) = (&sys.state.x, &mut sys.state.v);
-        let start = self.x0.iter().zip(self.v0);
+        let start = self.start.x0.iter().zip(self.start.v0);
         for (((vi, xi), (x0, v0)), &im) in v.iter_mut().zip(x).zip(start).zip(&sys.model.inv_mass) {
             if im > 0.0 {
-                let vn = v0 + (xi - x0 - v0 * self.h) * self.cv;
+                let vn = v0 + (xi - x0 - v0 * self.start.h) * self.start.cv;
                 // `!=` is true for NaN, so a non-finite velocity always counts as new
                 changed |= vn != *vi;
                 *vi = vn;
@@ -175,8 +215,8 @@ impl ImplicitStep<'_> {
         let mut inertia = 0.0;
         for i in (0..sys.state.x.len()).filter(|&i| sys.model.inv_mass[i] > 0.0) {
             let d = self.d(sys, i);
-            let a = d * self.ca - self.a0[i];
-            inertia += node_inertia(sys.model.mass[i], &a, &self.v_of(i, d), (self.ca, self.cv, alpha));
+            let a = d * self.start.ca - self.start.a0[i];
+            inertia += node_inertia(sys.model.mass[i], &a, &self.v_of(i, d), &self.start, alpha);
         }
         inertia
     }
@@ -186,7 +226,7 @@ impl ImplicitStep<'_> {
         (0..sys.state.x.len())
             .map(|i| {
                 if sys.model.inv_mass[i] > 0.0 {
-                    self.d(sys, i) * self.ca - self.a0[i]
+                    self.d(sys, i) * self.start.ca - self.start.a0[i]
                 } else {
                     Vec3::zeros()
                 }
@@ -297,8 +337,8 @@ impl ImplicitStep<'_> {
     /// Mass coefficient c_a + α c_v and stiffness coefficient 1 + β c_v.
     fn coefficients(&self, sys: &System) -> (f64, f64) {
         (
-            self.ca + sys.model.damping.alpha * self.cv,
-            1.0 + sys.model.damping.beta * self.cv,
+            self.start.ca + sys.model.damping.alpha * self.start.cv,
+            1.0 + sys.model.damping.beta * self.start.cv,
         )
     }
 }
@@ -306,8 +346,8 @@ impl ImplicitStep<'_> {
 /// One free node's term of the merit's inertia ([`ImplicitStep::inertia`]) at mass
 /// `m`, a⁺ `a` and v⁺ `v`, with the step's c_a, c_v and the mass damping α.
 #[inline]
-fn node_inertia(m: f64, a: &Vec3, v: &Vec3, (ca, cv, alpha): (f64, f64, f64)) -> f64 {
-    0.5 * m * (a.norm_squared() / ca + alpha * v.norm_squared() / cv)
+fn node_inertia(m: f64, a: &Vec3, v: &Vec3, s: &StepStart, alpha: f64) -> f64 {
+    0.5 * m * (a.norm_squared() / s.ca + alpha * v.norm_squared() / s.cv)
 }
 
 fn norm(f: &[Vec3]) -> f64 {
@@ -361,7 +401,7 @@ impl NewtonProblem for ImplicitStep<'_> {
         let solve = TangentSolve {
             ck,
             cm,
-            cv: self.cv,
+            cv: self.start.cv,
             tol: s.cg_tolerance,
             max_iterations: s.cg_max_iterations,
             preconditioner: s.preconditioner,
@@ -438,7 +478,7 @@ impl NewtonProblem for ImplicitStep<'_> {
                 sys.state.v[i]
             }
         };
-        let dampers = sys.model.grasps.damper_potential(v_plus, self.cv);
+        let dampers = sys.model.grasps.damper_potential(v_plus, self.start.cv);
         Ok(e.elastic + e.gravity + e.loads + sys.model.tools.energy() + inertia + dampers)
     }
 
@@ -506,7 +546,7 @@ impl ImplicitStep<'_> {
         // bits): the line search asks for the merit right after each evaluation.
         let alpha = sys.model.damping.alpha;
         let mut inertia = 0.0;
-        let start = self.x0.iter().zip(self.v0).zip(self.a0);
+        let start = self.start.x0.iter().zip(self.start.v0).zip(self.start.a0);
         let node = sys
             .state
             .x
@@ -515,9 +555,9 @@ impl ImplicitStep<'_> {
             .zip(sys.model.inv_mass.iter().zip(&sys.model.mass));
         for ((ri, ((x0, v0), a0)), ((xi, fi), (&im, &m))) in self.r.iter_mut().zip(start).zip(node) {
             *ri = if im > 0.0 {
-                let d = xi - x0 - v0 * self.h;
-                let a = d * self.ca - a0;
-                inertia += node_inertia(m, &a, &(v0 + d * self.cv), (self.ca, self.cv, alpha));
+                let d = xi - x0 - v0 * self.start.h;
+                let a = d * self.start.ca - a0;
+                inertia += node_inertia(m, &a, &(v0 + d * self.start.cv), &self.start, alpha);
                 fi - a * m
             } else {
                 Vec3::zeros()
@@ -574,33 +614,16 @@ mod tests {
         let (x0, v0, a0) = problem_at(&mut sys, h);
         let (settings, mut cache, mut anderson) =
             (ImplicitSettings::default(), SolveCache::default(), Anderson::default());
-        let n = x0.len();
-        let mut p = ImplicitStep {
-            settings: &settings,
-            tangents: &mut [],
-            cache: &mut cache,
-            guess: None,
-            first_dx: None,
-            merit_time: std::cell::Cell::new(0.0),
-            inertia_at_eval: std::cell::Cell::new(None),
-            start_inverted: None,
+        let start = StepStart {
             x0: &x0,
             v0: &v0,
             a0: &a0,
             h,
             ca: 1.0 / (h * h),
             cv: 1.0 / h,
-            load_norm: 1.0,
-            r: vec![Vec3::zeros(); n],
-            r0: None,
-            cg_iterations: 0,
-            warnings: Vec::new(),
-            last_solve: None,
-            reused: false,
-            fresh_iterations: 0,
-            chord_iterations: 0,
-            anderson: &mut anderson,
         };
+        let mut p = ImplicitStep::new(&settings, (&mut [], &mut cache, &mut anderson), start, 1.0);
+        let n = x0.len();
         p.evaluate(&mut sys).unwrap();
         assert!(p.inertia_at_eval.get().is_some_and(|e| e > 0.0));
         let fused = p.merit(&sys).unwrap();

@@ -3,7 +3,7 @@
 
 use super::anderson::Anderson;
 use super::linear::SolveCache;
-use super::problem::{inverted_tets, ImplicitStep};
+use super::problem::{inverted_tets, ImplicitStep, StepStart};
 use super::settings::{ImplicitScheme, ImplicitSettings, LinearSolver};
 use super::timings::PhaseTimes;
 use crate::error::{HemlError, Result};
@@ -274,32 +274,22 @@ impl ImplicitSolver {
             self.last_dx = None;
         }
         let dofs = self.dofs.as_ref().expect("prepared");
-        let mut problem = ImplicitStep {
-            settings: &settings,
-            tangents: &mut self.tangents,
-            cache: &mut self.cache,
-            guess: if settings.warm_start { self.last_dx.take() } else { None },
-            first_dx: None,
-            merit_time: std::cell::Cell::new(0.0),
-            inertia_at_eval: std::cell::Cell::new(None),
-            start_inverted,
+        let from = StepStart {
             x0: &x0,
             v0: &v0,
             a0: &a0,
             h,
             ca,
             cv,
-            load_norm,
-            r: vec![Vec3::zeros(); n],
-            r0: None,
-            cg_iterations: 0,
-            warnings: Vec::new(),
-            last_solve: None,
-            reused: false,
-            fresh_iterations: 0,
-            chord_iterations: 0,
-            anderson: &mut self.anderson,
         };
+        let mut problem = ImplicitStep::new(
+            &settings,
+            (&mut self.tangents, &mut self.cache, &mut self.anderson),
+            from,
+            load_norm,
+        );
+        problem.guess = if settings.warm_start { self.last_dx.take() } else { None };
+        problem.start_inverted = start_inverted;
         let mut outcome = newton(sys, dofs, &mut problem)?;
         // the last iteration's contraction (and cost): a step that ended on a kept
         // factor short of its goal (at the iteration cap) refactors next time
