@@ -130,6 +130,26 @@ pub(super) struct StepStart<'a> {
     pub cv: f64,
 }
 
+impl StepStart<'_> {
+    /// d = x − x0 − h v0 of a free node at `x`, from its start `x0`, `v0`.
+    #[inline]
+    fn d(&self, x: &Vec3, x0: &Vec3, v0: &Vec3) -> Vec3 {
+        x - x0 - v0 * self.h
+    }
+
+    /// a⁺ = c_a d − â.
+    #[inline]
+    fn a(&self, d: &Vec3, a0: &Vec3) -> Vec3 {
+        d * self.ca - a0
+    }
+
+    /// v⁺ = v0 + c_v d.
+    #[inline]
+    fn v(&self, v0: &Vec3, d: &Vec3) -> Vec3 {
+        v0 + d * self.cv
+    }
+}
+
 impl<'a> ImplicitStep<'a> {
     /// The problem of a step from `start`, with no Newton history yet (no warm start
     /// and no inverted-tet count: the caller sets `guess` and `start_inverted`).
@@ -168,7 +188,7 @@ impl ImplicitStep<'_> {
     /// d_i = x_i − x0_i − h v0_i on a free node.
     #[inline]
     fn d(&self, sys: &System, i: usize) -> Vec3 {
-        sys.state.x[i] - self.start.x0[i] - self.start.v0[i] * self.start.h
+        self.start.d(&sys.state.x[i], &self.start.x0[i], &self.start.v0[i])
     }
 
     /// v⁺_i = v0_i + c_v d_i on a free node.
@@ -180,7 +200,7 @@ impl ImplicitStep<'_> {
     /// v⁺_i from a d_i already computed ([`Self::d`]).
     #[inline]
     fn v_of(&self, i: usize, d: Vec3) -> Vec3 {
-        self.start.v0[i] + d * self.start.cv
+        self.start.v(&self.start.v0[i], &d)
     }
 
     /// v⁺ = v0 + c_v d on the free nodes (constrained ones keep their imposed
@@ -196,7 +216,7 @@ impl ImplicitStep<'_> {
         let start = self.start.x0.iter().zip(self.start.v0);
         for (((vi, xi), (x0, v0)), &im) in v.iter_mut().zip(x).zip(start).zip(&sys.model.inv_mass) {
             if im > 0.0 {
-                let vn = v0 + (xi - x0 - v0 * self.start.h) * self.start.cv;
+                let vn = self.start.v(v0, &self.start.d(xi, x0, v0));
                 // `!=` is true for NaN, so a non-finite velocity always counts as new
                 changed |= vn != *vi;
                 *vi = vn;
@@ -215,7 +235,7 @@ impl ImplicitStep<'_> {
         let mut inertia = 0.0;
         for i in (0..sys.state.x.len()).filter(|&i| sys.model.inv_mass[i] > 0.0) {
             let d = self.d(sys, i);
-            let a = d * self.start.ca - self.start.a0[i];
+            let a = self.start.a(&d, &self.start.a0[i]);
             inertia += node_inertia(sys.model.mass[i], &a, &self.v_of(i, d), &self.start, alpha);
         }
         inertia
@@ -226,7 +246,7 @@ impl ImplicitStep<'_> {
         (0..sys.state.x.len())
             .map(|i| {
                 if sys.model.inv_mass[i] > 0.0 {
-                    self.d(sys, i) * self.start.ca - self.start.a0[i]
+                    self.start.a(&self.d(sys, i), &self.start.a0[i])
                 } else {
                     Vec3::zeros()
                 }
@@ -555,9 +575,9 @@ impl ImplicitStep<'_> {
             .zip(sys.model.inv_mass.iter().zip(&sys.model.mass));
         for ((ri, ((x0, v0), a0)), ((xi, fi), (&im, &m))) in self.r.iter_mut().zip(start).zip(node) {
             *ri = if im > 0.0 {
-                let d = xi - x0 - v0 * self.start.h;
-                let a = d * self.start.ca - a0;
-                inertia += node_inertia(m, &a, &(v0 + d * self.start.cv), &self.start, alpha);
+                let d = self.start.d(xi, x0, v0);
+                let a = self.start.a(&d, a0);
+                inertia += node_inertia(m, &a, &self.start.v(v0, &d), &self.start, alpha);
                 fi - a * m
             } else {
                 Vec3::zeros()
