@@ -109,6 +109,28 @@ pub mod scene;
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
 
+/// The guides' Rust examples (`docs/guide/`), compiled and run as doctests like the
+/// README's.
+#[cfg(doctest)]
+pub mod guide_doctests {
+    #[doc = include_str!("../docs/guide/implicit-steps.md")]
+    pub struct ImplicitSteps;
+    #[doc = include_str!("../docs/guide/anti-locking.md")]
+    pub struct AntiLocking;
+    #[doc = include_str!("../docs/guide/laws.md")]
+    pub struct Laws;
+    #[doc = include_str!("../docs/guide/interaction.md")]
+    pub struct Interaction;
+    #[doc = include_str!("../docs/guide/scenes.md")]
+    pub struct Scenes;
+    #[doc = include_str!("../docs/guide/live-view.md")]
+    pub struct LiveView;
+    #[doc = include_str!("../docs/guide/performance.md")]
+    pub struct Performance;
+    #[doc = include_str!("../docs/guide/development.md")]
+    pub struct Development;
+}
+
 /// Systems: model (mesh, laws, masses, supports), state and stepping; static solves;
 /// stable time steps; the [`system::Integrator`] trait and its registry.
 pub mod system {

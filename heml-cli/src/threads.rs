@@ -6,7 +6,7 @@
 //! woken after idling, the OS may first put two of them on the same CPU and take
 //! milliseconds to spread them. On the 2-core test machine, `heml bench` measured
 //! the 2-thread force evaluation 10–15 % faster with pinned workers (medians of
-//! interleaved runs, see README), and steadier.
+//! interleaved runs, see docs/guide/performance.md), and steadier.
 //!
 //! ```text
 //! use crate::threads::{thread_pool, Placement};

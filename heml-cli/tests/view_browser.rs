@@ -279,7 +279,7 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
     let _ = std::fs::remove_dir_all(&profile);
 }
 
-/// The README's measurement (not a test: run it by hand, once):
+/// The live-view guide's measurement (docs/guide/live-view.md; not a test: run it by hand, once):
 /// `HEML_VIEW_BENCH=/absolute/path/scene.toml cargo test --release -p heml-cli --test view_browser -- --ignored --nocapture`.
 /// Frames per second received by a headless page over 10 s, bytes per frame, and the
 /// real-time factor with the page open and after it closed. To compare settings side
@@ -291,7 +291,7 @@ async fn the_page_draws_the_organ_and_drives_the_simulation() {
 /// its target moved 20 times a second around a 5 mm circle in the y–z plane, 3 mm out
 /// of the surface — the load a user's drag puts on the simulation.
 #[tokio::test(flavor = "current_thread")]
-#[ignore = "a measurement for the README, run by hand"]
+#[ignore = "a measurement for the live-view guide, run by hand"]
 async fn measure_frames_per_second() {
     let Some(scene) = std::env::var_os("HEML_VIEW_BENCH") else {
         eprintln!("set HEML_VIEW_BENCH=scene.toml");

@@ -19,7 +19,7 @@
 //!
 //! Budget: [`DEFAULT_EXECS`] executions per target in the normal `cargo test`;
 //! `HEML_FUZZ_EXECS=100000 cargo test --release -p heml-core --test fuzz` is the
-//! long mode (the README quotes its counts).
+//! long mode (docs/guide/scenes.md, "Hostile input", quotes its counts).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -574,7 +574,7 @@ fn fuzz(name: &str) {
             }
         }
     }
-    // reported by the test (not the library), for the README's counts
+    // reported by the test (not the library), for the guide's counts
     eprintln!(
         "fuzz {name}: {total} inputs ({} seeds + {n} mutated) in {:.2} s: {} valid meshes, {} errors, peak {:.1} MB",
         t.seeds.len(),

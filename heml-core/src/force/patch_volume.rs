@@ -23,8 +23,8 @@
 //! sweep over the whole mesh (gather, determinants, scattered sums to the nodes and
 //! their merge) before the element pass. A patch lies in one block of the block
 //! driver, so a block can sum its patches' volumes from the positions it has just
-//! gathered, with no scatter, merge or global pass. Measured (README, "Nearly
-//! incompressible tissue"): on the six-tet cantilever the patch term (k = 6) keeps
+//! gathered, with no scatter, merge or global pass. Measured (docs/guide/anti-locking.md,
+//! "Patch volumetric term"): on the six-tet cantilever the patch term (k = 6) keeps
 //! 0.961 / 0.942 of its ν = 0 deflection at ν = 0.49 / 0.499 on 15 360 tets (nodal
 //! 0.956 / 0.946) and 0.970 / 0.964 on the unstructured `ipc_bar` (nodal 0.923 /
 //! 0.873); its stiffness at rest has no spurious zero mode on the tested meshes.
@@ -43,8 +43,8 @@
 //! the same bits for any thread count. The reference path runs the element field's
 //! plain pass, then this term tet by tet (the grouped term's reference path).
 //!
-//! A runnable example is in the README ("Nearly incompressible tissue"), which is
-//! compiled and run as a doctest of the `heml` crate.
+//! A runnable example is in the anti-locking guide (docs/guide/anti-locking.md),
+//! which is compiled and run as a doctest of the `heml` crate.
 
 use super::assembly::{Layout, LANES};
 use super::field::{check_sizes, selection, BlockPressures};

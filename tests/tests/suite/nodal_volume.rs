@@ -78,10 +78,10 @@ fn cantilever_does_not_lock_with_the_nodal_term() {
     }
 }
 
-/// The nu sweep of the README on the 1 920- and the 15 360-tet six-tet beams
+/// The nu sweep of the anti-locking guide on the 1 920- and the 15 360-tet six-tet beams
 /// (printed; `HEML_S` = comma-separated stabilisation factors, default the default).
 #[test]
-#[ignore = "a minute: the README's nu sweep on 15 360 tets"]
+#[ignore = "a minute: the anti-locking guide's nu sweep on 15 360 tets"]
 fn cantilever_nu_sweep_both_meshes() {
     let ss: Vec<f64> = std::env::var("HEML_S")
         .map(|v| v.split(',').map(|s| s.parse().unwrap()).collect())
@@ -113,11 +113,11 @@ fn cantilever_nu_sweep_both_meshes() {
 }
 
 /// Cost of a force evaluation with the nodal term relative to the element one, on
-/// 1 and 2 threads in one run (printed, not asserted: the README's benchmark;
+/// 1 and 2 threads in one run (printed, not asserted: the anti-locking guide's benchmark;
 /// evaluations interleaved so that both see the same machine load; median and range
 /// of 40 each).
 #[test]
-#[ignore = "timing, for the README"]
+#[ignore = "timing, for the anti-locking guide"]
 fn nodal_cost_ratio() {
     let mesh = heml::mesh::generate::box_of_about(100_000).unwrap();
     let x = heml_validation::fixtures::smooth_deformation(&mesh);
@@ -182,7 +182,7 @@ fn nodal_cost_ratio() {
 /// pass, the nodal term's own passes, the whole nodal field, and the same work as
 /// separate calls (pressures, then the split-law element pass).
 #[test]
-#[ignore = "timing, for the README"]
+#[ignore = "timing, for the anti-locking guide"]
 fn nodal_cost_breakdown() {
     use heml::force::nodal_volume::element_fraction;
     use heml::force::{Dilation, HemlField, Isochoric, NodalVolume, NodalVolumeField};

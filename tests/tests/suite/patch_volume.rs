@@ -71,11 +71,11 @@ fn patches_partition_the_tets() {
     }
 }
 
-/// The tip-deflection sweep of the README: element, nodal and patch (k = 4, 6, 8)
+/// The tip-deflection sweep of the anti-locking guide: element, nodal and patch (k = 4, 6, 8)
 /// on the 1 920-tet six-tet beam and (when `HEML_BIG`) the 15 360-tet one, and on
 /// the unstructured `ipc_bar` when ../shared/meshes has it (printed).
 #[test]
-#[ignore = "minutes: the README's patch nu sweep"]
+#[ignore = "minutes: the anti-locking guide's patch nu sweep"]
 fn patch_cantilever_nu_sweep() {
     let mut meshes = vec![("six-tet 40", six_tet_beam(40).unwrap(), Bar::BEAM)];
     if std::env::var("HEML_BIG").is_ok() {

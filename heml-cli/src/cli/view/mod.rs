@@ -1,5 +1,5 @@
 //! `heml view`: the simulation live in a browser page served by the binary itself
-//! (or a finished run played back). See the README's "Live view" section.
+//! (or a finished run played back). See docs/guide/live-view.md.
 
 pub mod assets;
 pub mod control;

@@ -7,7 +7,7 @@
 //! SIMD batch is masked (batches, blocks and merge lists stay), its mass share
 //! leaves its corners, and the boundary surface trades its faces for the ones it
 //! shared with its neighbours; the cost grows with the tets removed, not with the
-//! mesh (measured in the README's "Cutting and surface loads" section).
+//! mesh (measured in the interaction guide, docs/guide/interaction.md, "Cutting and surface loads").
 //!
 //! # Example
 //!
