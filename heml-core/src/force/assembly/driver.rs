@@ -313,33 +313,41 @@ fn run_block<K: BatchKernel>(
         // fma, the features `block_avx512` enables; `tets`, `x` and `f` are the parts
         // of one `BlockBuffers`, so every index is below both buffers' length.
         Isa::Avx512(t) => unsafe {
-            block_avx512::<K, true>(Avx2(t.avx2()), k, batch0, n_tets, dead, weights, tets, x, f, lanes)
+            block_avx512::<K, true, false>(Avx2(t.avx2()), k, batch0, n_tets, dead, weights, tets, x, f, lanes)
         },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the token proves the CPU has avx2 and fma, the features
         // `block_avx2` enables; the indices as above.
         Isa::Avx2(t) => {
+            // blocks of whole batches with no weight and no removed tet (all but the
+            // last in a mesh with neither) run the `PLAIN` instance: its own function,
+            // so its registers are allocated for the plain loop alone (see
+            // [`block_body`])
             let whole = (batch0 + tets.len()) * LANES <= n_tets;
-            if weights.is_none() && whole && dead.iter().all(|&m| m == 0) {
-                // SAFETY: as above
-                return unsafe {
-                    if K::SKIPS_ENERGY && energy == Energy::Skipped {
-                        block_plain_avx2::<K, false>(Avx2(t), k, batch0, tets, x, f, lanes)
-                    } else {
-                        block_plain_avx2::<K, true>(Avx2(t), k, batch0, tets, x, f, lanes)
+            let plain = weights.is_none() && whole && dead.iter().all(|&m| m == 0);
+            let forces_only = K::SKIPS_ENERGY && energy == Energy::Skipped;
+            // SAFETY: as above
+            unsafe {
+                match (forces_only, plain) {
+                    (true, true) => {
+                        block_avx2::<K, false, true>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes)
                     }
-                };
-            }
-            if K::SKIPS_ENERGY && energy == Energy::Skipped {
-                // SAFETY: as above
-                unsafe { block_avx2::<K, false>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
-            } else {
-                // SAFETY: as above
-                unsafe { block_avx2::<K, true>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
+                    (true, false) => {
+                        block_avx2::<K, false, false>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes)
+                    }
+                    (false, true) => {
+                        block_avx2::<K, true, true>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes)
+                    }
+                    (false, false) => {
+                        block_avx2::<K, true, false>(Avx2(t), k, batch0, n_tets, dead, weights, tets, x, f, lanes)
+                    }
+                }
             }
         }
         // SAFETY: the indices as above (and the portable I/O checks them anyway).
-        _ => unsafe { block_body::<K, Portable, true>(Portable, k, batch0, n_tets, dead, weights, tets, x, f, lanes) },
+        _ => unsafe {
+            block_body::<K, Portable, true, false>(Portable, k, batch0, n_tets, dead, weights, tets, x, f, lanes)
+        },
     }
 }
 
@@ -355,7 +363,7 @@ macro_rules! block_with_features {
         // type-checked in every build, instantiated only where called
         #[cfg_attr(not(feature = "avx512"), allow(dead_code))]
         #[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
-        unsafe fn $name<K: BatchKernel, const ENERGY: bool>(
+        unsafe fn $name<K: BatchKernel, const ENERGY: bool, const PLAIN: bool>(
             io: Avx2,
             k: &K,
             batch0: usize,
@@ -368,7 +376,7 @@ macro_rules! block_with_features {
             lanes: &mut [[f64; LANES]],
         ) -> f64 {
             // SAFETY: the caller's preconditions.
-            unsafe { block_body::<K, Avx2, ENERGY>(io, k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
+            unsafe { block_body::<K, Avx2, ENERGY, PLAIN>(io, k, batch0, n_tets, dead, weights, tets, x, f, lanes) }
         }
     };
 }
@@ -378,8 +386,7 @@ block_with_features!(block_avx2, "avx2,fma");
 /// Gathers batch `batch0 + bo` of a block (its local corner indices `idx`) and runs
 /// the kernel on it, by the kernel's kind: phase 2 of a two-phase kernel (with the
 /// block's phase-1 lanes `lanes`), a kernel with a node scalar (gathered with the
-/// positions), or the plain batch. Both block loops ([`block_body`],
-/// `block_plain_avx2`) run their batches through it.
+/// positions), or the plain batch: [`block_body`]'s batches.
 ///
 /// # Safety
 /// Every index of `idx` is below `x.len()`, as `IO` requires.
@@ -414,59 +421,6 @@ unsafe fn gather_and_run<K: BatchKernel, IO: LaneIo>(
     }
 }
 
-/// The batches of a block of whole batches without removed tets or weights (every
-/// block but the last in a mesh with neither): [`block_body`] without the paths for
-/// those, in a function of its own so that its registers are allocated for the plain
-/// loop alone. Inside [`block_body`], whose weight and removed-lane paths hold more
-/// lane arrays, the kernel's values spilled to a stack frame of ~2.6 kB, and the
-/// neo-Hookean HEML pass ran ~20 % slower than the same kernel in a loop of its own
-/// (24.4–25.8 against 19.5–19.6 ns/tet at 1 thread, alternated runs; see the
-/// performance guide). The same operations on the same numbers as [`block_body`],
-/// in the same order: the same bits.
-///
-/// # Safety
-/// The CPU has AVX2 and FMA, and every index of `tets` is below `x.len()` and
-/// `f.len()`.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn block_plain_avx2<K: BatchKernel, const ENERGY: bool>(
-    io: Avx2,
-    k: &K,
-    batch0: usize,
-    tets: &[LocalBatch],
-    x: &[Node4],
-    f: &mut [Node4],
-    lanes: &mut [[f64; LANES]],
-) -> f64 {
-    let mut energy = 0.0;
-    let mut p = [[[0.0; LANES]; 3]; 4];
-    let mut fl = [[[0.0; LANES]; 3]; 4];
-    let mut el = [0.0; LANES];
-    if K::TWO_PHASE {
-        for (bo, (idx, s)) in tets.iter().zip(lanes.iter_mut()).enumerate() {
-            // SAFETY: `idx` is a batch of `tets`, below `x.len()` and `f.len()`
-            unsafe { io.gather(idx, x, &mut p) };
-            k.pre_batch(batch0 + bo, &p, s);
-        }
-        let e = k.between(batch0, lanes);
-        if ENERGY {
-            energy += e;
-        }
-    }
-    for (bo, idx) in tets.iter().enumerate() {
-        // SAFETY: `idx` is a batch of `tets`, below `x.len()` and `f.len()`
-        unsafe { gather_and_run(io, k, batch0, bo, idx, x, lanes, &mut p, &mut fl, &mut el) };
-        // SAFETY: as for the gather
-        unsafe { io.scatter(idx, &fl, f) };
-        if ENERGY {
-            for l in 0..LANES {
-                energy += el[l];
-            }
-        }
-    }
-    energy
-}
-
 /// The batches of one block: gather, kernel, scatter (all lanes at once for full
 /// batches, lane by lane for the padded last one and for batches with removed tets,
 /// whose lanes `dead` masks, one byte per batch of the block). With `weights` (one
@@ -475,12 +429,21 @@ unsafe fn block_plain_avx2<K: BatchKernel, const ENERGY: bool>(
 /// the energy lanes are never read (and 0 is returned), so that the compiler drops
 /// what only they need from the inlined kernel.
 ///
+/// `PLAIN` (the caller's promise: whole batches, no weights, no removed tet) leaves
+/// out the weight and removed-lane paths: gather, kernel, scatter. Its AVX2 instance
+/// is a function of its own, so its registers serve that loop alone: with the other
+/// paths in the same loop the kernels' lane arrays spilled to a ~2.6 kB stack frame,
+/// and the neo-Hookean HEML pass ran ~20 % slower (24.4–25.8 against 19.5–19.6
+/// ns/tet at 1 thread; see the performance guide). The same operations on the same
+/// numbers either way: the same bits.
+///
 /// # Safety
 /// Every index of `tets` is below `x.len()` and `f.len()` (the parts of one
-/// [`BlockBuffers`]), as `IO` requires.
+/// [`BlockBuffers`]), as `IO` requires; with `PLAIN`, every batch is whole, no lane
+/// is removed and `weights` is `None`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // the block's parts, kept apart for aliasing
-unsafe fn block_body<K: BatchKernel, IO: LaneIo, const ENERGY: bool>(
+unsafe fn block_body<K: BatchKernel, IO: LaneIo, const ENERGY: bool, const PLAIN: bool>(
     io: IO,
     k: &K,
     batch0: usize,
@@ -502,6 +465,10 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo, const ENERGY: bool>(
             // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
             unsafe { io.gather(idx, x, &mut p) };
             k.pre_batch(b, &p, s);
+            if PLAIN {
+                // whole batches, every lane kept, no weights: nothing to scale or zero
+                continue;
+            }
             if let Some(w) = weights {
                 for l in 0..LANES {
                     s[l] *= w[bo][l];
@@ -523,7 +490,7 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo, const ENERGY: bool>(
         let b = batch0 + bo;
         // SAFETY: `idx` is a batch of `tets`, below `x.len()` (the precondition)
         unsafe { gather_and_run(io, k, batch0, bo, idx, x, lanes, &mut p, &mut fl, &mut el) };
-        if let Some(w) = weights {
+        if let Some(w) = weights.filter(|_| !PLAIN) {
             let w = &w[bo];
             for fa in fl.iter_mut() {
                 for fc in fa.iter_mut() {
@@ -538,8 +505,13 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo, const ENERGY: bool>(
                 }
             }
         }
-        let count = (n_tets - b * LANES).min(LANES);
-        let mask = dead[bo];
+        // (a `PLAIN` block's batches are whole and keep every lane: the lane-by-lane
+        // path below is compiled out of its instance)
+        let (count, mask) = if PLAIN {
+            (LANES, 0)
+        } else {
+            ((n_tets - b * LANES).min(LANES), dead[bo])
+        };
         if count == LANES && mask == 0 {
             // SAFETY: as for the gather, below `f.len()`
             unsafe { io.scatter(idx, &fl, f) };
