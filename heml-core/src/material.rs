@@ -181,6 +181,29 @@ impl std::fmt::Display for Volumetric {
     }
 }
 
+/// The [`Material`] methods that only name the wrapped law `M`: its registry name,
+/// kind, parameters and operation count, the same for every wrapper (`$law`: the
+/// law's trait, `$kind`: its [`LawKind`], `$field`: the wrapper's field holding it).
+macro_rules! law_identity {
+    ($law:ident, $kind:ident, $field:tt) => {
+        fn name(&self) -> &'static str {
+            M::NAME
+        }
+        fn kind(&self) -> LawKind {
+            LawKind::$kind
+        }
+        fn param_info(&self) -> &'static [ParamInfo] {
+            M::PARAMS
+        }
+        fn param_values(&self) -> Vec<f64> {
+            self.$field.to_params()
+        }
+        fn ops(&self) -> OpCount {
+            <M as $law>::OPS
+        }
+    };
+}
+
 /// Wraps an invariant law as a [`Material`].
 #[derive(Debug, Clone, Copy)]
 pub struct Invariant<M>(pub M);
@@ -224,21 +247,7 @@ impl<M: FibreLaw> Fibre<M> {
 }
 
 impl<M: FibreLaw> Material for Fibre<M> {
-    fn name(&self) -> &'static str {
-        M::NAME
-    }
-    fn kind(&self) -> LawKind {
-        LawKind::Fibre
-    }
-    fn param_info(&self) -> &'static [ParamInfo] {
-        M::PARAMS
-    }
-    fn param_values(&self) -> Vec<f64> {
-        self.law.to_params()
-    }
-    fn ops(&self) -> OpCount {
-        <M as FibreLaw>::OPS
-    }
+    law_identity!(FibreLaw, Fibre, law);
     fn uses(&self) -> (bool, bool) {
         (M::USES_I2, M::USES_J)
     }
@@ -334,21 +343,7 @@ pub fn build_link<M: LinkLaw>(values: &[f64]) -> Box<dyn Material> {
 }
 
 impl<M: InvariantLaw> Material for Invariant<M> {
-    fn name(&self) -> &'static str {
-        M::NAME
-    }
-    fn kind(&self) -> LawKind {
-        LawKind::Invariant
-    }
-    fn param_info(&self) -> &'static [ParamInfo] {
-        M::PARAMS
-    }
-    fn param_values(&self) -> Vec<f64> {
-        self.0.to_params()
-    }
-    fn ops(&self) -> OpCount {
-        <M as InvariantLaw>::OPS
-    }
+    law_identity!(InvariantLaw, Invariant, 0);
     fn uses(&self) -> (bool, bool) {
         (M::USES_I2, M::USES_J)
     }
@@ -444,21 +439,7 @@ impl<M: InvariantLaw> GroupedInvariant<M> {
 }
 
 impl<M: InvariantLaw> Material for GroupedInvariant<M> {
-    fn name(&self) -> &'static str {
-        M::NAME
-    }
-    fn kind(&self) -> LawKind {
-        LawKind::Invariant
-    }
-    fn param_info(&self) -> &'static [ParamInfo] {
-        M::PARAMS
-    }
-    fn param_values(&self) -> Vec<f64> {
-        self.law.to_params()
-    }
-    fn ops(&self) -> OpCount {
-        <M as InvariantLaw>::OPS
-    }
+    law_identity!(InvariantLaw, Invariant, law);
     fn uses(&self) -> (bool, bool) {
         (M::USES_I2, true)
     }
@@ -525,21 +506,7 @@ impl<M: InvariantLaw> Material for GroupedInvariant<M> {
 }
 
 impl<M: LinkLaw> Material for Link<M> {
-    fn name(&self) -> &'static str {
-        M::NAME
-    }
-    fn kind(&self) -> LawKind {
-        LawKind::Link
-    }
-    fn param_info(&self) -> &'static [ParamInfo] {
-        M::PARAMS
-    }
-    fn param_values(&self) -> Vec<f64> {
-        self.0.to_params()
-    }
-    fn ops(&self) -> OpCount {
-        <M as LinkLaw>::OPS
-    }
+    law_identity!(LinkLaw, Link, 0);
     fn uses(&self) -> (bool, bool) {
         (false, false)
     }
@@ -570,21 +537,7 @@ impl<M: LinkLaw> Material for Link<M> {
 }
 
 impl<M: StretchLaw> Material for Stretch<M> {
-    fn name(&self) -> &'static str {
-        M::NAME
-    }
-    fn kind(&self) -> LawKind {
-        LawKind::Stretch
-    }
-    fn param_info(&self) -> &'static [ParamInfo] {
-        M::PARAMS
-    }
-    fn param_values(&self) -> Vec<f64> {
-        self.0.to_params()
-    }
-    fn ops(&self) -> OpCount {
-        <M as StretchLaw>::OPS
-    }
+    law_identity!(StretchLaw, Stretch, 0);
     /// (uses I2, uses J): a stretch law depends on all of C and on J.
     fn uses(&self) -> (bool, bool) {
         (true, true)
