@@ -455,6 +455,11 @@ unsafe fn block_body<K: BatchKernel, IO: LaneIo, const ENERGY: bool, const PLAIN
     f: &mut [Node4],
     lanes: &mut [[f64; LANES]],
 ) -> f64 {
+    // the caller's promise for the `PLAIN` instance (`run_block` decides it)
+    debug_assert!(
+        !PLAIN || (weights.is_none() && (batch0 + tets.len()) * LANES <= n_tets && dead.iter().all(|&m| m == 0)),
+        "a plain block with weights, padding or removed tets"
+    );
     let mut energy = 0.0;
     let mut p = [[[0.0; LANES]; 3]; 4];
     let mut fl = [[[0.0; LANES]; 3]; 4];
