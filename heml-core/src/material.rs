@@ -204,6 +204,45 @@ macro_rules! law_identity {
     };
 }
 
+/// The four [`Material`] methods that build the wrapped law's fields, for the
+/// wrappers whose law is their only field (`self.0`) and needs nothing else (no
+/// fibres, no split): the HEML field `$heml`, the standard P1 field `$p1`, the
+/// stress `$piola` and the tangent `$tangent`, each called as
+/// `$heml::on_tets(law, mesh, tets, opts)`, `$piola(&law, f, opts)` and
+/// `$tangent(law, mesh, tets, opts, project_psd)`.
+macro_rules! law_fields {
+    ($heml:ident, $p1:ident, $piola:ident, $($tangent:ident)::+) => {
+        fn force_field(
+            &self,
+            mesh: &TetMesh,
+            tets: Option<&[usize]>,
+            opts: &ForceOptions,
+        ) -> Result<Box<dyn ElasticForces>> {
+            Ok(Box::new($heml::on_tets(self.0, mesh, tets, *opts)?))
+        }
+        fn fem_field(
+            &self,
+            mesh: &TetMesh,
+            tets: Option<&[usize]>,
+            opts: &ForceOptions,
+        ) -> Result<Option<Box<dyn ElasticForces>>> {
+            Ok(Some(Box::new($p1::on_tets(self.0, mesh, tets, *opts)?)))
+        }
+        fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
+            Some($piola(&self.0, f, opts))
+        }
+        fn tangent(
+            &self,
+            mesh: &TetMesh,
+            tets: Option<&[usize]>,
+            opts: &ForceOptions,
+            project_psd: bool,
+        ) -> Result<Option<Box<dyn TangentOperator>>> {
+            Ok(Some(Box::new($($tangent)::+(self.0, mesh, tets, *opts, project_psd)?)))
+        }
+    };
+}
+
 /// Wraps an invariant law as a [`Material`].
 #[derive(Debug, Clone, Copy)]
 pub struct Invariant<M>(pub M);
@@ -344,42 +383,9 @@ pub fn build_link<M: LinkLaw>(values: &[f64]) -> Box<dyn Material> {
 
 impl<M: InvariantLaw> Material for Invariant<M> {
     law_identity!(InvariantLaw, Invariant, 0);
+    law_fields!(HemlField, P1Field, energy_and_piola, TangentField::invariant);
     fn uses(&self) -> (bool, bool) {
         (M::USES_I2, M::USES_J)
-    }
-    fn force_field(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-    ) -> Result<Box<dyn ElasticForces>> {
-        Ok(Box::new(HemlField::on_tets(self.0, mesh, tets, *opts)?))
-    }
-    fn fem_field(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-    ) -> Result<Option<Box<dyn ElasticForces>>> {
-        Ok(Some(Box::new(P1Field::on_tets(self.0, mesh, tets, *opts)?)))
-    }
-    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
-        Some(energy_and_piola(&self.0, f, opts))
-    }
-    fn tangent(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-        project_psd: bool,
-    ) -> Result<Option<Box<dyn TangentOperator>>> {
-        Ok(Some(Box::new(TangentField::invariant(
-            self.0,
-            mesh,
-            tets,
-            *opts,
-            project_psd,
-        )?)))
     }
     fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
         match v {
@@ -538,42 +544,14 @@ impl<M: LinkLaw> Material for Link<M> {
 
 impl<M: StretchLaw> Material for Stretch<M> {
     law_identity!(StretchLaw, Stretch, 0);
+    law_fields!(
+        StretchHemlField,
+        StretchP1Field,
+        energy_and_piola_stretch,
+        TangentField::stretch
+    );
     /// (uses I2, uses J): a stretch law depends on all of C and on J.
     fn uses(&self) -> (bool, bool) {
         (true, true)
-    }
-    fn force_field(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-    ) -> Result<Box<dyn ElasticForces>> {
-        Ok(Box::new(StretchHemlField::on_tets(self.0, mesh, tets, *opts)?))
-    }
-    fn fem_field(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-    ) -> Result<Option<Box<dyn ElasticForces>>> {
-        Ok(Some(Box::new(StretchP1Field::on_tets(self.0, mesh, tets, *opts)?)))
-    }
-    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
-        Some(energy_and_piola_stretch(&self.0, f, opts))
-    }
-    fn tangent(
-        &self,
-        mesh: &TetMesh,
-        tets: Option<&[usize]>,
-        opts: &ForceOptions,
-        project_psd: bool,
-    ) -> Result<Option<Box<dyn TangentOperator>>> {
-        Ok(Some(Box::new(TangentField::stretch(
-            self.0,
-            mesh,
-            tets,
-            *opts,
-            project_psd,
-        )?)))
     }
 }
