@@ -212,6 +212,22 @@ pub trait InvariantLaw: MaterialInfo {
         self.dw_ext(i1, i2, j, j0)
     }
 
+    /// The law's declared volumetric energy U(J) (`#[volumetric(...)]`) and its
+    /// first two derivatives at `j`: what the anti-locking formulations evaluate at
+    /// averaged volume ratios ([`crate::force::volumetric`]). `None` (the default)
+    /// when the law declares none: U is then the law along pure dilations.
+    #[inline]
+    fn volumetric(&self, j: f64) -> Option<[f64; 3]> {
+        let _ = j;
+        None
+    }
+    /// U and U′ of [`Self::volumetric`] with the fast functions (see
+    /// [`Self::dw_fast`]).
+    #[inline(always)]
+    fn volumetric_fast(&self, j: f64) -> Option<(f64, f64)> {
+        self.volumetric(j).map(|[u, u1, _]| (u, u1))
+    }
+
     /// Whether the batch kernels call [`Self::dw_lanes`] for the lanes of a batch
     /// none of which needs the extension, instead of [`Self::dw_fast`] lane by lane:
     /// set by laws evaluated by an interpreter ([`crate::RuntimeLaw`]), whose

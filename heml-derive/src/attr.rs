@@ -1,6 +1,6 @@
 //! Parsing of the declaration: the `#[material(...)]` options, the
-//! `#[energy(...)]` and `#[small_strain(...)]` attributes, the fields and their
-//! `#[param(...)]` attributes.
+//! `#[energy(...)]`, `#[small_strain(...)]` and `#[volumetric(...)]` attributes,
+//! the fields and their `#[param(...)]` attributes.
 //!
 //! The helper attributes are consumed here (removed from the struct that is
 //! re-emitted), since they are not real attributes to the compiler. The
@@ -13,7 +13,7 @@ use syn::punctuated::Punctuated;
 use syn::{Attribute, Expr, Fields, Ident, ItemStruct, LitStr, Meta, Token};
 
 /// The helper attributes `#[material]` consumes from the struct.
-pub const STRUCT_HELPERS: [&str; 2] = ["energy", "small_strain"];
+pub const STRUCT_HELPERS: [&str; 3] = ["energy", "small_strain", "volumetric"];
 /// The helper attribute `#[material]` consumes from each field.
 pub const FIELD_HELPER: &str = "param";
 
@@ -122,6 +122,8 @@ pub struct Declaration {
     pub doc: String,
     /// `#[small_strain(...)]`, when the law takes E/ν.
     pub small_strain: Option<SmallStrain>,
+    /// `#[volumetric(...)]`: the law's volumetric energy U(J), when declared.
+    pub volumetric: Option<Expr>,
 }
 
 impl Declaration {
@@ -171,6 +173,7 @@ pub fn parse_declaration(item: TokenStream, kind: Kind) -> syn::Result<Declarati
     }
     let (energy, energy_text) = take_energy(&mut item)?;
     let small_strain = take_small_strain(&mut item, kind)?;
+    let volumetric = take_volumetric(&mut item, kind)?;
     let params = take_params(&mut item, kind, small_strain.is_some())?;
     let small_strain = small_strain
         .map(|(assignments, text)| check_small_strain(assignments, text, &params))
@@ -184,6 +187,7 @@ pub fn parse_declaration(item: TokenStream, kind: Kind) -> syn::Result<Declarati
         energy_text,
         doc,
         small_strain,
+        volumetric,
     })
 }
 
@@ -232,6 +236,22 @@ fn take_energy(item: &mut ItemStruct) -> syn::Result<(Expr, String)> {
     };
     let (list, text) = list_of(&attr, "energy")?;
     Ok((list.parse_args()?, text))
+}
+
+/// Removes the `#[volumetric(...)]` attribute, if any, and parses its expression
+/// (invariant laws only: a link law has no volume term to split off).
+fn take_volumetric(item: &mut ItemStruct, kind: Kind) -> syn::Result<Option<Expr>> {
+    let Some(attr) = take_attr(item, "volumetric")? else {
+        return Ok(None);
+    };
+    if kind == Kind::Link {
+        return Err(syn::Error::new_spanned(
+            &attr,
+            "a link law has no volumetric energy to declare; remove `#[volumetric(...)]`",
+        ));
+    }
+    let (list, _) = list_of(&attr, "volumetric")?;
+    Ok(Some(list.parse_args()?))
 }
 
 /// Removes the `#[small_strain(...)]` attribute, if any, and parses its assignments.
@@ -510,6 +530,13 @@ mod tests {
         assert!(err(quote!(#[small_strain(a = mu0, a = K0)]), Kind::Invariant).contains("set twice"));
         assert!(err(quote!(#[small_strain()]), Kind::Invariant).contains("expected `#[small_strain("));
         assert!(err(quote!(#[small_strain(a = mu0)]), Kind::Link).contains("link law has no small-strain moduli"));
+        // a declared volumetric energy: kept apart, consumed, refused for link laws
+        let d = parse(quote!(#[volumetric(c / 2.0 * (J - 1.0).powi(2))]), Kind::Invariant).expect("valid");
+        assert!(d.volumetric.is_some());
+        let out = quote::ToTokens::to_token_stream(&d.item).to_string();
+        assert!(!out.contains("volumetric"), "{out}");
+        assert!(err(quote!(#[volumetric(c / 2.0 * (J - 1.0).powi(2))]), Kind::Link)
+            .contains("link law has no volumetric energy"));
         assert!(err(
             quote!(#[small_strain(a = mu0)] #[small_strain(b = K0)]),
             Kind::Invariant

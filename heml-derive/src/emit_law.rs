@@ -106,12 +106,51 @@ fn invariant_fns(core: &TokenStream, k: &InvariantKernels, names: &Names, d: &De
     quote!(#w_fn #dw_fn #d2w_fn #fast_fn)
 }
 
-/// `impl InvariantLaw`.
-pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernels) -> TokenStream {
+/// `volumetric` (U, U′, U″) and `volumetric_fast` (U, U′ with the vectorisable
+/// ln/exp/powf) of a declared volumetric energy, whose kernels `v` are those of an
+/// invariant law of J alone.
+fn volumetric_fns(core: &TokenStream, v: &InvariantKernels, names: &Names) -> TokenStream {
+    let (g, d) = (&v.graph, &v.plain);
+    let j = Names::arg(Var::J, g.uses(&[d.w, d.grad[2], d.hess[2][2]], Var::J));
+    let b = straight_line::block(g, names, &[d.w, d.grad[2], d.hess[2][2]]);
+    let (lets, o) = (b.lets, &b.outputs);
+    let (u, u1, u2) = (&o[0], &o[1], &o[2]);
+    let fast = Names {
+        params: names.params,
+        receiver: None,
+        fast: Some(core),
+        fma: false,
+    };
+    let jf = Names::arg(Var::J, g.uses(&[d.w, d.grad[2]], Var::J));
+    let b = straight_line::block(g, &fast, &[d.w, d.grad[2]]);
+    let (fast_lets, o) = (b.lets, &b.outputs);
+    let (fu, fu1) = (&o[0], &o[1]);
+    quote! {
+        #[inline]
+        fn volumetric(&self, #j: f64) -> ::core::option::Option<[f64; 3]> {
+            #lets
+            ::core::option::Option::Some([#u, #u1, #u2])
+        }
+        #[inline(always)]
+        fn volumetric_fast(&self, #jf: f64) -> ::core::option::Option<(f64, f64)> {
+            #fast_lets
+            ::core::option::Option::Some((#fu, #fu1))
+        }
+    }
+}
+
+/// `impl InvariantLaw`, with the declared volumetric energy's kernels `volumetric`.
+pub fn invariant_law(
+    core: &TokenStream,
+    decl: &Declaration,
+    k: &InvariantKernels,
+    volumetric: Option<&InvariantKernels>,
+) -> TokenStream {
     let ty = &decl.item.ident;
     let fields = decl.fields();
     let names = Names::of_self(&fields);
     let plain = invariant_fns(core, k, &names, &k.plain, false);
+    let volumetric = volumetric.map(|v| volumetric_fns(core, v, &names));
     let ext = match &k.ext {
         Some(d) => invariant_fns(core, k, &names, d, true),
         None => quote! {
@@ -145,6 +184,7 @@ pub fn invariant_law(core: &TokenStream, decl: &Declaration, k: &InvariantKernel
             const OPS: #core::law::OpCount = #ops;
             #plain
             #ext
+            #volumetric
         }
     }
 }

@@ -53,6 +53,22 @@
 //! pub struct Gent { pub mu: f64, pub jm: f64, pub kappa: f64 }
 //! ```
 //!
+//! `#[volumetric(<expression over J>)]` (invariant laws) declares the law's
+//! volumetric energy U(J), which the anti-locking formulations (`volumetric =
+//! "nodal"` or `"patch"`) evaluate at averaged volume ratios, leaving w − U(J) on
+//! the element. It must vanish with its slope at J = 1 and have the law's bulk
+//! modulus as its curvature there (U(1) = U′(1) = 0, U″(1) = K0; the registry's
+//! tests check every law that declares one), so that the element keeps no bulk
+//! stiffness at small strain. Without it U is the law along pure dilations,
+//! w(3J^(2/3), 3J^(4/3), J) − w(3, 3, 1), which takes a cube root per evaluation:
+//!
+//! ```ignore
+//! #[heml::material(name = "mooney_rivlin")]
+//! #[energy(c10 * (I1bar - 3.0) + c01 * (I2bar - 3.0) + kappa / 2.0 * (J - 1.0).powi(2))]
+//! #[volumetric(kappa / 2.0 * (J - 1.0).powi(2))]
+//! pub struct MooneyRivlin { pub c10: f64, pub c01: f64, pub kappa: f64 }
+//! ```
+//!
 //! Pipeline, as in serde_derive: parse (`attr`), check (heml-symbolic's `lower` turns each
 //! expression into a hash-consed graph, `expr`, rejecting words outside `vocab`),
 //! emit: heml-symbolic's `diff` differentiates, `taylor` builds the inversion extension,
@@ -109,13 +125,18 @@ fn expand(args: TokenStream, item: TokenStream) -> syn::Result<TokenStream> {
     // emit
     let core = core_path(&opts);
     let fibre = opts.kind == Kind::Invariant && fibre::is_fibre(&graph, w);
+    let volumetric = decl
+        .volumetric
+        .as_ref()
+        .map(|u| lower_volumetric(u, &params, fibre))
+        .transpose()?;
     let law = match opts.kind {
         Kind::Invariant if fibre => {
             fibre::fibre_law(&core, &decl, &fibre::FibreKernels::new(graph, w, opts.inversion_fix))
         }
         Kind::Invariant => {
             let k = derivatives::InvariantKernels::new(graph, w, opts.inversion_fix);
-            emit_law::invariant_law(&core, &decl, &k)
+            emit_law::invariant_law(&core, &decl, &k, volumetric.as_ref())
         }
         Kind::Link => emit_law::link_law(&core, &decl, &derivatives::LinkKernels::new(graph, w)),
     };
@@ -128,6 +149,20 @@ fn expand(args: TokenStream, item: TokenStream) -> syn::Result<TokenStream> {
         #law
         #registration
     })
+}
+
+/// Lowers the declared volumetric energy U(J) and differentiates it (an invariant
+/// law's only: a fibre law has no anti-locking split).
+fn lower_volumetric(u: &syn::Expr, params: &[String], fibre: bool) -> syn::Result<derivatives::InvariantKernels> {
+    if fibre {
+        return Err(syn::Error::new_spanned(
+            u,
+            "`#[volumetric(...)]` applies to laws of I1, I2 and J; a fibre law has no anti-locking split",
+        ));
+    }
+    let mut graph = expr::Graph::new();
+    let id = lower::lower(&mut graph, u, Scope::Volumetric, params, &[])?;
+    Ok(derivatives::InvariantKernels::new(graph, id, false))
 }
 
 /// Lowers each value of the small-strain mapping; the fields it sets cannot be read.

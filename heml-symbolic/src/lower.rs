@@ -42,6 +42,7 @@ impl Lowerer<'_> {
         match self.scope {
             Scope::Energy(_) => "an energy",
             Scope::SmallStrain => "a small-strain mapping",
+            Scope::Volumetric => "a volumetric energy",
         }
     }
 
@@ -163,6 +164,12 @@ impl Lowerer<'_> {
                 ident,
                 format!("`{name}` is a small-strain modulus, usable in `#[small_strain(...)]` only, not in an energy"),
             ),
+            Scope::Volumetric if in_scope(Scope::Energy(Kind::Invariant)) || in_scope(Scope::SmallStrain) => err(
+                ident,
+                format!(
+                    "`{name}` is not available in a volumetric energy: U(J) depends on `J` and the parameters only"
+                ),
+            ),
             Scope::SmallStrain if in_scope(Scope::Energy(Kind::Invariant)) || in_scope(Scope::Energy(Kind::Link)) => {
                 err(
                     ident,
@@ -214,7 +221,7 @@ impl Lowerer<'_> {
             "unknown identifier `{name}` in {}; allowed: the variables {}",
             match self.scope {
                 Scope::Energy(_) => "the energy",
-                Scope::SmallStrain => self.what(),
+                Scope::SmallStrain | Scope::Volumetric => self.what(),
             },
             quote_all(&mut vars.iter().copied())
         );

@@ -24,6 +24,8 @@ pub enum Scope {
     Energy(Kind),
     /// A parameter's value in terms of the small-strain moduli (`#[small_strain(...)]`).
     SmallStrain,
+    /// A law's volumetric energy U(J) (`#[volumetric(...)]`): J and the parameters.
+    Volumetric,
 }
 
 /// What a variable name stands for.
@@ -59,6 +61,8 @@ const INVARIANT_VARS: &[(&str, Symbol)] = &[
 
 const LINK_VARS: &[(&str, Symbol)] = &[("l", Symbol::Var(Var::LinkL)), ("L", Symbol::Var(Var::RestL))];
 
+const VOLUMETRIC_VARS: &[(&str, Symbol)] = &[("J", Symbol::Var(Var::J))];
+
 const MODULI_VARS: &[(&str, Symbol)] = &[
     ("mu0", Symbol::Var(Var::Mu0)),
     ("K0", Symbol::Var(Var::K0)),
@@ -71,6 +75,7 @@ pub fn symbols(scope: Scope) -> &'static [(&'static str, Symbol)] {
         Scope::Energy(Kind::Invariant) => INVARIANT_VARS,
         Scope::Energy(Kind::Link) => LINK_VARS,
         Scope::SmallStrain => MODULI_VARS,
+        Scope::Volumetric => VOLUMETRIC_VARS,
     }
 }
 

@@ -18,6 +18,7 @@ use heml_derive::material;
         + 519.0 * m2.powi(4) / 673750.0 * (i.powi(5) - 243.0))
         + kappa / 2.0 * (J - 1.0).powi(2)
 })]
+#[volumetric(kappa / 2.0 * (J - 1.0).powi(2))]
 #[small_strain(
     mu = mu0 / (1.0 + 3.0 / (5.0 * lm.powi(2)) + 99.0 / (175.0 * lm.powi(4))
         + 513.0 / (875.0 * lm.powi(6)) + 42039.0 / (67375.0 * lm.powi(8))),

@@ -8,6 +8,7 @@ use heml_derive::material;
 /// Reference: H. Demiray, J. Biomech. 5 (1972); Y. C. Fung, *Biomechanics* (1993).
 #[material(name = "fung_demiray")]
 #[energy(a / (2.0 * b) * ((b * (I1bar - 3.0)).exp() - 1.0) + kappa / 2.0 * (J - 1.0).powi(2))]
+#[volumetric(kappa / 2.0 * (J - 1.0).powi(2))]
 #[small_strain(a = mu0, kappa = K0)]
 pub struct FungDemiray {
     /// Stiffness a (Pa), the small-strain shear modulus.

@@ -9,6 +9,7 @@ use heml_derive::material;
 /// Reference: A. N. Gent, Rubber Chem. Technol. 69 (1996).
 #[material(name = "gent")]
 #[energy(-mu * jm / 2.0 * (1.0 - (I1bar - 3.0) / jm).ln() + kappa / 2.0 * (J - 1.0).powi(2))]
+#[volumetric(kappa / 2.0 * (J - 1.0).powi(2))]
 #[small_strain(mu = mu0, kappa = K0)]
 pub struct Gent {
     /// Shear modulus μ (Pa).

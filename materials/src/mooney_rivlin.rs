@@ -10,6 +10,7 @@ use heml_derive::material;
 /// Reference: M. Mooney, J. Appl. Phys. 11 (1940); R. S. Rivlin, Phil. Trans. A 241 (1948).
 #[material(name = "mooney_rivlin")]
 #[energy(c10 * (I1bar - 3.0) + c01 * (I2bar - 3.0) + kappa / 2.0 * (J - 1.0).powi(2))]
+#[volumetric(kappa / 2.0 * (J - 1.0).powi(2))]
 #[small_strain(c10 = mu0 / 2.0 - c01, kappa = K0)]
 pub struct MooneyRivlin {
     /// First Mooney–Rivlin coefficient (Pa).

@@ -9,6 +9,7 @@ use heml_derive::material;
 /// finite deformation problems", CMAME 46 (1984); Goulette et al., HEML (2015).
 #[material(name = "neo_hookean")]
 #[energy(mu / 2.0 * (I1 - 3.0) - mu * J.ln() + lambda / 2.0 * J.ln().powi(2))]
+#[volumetric((lambda + 2.0 * mu / 3.0) / 2.0 * J.ln().powi(2))]
 #[small_strain(mu = mu0, lambda = lambda0)]
 pub struct NeoHookean {
     /// Shear modulus μ (Pa).

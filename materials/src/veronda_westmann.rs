@@ -7,6 +7,7 @@ use heml_derive::material;
 /// Reference: D. R. Veronda, R. A. Westmann, J. Biomech. 3 (1970).
 #[material(name = "veronda_westmann")]
 #[energy(c1 * ((c2 * (I1bar - 3.0)).exp() - 1.0) - c1 * c2 / 2.0 * (I2bar - 3.0) + kappa / 2.0 * (J - 1.0).powi(2))]
+#[volumetric(kappa / 2.0 * (J - 1.0).powi(2))]
 #[small_strain(c1 = mu0 / c2, kappa = K0)]
 pub struct VerondaWestmann {
     /// Stiffness c1 (Pa).

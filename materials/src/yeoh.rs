@@ -11,6 +11,7 @@ use heml_derive::material;
     let d = I1bar - 3.0;
     c1 * d + c2 * d * d + c3 * d.powi(3) + kappa / 2.0 * (J - 1.0).powi(2)
 })]
+#[volumetric(kappa / 2.0 * (J - 1.0).powi(2))]
 #[small_strain(c1 = mu0 / 2.0, kappa = K0)]
 pub struct Yeoh {
     /// First coefficient (Pa).

@@ -19,6 +19,18 @@
 //! Link laws (mass–spring) have no invariants and hence no split: asking for a nodal
 //! volumetric term on one is an error.
 //!
+//! **A declared U.** What removes locking is only U(1) = U′(1) = 0 and U″(1) = K0:
+//! any such U leaves the element the same small-strain stiffness. A law may declare
+//! its own (`#[volumetric(...)]`, [`InvariantLaw::volumetric`]), which then replaces
+//! the dilation: the decoupled laws above declare their f(J) (the same U, without
+//! evaluating the law at the dilation), neo-Hookean K0/2·ln²J with K0 = λ + 2μ/3.
+//! Along a dilation neo-Hookean's w_iso is then μ/2(3J^(2/3) − 3) − μ ln J − μ/3·ln²J
+//! (with β = 0): third order in J − 1 and of size μ, so no λ-sized stiffness stays on
+//! the element at finite strain either, and U′ = K0 ln J / J reuses the ln J and 1/J
+//! its kernel computes anyway where the dilation took a cube root per tet (the nodal
+//! and patch fields ~10–15 % faster, docs/guide/anti-locking.md). The registry's
+//! tests check every declared U against the dilation's K0.
+//!
 //! Below J0 (the inversion fix, DESIGN §1) U is replaced by its second-order Taylor
 //! extension about J0, on the same rule as the law (`ForceOptions::extend`), so the
 //! element and nodal terms stay finite and the total stays an energy.
@@ -27,8 +39,8 @@ use super::fastmath;
 use super::ForceOptions;
 use crate::law::{Derivs, InvariantLaw, MaterialInfo, OpCount, ParamInfo, SmallStrain};
 
-/// U(J), U′(J), U″(J) of a law's dilation energy, and its bulk and shear moduli at
-/// rest.
+/// U(J), U′(J), U″(J) of a law's volumetric energy (declared, or along dilations),
+/// and its bulk and shear moduli at rest.
 #[derive(Debug, Clone, Copy)]
 pub struct Dilation<M> {
     law: M,
@@ -56,6 +68,14 @@ impl<M: InvariantLaw> Dilation<M> {
     /// where a cube root and a reciprocal cost three divisions.
     #[inline(always)]
     fn d1(&self, j: f64, fast: bool) -> (f64, f64) {
+        let declared = if fast {
+            self.law.volumetric_fast(j)
+        } else {
+            self.law.volumetric(j).map(|[u, u1, _]| (u, u1))
+        };
+        if let Some(d) = declared {
+            return d;
+        }
         let (c, inv_c) = if fast {
             let y = fastmath::inv_cbrt(j);
             (j * y * y, y)
@@ -76,6 +96,15 @@ impl<M: InvariantLaw> Dilation<M> {
 
     /// U, U′, U″ at `j` (no extension).
     fn d2(&self, j: f64) -> (f64, f64, f64) {
+        if let Some([u, u1, u2]) = self.law.volumetric(j) {
+            return (u, u1, u2);
+        }
+        self.along_dilations(j)
+    }
+
+    /// U, U′, U″ of the law along pure dilations at `j`, whether or not it declares
+    /// its volumetric energy (the reference a declared one is checked against).
+    pub fn along_dilations(&self, j: f64) -> (f64, f64, f64) {
         let c = j.cbrt();
         let c2 = c * c;
         let (i1, i2) = (3.0 * c2, 3.0 * c2 * c2);

@@ -14,6 +14,97 @@ fn nodal_forces_are_minus_the_energy_gradient_for_every_invariant_law() {
     grouped::forces_are_minus_the_energy_gradient([2, 2, 1], |_| Volumetric::nodal());
 }
 
+/// Every law that declares its volumetric energy U (`#[volumetric(...)]`) splits off
+/// exactly the bulk stiffness it has along pure dilations — U(1) = U′(1) = 0 and
+/// U″(1) = K0, the curvature of the law along F = J^(1/3)·I — so the element keeps
+/// none at small strain whichever U the grouped terms use; U′ and U″ are U's
+/// derivatives and the fast U, U′ the exact ones to round-off. A decoupled law (an
+/// isochoric energy plus f(J)) declares exactly the law along dilations, at any J.
+#[test]
+fn declared_volumetric_energies_split_off_the_bulk_modulus() {
+    use heml::force::Dilation;
+    use heml::law::InvariantLaw;
+    use heml::materials::*;
+    fn check<M: InvariantLaw + Copy>(law: M, decoupled: bool) {
+        let name = M::NAME;
+        let u = |j: f64| law.volumetric(j).unwrap_or_else(|| panic!("{name} declares no U"));
+        let dilation = Dilation::new(law);
+        let k0 = dilation.along_dilations(1.0).2;
+        // U″(1) against the dilation's curvature, which goes through J^(1/3) and the
+        // law's own second derivatives: round-off of a few operations on values of
+        // size K0 (1e-10 leaves four orders of margin)
+        let [u0, u1, u2] = u(1.0);
+        assert!(
+            u0.abs() <= 1e-14 * k0 && u1.abs() <= 1e-14 * k0,
+            "{name}: U(1) = {u0}, U'(1) = {u1}"
+        );
+        assert!((u2 - k0).abs() <= 1e-10 * k0, "{name}: U''(1) = {u2}, K0 = {k0}");
+        for j in [0.6, 0.93, 1.0, 1.07, 1.4] {
+            let [v, v1, v2] = u(j);
+            // central differences, h = 1e-5: truncation h²·|U‴| ~ 1e-10·K0, round-off
+            // 1e-16·|U|/h ~ 1e-12·K0; 1e-7·K0 catches any wrong derivative
+            let h = 1e-5;
+            let fd1 = (u(j + h)[0] - u(j - h)[0]) / (2.0 * h);
+            let fd2 = (u(j + h)[1] - u(j - h)[1]) / (2.0 * h);
+            assert!(
+                (v1 - fd1).abs() <= 1e-7 * k0,
+                "{name}: U'({j}) = {v1}, differences {fd1}"
+            );
+            assert!(
+                (v2 - fd2).abs() <= 1e-7 * k0,
+                "{name}: U''({j}) = {v2}, differences {fd2}"
+            );
+            // the fast ln/exp/powf are within a few ulps of the exact ones
+            let (f0, f1) = law.volumetric_fast(j).unwrap();
+            assert!(
+                (f0 - v).abs() <= 1e-13 * k0 && (f1 - v1).abs() <= 1e-13 * k0,
+                "{name}: fast U at {j}"
+            );
+            if decoupled {
+                // Ī1 = Ī2 = 3 along dilations up to rounding: the same U to round-off
+                let (d0, d1, _) = dilation.along_dilations(j);
+                assert!(
+                    (d0 - v).abs() <= 1e-12 * k0 && (d1 - v1).abs() <= 1e-12 * k0,
+                    "{name}: U({j}) = {v} against {d0} along dilations"
+                );
+            }
+        }
+    }
+    let (mu, lambda) = heml::params::lame(3e3, 0.49);
+    let kappa = lambda + 2.0 * mu / 3.0;
+    check(NeoHookean { mu, lambda }, false);
+    check(
+        MooneyRivlin {
+            c10: 0.3 * mu,
+            c01: 0.2 * mu,
+            kappa,
+        },
+        true,
+    );
+    check(Gent { mu, jm: 50.0, kappa }, true);
+    check(FungDemiray { a: mu, b: 0.8, kappa }, true);
+    check(ArrudaBoyce { mu, lm: 3.0, kappa }, true);
+    check(
+        Yeoh {
+            c1: mu / 2.0,
+            c2: 0.1 * mu,
+            c3: 0.01 * mu,
+            kappa,
+        },
+        true,
+    );
+    check(
+        VerondaWestmann {
+            c1: mu / 0.8,
+            c2: 0.8,
+            kappa,
+        },
+        true,
+    );
+    // a law without a declaration leaves U to the dilation
+    assert!(SaintVenantKirchhoff { mu, lambda }.volumetric(1.0).is_none());
+}
+
 /// K·u from the tangent equals the directional derivative of −f, and the assembled
 /// blocks sum to the same product.
 #[test]
