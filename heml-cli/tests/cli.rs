@@ -19,6 +19,17 @@ fn materials_lists_every_built_in_law_from_the_binary() {
         );
     }
     assert!(out.contains("w = mu / 2.0 * (I1 - 3.0)"), "energy text missing:\n{out}");
+    // a declared volumetric energy is listed under its law's energy, and only there
+    let block = |name: &str| {
+        let start = out.find(&format!("{name}  [")).unwrap();
+        out[start..].split("\n\n").next().unwrap().to_string()
+    };
+    assert!(
+        block("mooney_rivlin").contains("U = kappa / 2.0 * (J - 1.0).powi(2)"),
+        "{}",
+        block("mooney_rivlin")
+    );
+    assert!(!block("saint_venant_kirchhoff").contains("U = "), "{out}");
 }
 
 /// A 2 × 1 × 1 box of 6-tet cells written to a temporary .vtu: `heml info` must

@@ -62,6 +62,9 @@ pub trait MaterialInfo: Sized + Copy + Send + Sync + std::fmt::Debug + 'static {
     /// Whether the law is meant to be stressed or to store energy at rest
     /// (`allow_prestress`), which silences the registry's rest-state warning.
     const ALLOW_PRESTRESS: bool = false;
+    /// The declared volumetric energy U(J) as written (`#[volumetric(...)]`; see
+    /// [`InvariantLaw::volumetric`]); `None` when the law declares none.
+    const VOLUMETRIC: Option<&'static str> = None;
     /// Parameter values in [`Self::PARAMS`] order.
     fn to_params(&self) -> Vec<f64>;
     /// Builds the law from values in [`Self::PARAMS`] order.

@@ -21,6 +21,8 @@ pub struct MaterialEntry {
     pub params: &'static [ParamInfo],
     /// The energy expression as written.
     pub energy: &'static str,
+    /// The declared volumetric energy U(J) as written (`#[volumetric(...)]`), if any.
+    pub volumetric: Option<&'static str>,
     /// The declaring struct's doc comment.
     pub doc: &'static str,
     /// Invariant or link law.
@@ -257,6 +259,7 @@ mod tests {
             name: "probe",
             params: PARAMS,
             energy: "",
+            volumetric: None,
             doc: "",
             kind: LawKind::Invariant,
             module: "here",

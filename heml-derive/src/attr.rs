@@ -123,7 +123,7 @@ pub struct Declaration {
     /// `#[small_strain(...)]`, when the law takes E/ν.
     pub small_strain: Option<SmallStrain>,
     /// `#[volumetric(...)]`: the law's volumetric energy U(J), when declared.
-    pub volumetric: Option<Expr>,
+    pub volumetric: Option<Volumetric>,
 }
 
 impl Declaration {
@@ -141,6 +141,15 @@ pub struct SmallStrain {
     /// in field order.
     pub assignments: Vec<(Ident, Expr)>,
     /// The mapping as written (source text when available).
+    pub text: String,
+}
+
+/// `#[volumetric(<expr>)]`: the law's volumetric energy U(J).
+#[derive(Debug)]
+pub struct Volumetric {
+    /// The expression, over `J` and the fields.
+    pub expr: Expr,
+    /// The expression as written (source text when available).
     pub text: String,
 }
 
@@ -240,7 +249,7 @@ fn take_energy(item: &mut ItemStruct) -> syn::Result<(Expr, String)> {
 
 /// Removes the `#[volumetric(...)]` attribute, if any, and parses its expression
 /// (invariant laws only: a link law has no volume term to split off).
-fn take_volumetric(item: &mut ItemStruct, kind: Kind) -> syn::Result<Option<Expr>> {
+fn take_volumetric(item: &mut ItemStruct, kind: Kind) -> syn::Result<Option<Volumetric>> {
     let Some(attr) = take_attr(item, "volumetric")? else {
         return Ok(None);
     };
@@ -250,8 +259,11 @@ fn take_volumetric(item: &mut ItemStruct, kind: Kind) -> syn::Result<Option<Expr
             "a link law has no volumetric energy to declare; remove `#[volumetric(...)]`",
         ));
     }
-    let (list, _) = list_of(&attr, "volumetric")?;
-    Ok(Some(list.parse_args()?))
+    let (list, text) = list_of(&attr, "volumetric")?;
+    Ok(Some(Volumetric {
+        expr: list.parse_args()?,
+        text,
+    }))
 }
 
 /// Removes the `#[small_strain(...)]` attribute, if any, and parses its assignments.

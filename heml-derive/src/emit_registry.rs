@@ -50,6 +50,13 @@ pub fn material_info(
         _ => TokenStream::new(),
     };
     let prestress = opts.allow_prestress;
+    let volumetric = match &decl.volumetric {
+        Some(v) => {
+            let text = &v.text;
+            quote!(const VOLUMETRIC: ::core::option::Option<&'static str> = ::core::option::Option::Some(#text);)
+        }
+        None => TokenStream::new(),
+    };
     quote! {
         impl #core::law::MaterialInfo for #ty {
             const NAME: &'static str = #name;
@@ -58,6 +65,7 @@ pub fn material_info(
             const DOC: &'static str = #doc;
             const ALLOW_PRESTRESS: bool = #prestress;
             #small_strain
+            #volumetric
             fn to_params(&self) -> ::std::vec::Vec<f64> {
                 ::std::vec![#(self.#fields),*]
             }
@@ -129,6 +137,7 @@ pub fn registration(core: &TokenStream, decl: &Declaration, kind: Kind, fibre: b
                 name: #info::NAME,
                 params: #info::PARAMS,
                 energy: #info::ENERGY,
+                volumetric: #info::VOLUMETRIC,
                 doc: #info::DOC,
                 kind: #core::law::LawKind::#kind,
                 module: ::core::module_path!(),

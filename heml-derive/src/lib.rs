@@ -128,7 +128,7 @@ fn expand(args: TokenStream, item: TokenStream) -> syn::Result<TokenStream> {
     let volumetric = decl
         .volumetric
         .as_ref()
-        .map(|u| lower_volumetric(u, &params, fibre))
+        .map(|u| lower_volumetric(&u.expr, &params, fibre))
         .transpose()?;
     let law = match opts.kind {
         Kind::Invariant if fibre => {

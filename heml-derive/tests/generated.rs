@@ -24,6 +24,7 @@ pub mod registry {
         pub name: &'static str,
         pub params: &'static [ParamInfo],
         pub energy: &'static str,
+        pub volumetric: Option<&'static str>,
         pub doc: &'static str,
         pub kind: LawKind,
         pub module: &'static str,

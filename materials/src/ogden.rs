@@ -101,6 +101,7 @@ heml_core::__private::inventory::submit! {
         name: <Ogden as MaterialInfo>::NAME,
         params: <Ogden as MaterialInfo>::PARAMS,
         energy: <Ogden as MaterialInfo>::ENERGY,
+        volumetric: None,
         doc: <Ogden as MaterialInfo>::DOC,
         kind: heml_core::law::LawKind::Stretch,
         module: ::core::module_path!(),

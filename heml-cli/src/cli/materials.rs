@@ -91,9 +91,14 @@ fn print_materials() {
                 if p.signed { " (may be negative)" } else { "" }
             );
         }
-        outln!(
-            "    w = {}\n",
-            e.energy.split_whitespace().collect::<Vec<_>>().join(" ")
-        );
+        let tidy = |text: &str| text.split_whitespace().collect::<Vec<_>>().join(" ");
+        outln!("    w = {}", tidy(e.energy));
+        if let Some(u) = e.volumetric {
+            outln!(
+                "    U = {}  (declared volumetric energy, for volumetric = \"nodal\" or \"patch\")",
+                tidy(u)
+            );
+        }
+        outln!();
     }
 }

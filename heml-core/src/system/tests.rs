@@ -58,6 +58,7 @@ inventory::submit! {
         name: "test_spring",
         params: Spring::PARAMS,
         energy: Spring::ENERGY,
+        volumetric: None,
         doc: Spring::DOC,
         kind: crate::law::LawKind::Link,
         module: module_path!(),
