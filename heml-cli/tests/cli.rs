@@ -488,7 +488,7 @@ fn bench_implicit_steps_at_the_given_dt() {
 }
 
 /// `heml materials --energy` checks a text, prints its derivatives and rest state,
-/// and points at the column of a mistake.
+/// and points at the column of a mistake; `--volumetric-energy` likewise for U(J).
 #[test]
 fn materials_energy_checks_and_differentiates_a_text() {
     let energy = "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)";
@@ -515,4 +515,21 @@ fn materials_energy_checks_and_differentiates_a_text() {
         "k=1",
     ]);
     assert!(!ok && err.contains("column 16: unsupported operator"), "{err}");
+    // a declared volumetric energy: checked against the law's bulk modulus, printed
+    let law = [
+        "materials",
+        "--energy",
+        energy,
+        "--param",
+        "mu=2",
+        "--param",
+        "lambda=4",
+    ];
+    let (ok, out, err) = heml(&[&law[..], &["--volumetric-energy", "(lambda + 2*mu/3)/2*ln(J).powi(2)"]].concat());
+    assert!(ok, "{err}");
+    // K0 = λ + 2μ/3 = 16/3
+    assert!(out.contains("U''(1) = K0 = 5.333333333333333e0"), "{out}");
+    assert!(out.contains("dU/dJ      = "), "{out}");
+    let (ok, _, err) = heml(&[&law[..], &["--volumetric-energy", "lambda/2*ln(J).powi(2)"]].concat());
+    assert!(!ok && err.contains("must have the law's bulk modulus"), "{err}");
 }

@@ -65,6 +65,12 @@ pub trait MaterialInfo: Sized + Copy + Send + Sync + std::fmt::Debug + 'static {
     /// The declared volumetric energy U(J) as written (`#[volumetric(...)]`; see
     /// [`InvariantLaw::volumetric`]); `None` when the law declares none.
     const VOLUMETRIC: Option<&'static str> = None;
+    /// The parameters of this law: [`Self::PARAMS`], but for laws whose parameters
+    /// are known at run time only ([`crate::RuntimeLaw`]), so that the material
+    /// wrappers name them whatever the law.
+    fn params_of(&self) -> &'static [ParamInfo] {
+        Self::PARAMS
+    }
     /// Parameter values in [`Self::PARAMS`] order.
     fn to_params(&self) -> Vec<f64>;
     /// Builds the law from values in [`Self::PARAMS`] order.
@@ -229,6 +235,17 @@ pub trait InvariantLaw: MaterialInfo {
     #[inline(always)]
     fn volumetric_fast(&self, j: f64) -> Option<(f64, f64)> {
         self.volumetric(j).map(|[u, u1, _]| (u, u1))
+    }
+    /// U and U′ of [`Self::volumetric_fast`] at `N` lanes at once (`[U, U′][lane]`):
+    /// what the batched kernels of a [`Self::BATCHED`] law call, once per batch.
+    /// The default calls [`Self::volumetric_fast`] lane by lane.
+    #[inline(always)]
+    fn volumetric_lanes<const N: usize>(&self, j: &[f64; N]) -> Option<[[f64; N]; 2]> {
+        let mut out = [[0.0; N]; 2];
+        for l in 0..N {
+            (out[0][l], out[1][l]) = self.volumetric_fast(j[l])?;
+        }
+        Some(out)
     }
 
     /// Whether the batch kernels call [`Self::dw_lanes`] for the lanes of a batch

@@ -193,7 +193,7 @@ macro_rules! law_identity {
             LawKind::$kind
         }
         fn param_info(&self) -> &'static [ParamInfo] {
-            M::PARAMS
+            self.$field.params_of()
         }
         fn param_values(&self) -> Vec<f64> {
             self.$field.to_params()

@@ -69,16 +69,24 @@ pub fn material(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Mate
 /// equal those of a built-in law with the same energy. A mistake in the text raises
 /// `HemlError` with the column and what is allowed there; every parameter must be
 /// used by the energy. `inversion_fix=False` drops the J0 extension (for energies
-/// finite at J <= 0).
+/// finite at J <= 0). `volumetric_energy="kappa/2*(J-1).powi(2)"` declares the law's
+/// volumetric energy U(J) (J and the parameters; U(1) = U'(1) = 0 and U''(1) = the
+/// law's bulk modulus, checked), which the anti-locking formulations
+/// (`Material.with_volumetric("patch")`) evaluate at averaged volume ratios instead
+/// of the law along pure dilations.
 #[pyfunction]
-#[pyo3(signature = (energy, *, inversion_fix = true, **params))]
+#[pyo3(signature = (energy, *, volumetric_energy = None, inversion_fix = true, **params))]
 pub fn material_from_energy(
     energy: &str,
+    volumetric_energy: Option<&str>,
     inversion_fix: bool,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Material> {
     let p = to_params("energy", params)?;
-    let law = heml::RuntimeLaw::with_inversion_fix(energy, &p, inversion_fix).py()?;
+    let mut law = heml::RuntimeLaw::with_inversion_fix(energy, &p, inversion_fix).py()?;
+    if let Some(u) = volumetric_energy {
+        law = law.with_volumetric_energy(u).py()?;
+    }
     Ok(Material {
         law: Arc::new(law),
         energy: Some(energy.to_string()),
@@ -142,6 +150,28 @@ impl Material {
             d.set_item(info.name, v)?;
         }
         Ok(d)
+    }
+
+    /// How the law's volumetric energy is discretised: `"element"` (as written, per
+    /// tet), or `"nodal (stabilization s)"` / `"patch (k tets, stabilization s)"`.
+    #[getter]
+    fn volumetric(&self) -> String {
+        self.law.volumetric().to_string()
+    }
+
+    /// This law with its volumetric energy discretised by `formulation`:
+    /// `"element"`, or the anti-locking `"nodal"` (average nodal volume ratios) or
+    /// `"patch"` (one volume per compact patch of 6 tets), for nearly incompressible
+    /// tissue, where linear tets lock; `stabilization` is the factor s of the kept
+    /// element fraction β = min(1, s·μ0/K0) (default 0.1). Its force fields and
+    /// systems use it.
+    #[pyo3(signature = (formulation, stabilization = None))]
+    fn with_volumetric(&self, formulation: &str, stabilization: Option<f64>) -> PyResult<Material> {
+        let v = heml::law::Volumetric::parse(formulation, stabilization).py()?;
+        Ok(Material {
+            law: Arc::from(self.law.with_volumetric(v).py()?),
+            energy: self.energy.clone(),
+        })
     }
 
     /// The HEML force field of this law over `mesh` (over the tets `tets` only when

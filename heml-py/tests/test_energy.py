@@ -51,3 +51,38 @@ def test_unused_parameter_and_bad_value_raise():
         heml.material_from_energy("mu/2*(I1-3)", mu=1.0, kappa=2.0)
     with pytest.raises(TypeError, match="must be a number"):
         heml.material_from_energy("mu/2*(I1-3)", mu="soft")
+
+
+def test_anti_locking_runtime_law_with_its_volumetric_energy():
+    """With the anti-locking patch and nodal terms, a runtime law declaring the
+    built-in law's volumetric energy U = K0/2 ln^2 J has the built-in law's forces
+    (the same 1e-12 as above); without it, U is the law along pure dilations, a
+    different split whose forces differ far beyond round-off (at nu = 0.45)."""
+    mesh = heml.box_mesh([0.1, 0.05, 0.05], [4, 2, 2])
+    mu, lam = 1e3, 9e3
+    u = "(lambda + 2.0*mu/3.0)/2.0*ln(J).powi(2)"
+    built_in = heml.material("neo_hookean", mu=mu, **{"lambda": lam})
+    declared = heml.material_from_energy(NEO_HOOKEAN, volumetric_energy=u, mu=mu, **{"lambda": lam})
+    plain = heml.material_from_energy(NEO_HOOKEAN, mu=mu, **{"lambda": lam})
+    x = deformed(mesh, seed=2)
+    for formulation in ["patch", "nodal"]:
+        law = built_in.with_volumetric(formulation)
+        assert law.volumetric.startswith(formulation) and built_in.volumetric == "element"
+        e_ref, f_ref = law.force_field(mesh).forces(x)
+        anti_locking = declared.with_volumetric(formulation)
+        assert anti_locking.params == {"lambda": lam, "mu": mu} and anti_locking.energy == NEO_HOOKEAN
+        e, f = anti_locking.force_field(mesh).forces(x)
+        scale = np.abs(f_ref).max()
+        assert np.abs(f - f_ref).max() <= 1e-12 * scale
+        assert abs(e - e_ref) <= 1e-12 * e_ref
+        _, f_plain = plain.with_volumetric(formulation).force_field(mesh).forces(x)
+        assert np.abs(f_plain - f_ref).max() > 1e-6 * scale
+
+
+def test_a_wrong_volumetric_energy_raises_with_the_reason():
+    with pytest.raises(heml.HemlError, match="must have the law's bulk modulus"):
+        heml.material_from_energy(NEO_HOOKEAN, volumetric_energy="lambda*ln(J).powi(2)", mu=1.0, **{"lambda": 2.0})
+    with pytest.raises(heml.HemlError, match=r"column 9: `I1` is not available in a volumetric energy"):
+        heml.material_from_energy(NEO_HOOKEAN, volumetric_energy="lambda*(I1-3)", mu=1.0, **{"lambda": 2.0})
+    with pytest.raises(heml.HemlError, match=r"unknown volumetric formulation `patches`"):
+        heml.material("neo_hookean", mu=1.0, **{"lambda": 2.0}).with_volumetric("patches")

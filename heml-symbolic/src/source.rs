@@ -141,6 +141,69 @@ pub fn invariant_kernels(text: &str, params: &[String], inversion_fix: bool) -> 
     kernels_within(text, params, inversion_fix, MAX_NODES)
 }
 
+/// Parses and differentiates a volumetric energy `U(J)` over `params` (a law's
+/// `#[volumetric(...)]`, given as text): J and the parameters only, no inversion
+/// extension (the anti-locking terms extend U themselves, on the law's rule). Its
+/// `plain` derivatives are U, U′ (`grad[2]`) and U″ (`hess[2][2]`).
+///
+/// The same limits and errors as [`invariant_kernels`]; an invariant in the text
+/// is an error at its column.
+pub fn volumetric_kernels(text: &str, params: &[String]) -> Result<InvariantKernels, SourceError> {
+    let (g, u) = lower_within(text, Scope::Volumetric, params, MAX_NODES)?;
+    let kernels = InvariantKernels::new(g, u, false);
+    if kernels.graph.exhausted() {
+        return Err(whole_text(text, too_large(MAX_NODES, "with its derivatives it needs")));
+    }
+    Ok(kernels)
+}
+
+/// An error about the whole of `text` (its first line shown).
+fn whole_text(text: &str, message: String) -> SourceError {
+    SourceError {
+        line: 1,
+        column: 1,
+        width: text.chars().count().max(1),
+        message,
+        source_line: text.lines().next().unwrap_or("").to_string(),
+    }
+}
+
+/// The message of a text whose graph exceeds `max_nodes`.
+fn too_large(max_nodes: usize, what: &str) -> String {
+    format!(
+        "the energy is too large: {what} more than {max_nodes} expression nodes, the limit for a law \
+         given as text; simplify it"
+    )
+}
+
+/// Checks the parameter names (valid identifiers, none a variable of the energy)
+/// and lowers `text` in `scope` into a graph of at most `max_nodes` nodes.
+fn lower_within(text: &str, scope: Scope, params: &[String], max_nodes: usize) -> Result<(Graph, Id), SourceError> {
+    if let Some(clash) = params
+        .iter()
+        .find(|p| crate::vocab::reserved(Kind::Invariant, false, p))
+    {
+        return Err(whole_text(
+            text,
+            format!("a parameter may not be called `{clash}`: it is a variable of the energy"),
+        ));
+    }
+    let bad_name = params.iter().find(|p| syn::parse_str::<syn::Ident>(p).is_err());
+    proc_macro2::extra::invalidate_current_thread_spans();
+    if let Some(bad) = bad_name {
+        return Err(whole_text(
+            text,
+            format!("`{bad}` is not a valid parameter name (letters, digits and `_`, not a leading digit)"),
+        ));
+    }
+    let mut g = Graph::with_node_limit(max_nodes);
+    let root = lower_text(&mut g, text, scope, params)?;
+    if g.exhausted() {
+        return Err(whole_text(text, too_large(max_nodes, "it needs")));
+    }
+    Ok((g, root))
+}
+
 /// [`invariant_kernels`] with at most `max_nodes` nodes.
 fn kernels_within(
     text: &str,
@@ -148,39 +211,7 @@ fn kernels_within(
     inversion_fix: bool,
     max_nodes: usize,
 ) -> Result<InvariantKernels, SourceError> {
-    let whole = |message: String| SourceError {
-        line: 1,
-        column: 1,
-        width: text.chars().count().max(1),
-        message,
-        source_line: text.lines().next().unwrap_or("").to_string(),
-    };
-    if let Some(clash) = params
-        .iter()
-        .find(|p| crate::vocab::reserved(Kind::Invariant, false, p))
-    {
-        return Err(whole(format!(
-            "a parameter may not be called `{clash}`: it is a variable of the energy"
-        )));
-    }
-    let bad_name = params.iter().find(|p| syn::parse_str::<syn::Ident>(p).is_err());
-    proc_macro2::extra::invalidate_current_thread_spans();
-    if let Some(bad) = bad_name {
-        return Err(whole(format!(
-            "`{bad}` is not a valid parameter name (letters, digits and `_`, not a leading digit)"
-        )));
-    }
-    let mut g = Graph::with_node_limit(max_nodes);
-    let w = lower_text(&mut g, text, Scope::Energy(Kind::Invariant), params)?;
-    let too_large = |what: &str| {
-        whole(format!(
-            "the energy is too large: {what} more than {max_nodes} expression nodes, the limit for \
-             a law given as text; simplify it"
-        ))
-    };
-    if g.exhausted() {
-        return Err(too_large("it needs"));
-    }
+    let (g, w) = lower_within(text, Scope::Energy(Kind::Invariant), params, max_nodes)?;
     let fibre = [Var::I4a, Var::I5a, Var::I4b, Var::I5b];
     if fibre.iter().any(|&v| g.uses(&[w], v)) {
         // point at the first fibre word (I4…, I5…) of the text
@@ -208,9 +239,13 @@ fn kernels_within(
     let size = g.node_count();
     let kernels = InvariantKernels::new(g, w, inversion_fix);
     if kernels.graph.exhausted() {
-        return Err(too_large(&format!(
-            "w has {size} nodes, and with its derivatives it needs"
-        )));
+        return Err(whole_text(
+            text,
+            too_large(
+                max_nodes,
+                &format!("w has {size} nodes, and with its derivatives it needs"),
+            ),
+        ));
     }
     Ok(kernels)
 }
@@ -516,5 +551,24 @@ mod tests {
             &[2.0, 5.0],
         );
         assert_eq!(wj, -2.0);
+    }
+
+    #[test]
+    fn a_volumetric_text_is_a_function_of_j_alone() {
+        let names = ["kappa".to_string()];
+        let k = volumetric_kernels("kappa/2*(J-1).powi(2)", &names).unwrap();
+        assert!(k.ext.is_none() && k.uses_j && !k.uses_i2);
+        // U = κ/2 (J − 1)², U′ = κ (J − 1), U″ = κ at J = 1.5, κ = 4: exact in binary
+        let at = |id| k.graph.eval(id, &|_| 1.5, &[4.0]);
+        assert_eq!(
+            (at(k.plain.w), at(k.plain.grad[2]), at(k.plain.hess[2][2])),
+            (0.5, 2.0, 4.0)
+        );
+        // an invariant is an error at its column, as in the macro's attribute
+        let e = volumetric_kernels("kappa/2*(J-1).powi(2) + I1", &names).unwrap_err();
+        assert_eq!((e.line, e.column, e.width), (1, 25, 2), "{e}");
+        assert!(e.message.contains("not available in a volumetric energy"), "{e}");
+        let e = volumetric_kernels("kappa*", &names).unwrap_err();
+        assert_eq!(e.column, 7, "{e}");
     }
 }

@@ -104,6 +104,11 @@ pub struct BenchArgs {
     /// Parameter NAME=VALUE of --energy (repeatable); default: --law's values.
     #[arg(long = "param", value_name = "NAME=VALUE")]
     pub params: Vec<String>,
+    /// With --energy: its volumetric energy U(J) as text; the table then also times
+    /// the anti-locking patch field of --law, of --energy along dilations and of
+    /// --energy with this U, in the same round-robin.
+    #[arg(long, value_name = "TEXT", requires = "energy")]
+    pub volumetric_energy: Option<String>,
     /// Also time this law's HEML field on one thread, in the same round-robin, and
     /// print --law's cost relative to it (e.g. a fibre law against neo_hookean).
     #[arg(long, value_name = "LAW")]

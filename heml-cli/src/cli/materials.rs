@@ -2,6 +2,7 @@
 //! given as text, checked and differentiated.
 
 use clap::Args;
+use heml::law::InvariantLaw;
 use heml::law::LawKind;
 use heml::RuntimeLaw;
 
@@ -19,6 +20,11 @@ pub struct MaterialsArgs {
     /// Do not build the J0 inversion extension (for an energy finite for J <= 0).
     #[arg(long)]
     pub no_inversion_fix: bool,
+    /// The law's volumetric energy U(J) of --energy, e.g. "kappa/2*(J-1).powi(2)"
+    /// (J and the parameters; U(1) = U'(1) = 0 and U''(1) = the law's bulk modulus):
+    /// checked, and its derivatives printed (a scene's `volumetric_energy`).
+    #[arg(long, value_name = "TEXT", requires = "energy")]
+    pub volumetric_energy: Option<String>,
 }
 
 /// Prints every registered law, or the checked --energy.
@@ -35,7 +41,10 @@ pub fn run(args: MaterialsArgs) -> heml::Result<()> {
 /// The law of `energy`: its parameters, derivatives and rest state.
 fn print_energy(energy: &str, args: &MaterialsArgs) -> heml::Result<()> {
     let params = super::info::parse_params(&args.params)?;
-    let law = RuntimeLaw::with_inversion_fix(energy, &params, !args.no_inversion_fix)?;
+    let mut law = RuntimeLaw::with_inversion_fix(energy, &params, !args.no_inversion_fix)?;
+    if let Some(u) = &args.volumetric_energy {
+        law = law.with_volumetric_energy(u)?;
+    }
     outln!("w = {energy}");
     let shown: Vec<String> = law
         .param_info()
@@ -61,6 +70,15 @@ fn print_energy(energy: &str, args: &MaterialsArgs) -> heml::Result<()> {
     outln!();
     for (name, expr) in law.derivatives() {
         outln!("{name:<10} = {expr}");
+    }
+    if !law.volumetric_derivatives().is_empty() {
+        // checked against the law along pure dilations as it was declared, above
+        let k0 = InvariantLaw::volumetric(&law, 1.0).map_or(f64::NAN, |[_, _, u2]| u2);
+        outln!();
+        outln!("volumetric energy (U(1) = U'(1) = 0, U''(1) = K0 = {k0:e}):");
+        for (name, expr) in law.volumetric_derivatives() {
+            outln!("{name:<10} = {expr}");
+        }
     }
     // at rest: P = (2 w1 + 4 w2 + wJ) I must vanish for a stress-free rest state (a
     // law that is not gets the library's warning as it is built, above)

@@ -122,12 +122,21 @@ impl<M: InvariantLaw> Dilation<M> {
         (d.w - self.w0, d.d[0] * s1[0] + d.d[1] * s1[1] + d.d[2], u2)
     }
 
-    /// U and U′ at `j` with the law's fast functions and no extension: for callers
-    /// that checked `j` is at or above J0 (the nodal pass, a few nodes at a time, so
-    /// that the loop over them vectorises).
+    /// U and U′ at `N` lanes at once, `[U, U′][lane]`, with the law's fast
+    /// functions and no extension: for callers that checked every `j` is at or above
+    /// J0 (the grouped pressures, a few groups at a time, so that the loop over them
+    /// vectorises, and the batched kernels of a runtime law). A declared U runs once
+    /// for all lanes ([`InvariantLaw::volumetric_lanes`]: one pass over a runtime
+    /// law's tape), else lane by lane.
     #[inline(always)]
-    pub(crate) fn value_slope_plain(&self, j: f64) -> (f64, f64) {
-        self.d1(j, true)
+    pub(crate) fn value_slope_lanes<const N: usize>(&self, j: &[f64; N]) -> [[f64; N]; 2] {
+        self.law.volumetric_lanes(j).unwrap_or_else(|| {
+            let mut out = [[0.0; N]; 2];
+            for l in 0..N {
+                (out[0][l], out[1][l]) = self.d1(j[l], true);
+            }
+            out
+        })
     }
 
     /// U and U′ at `j`, extended below J0 as the law is (see the module doc).
@@ -260,5 +269,21 @@ impl<M: InvariantLaw> InvariantLaw for Isochoric<M> {
     #[inline(always)]
     fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
         self.minus_ext(self.vol.law.dw_ext_fast(i1, i2, j, j0), j, j0)
+    }
+
+    // A law evaluated by an interpreter ([`crate::RuntimeLaw`]) stays batched under
+    // the split: its w and its declared U each run once per batch.
+    const BATCHED: bool = M::BATCHED;
+    /// The law's lanes minus c·(U, U′) ([`Dilation`]'s lanes: one run of a declared
+    /// U for all of them).
+    #[inline(always)]
+    fn dw_lanes<const N: usize>(&self, i1: &[f64; N], i2: &[f64; N], j: &[f64; N]) -> [[f64; N]; 4] {
+        let mut d = self.vol.law.dw_lanes(i1, i2, j);
+        let [u, u1] = self.vol.value_slope_lanes(j);
+        for l in 0..N {
+            d[0][l] -= self.c * u[l];
+            d[3][l] -= self.c * u1[l];
+        }
+        d
     }
 }

@@ -51,6 +51,24 @@ pub(super) struct Compiled {
 type Cache = HashMap<(String, Vec<String>, bool), &'static Compiled>;
 static COMPILED: LazyLock<Mutex<Cache>> = LazyLock::new(Mutex::default);
 
+/// A declared volumetric energy U(J) compiled from its text ([`RuntimeLaw::with_volumetric_energy`]):
+/// kept for the life of the process like [`Compiled`], shared by every law with that
+/// text and those parameter names.
+#[derive(Debug)]
+pub(super) struct CompiledVolumetric {
+    text: &'static str,
+    /// U, U′, U″ (exact functions).
+    exact: Tape,
+    /// U, U′ (fast functions).
+    fast: Tape,
+    /// `(name, expression)` of U, U′, U″, for people.
+    printed: Vec<(String, String)>,
+}
+
+/// The compiled volumetric energies made so far, by (text, parameter names).
+type VolumetricCache = HashMap<(String, Vec<String>), &'static CompiledVolumetric>;
+static COMPILED_VOLUMETRIC: LazyLock<Mutex<VolumetricCache>> = LazyLock::new(Mutex::default);
+
 /// An invariant law w(I1, I2, J) declared at run time by its energy, in the
 /// language of `#[heml::material]`'s `#[energy(...)]`:
 ///
@@ -81,6 +99,8 @@ static COMPILED: LazyLock<Mutex<Cache>> = LazyLock::new(Mutex::default);
 pub struct RuntimeLaw {
     /// `None`: the zero law of [`MaterialInfo::from_params`].
     compiled: Option<&'static Compiled>,
+    /// The declared volumetric energy, if any ([`Self::with_volumetric_energy`]).
+    volumetric: Option<&'static CompiledVolumetric>,
     values: [f64; MAX_PARAMS],
 }
 
@@ -94,6 +114,7 @@ impl std::fmt::Debug for RuntimeLaw {
             .collect();
         f.debug_struct("RuntimeLaw")
             .field("energy", &self.energy())
+            .field("volumetric", &self.volumetric_energy())
             .field("params", &params)
             .finish()
     }
@@ -140,6 +161,7 @@ impl RuntimeLaw {
         }
         let law = Self {
             compiled: Some(compiled),
+            volumetric: None,
             values,
         };
         law.finite_at_rest().map_err(bad)?;
@@ -147,6 +169,96 @@ impl RuntimeLaw {
             crate::warn_once::warn_once(&w);
         }
         Ok(law)
+    }
+
+    /// This law with its volumetric energy U(J) declared by `text` (over J and the
+    /// law's parameters), as a compiled law's `#[volumetric(...)]`: the anti-locking
+    /// formulations (`volumetric = "nodal"` or `"patch"`) then evaluate U at averaged
+    /// volume ratios and leave w − U(J) on the element, instead of taking U along pure
+    /// dilations (a cube root and a second evaluation of the law per tet):
+    ///
+    /// ```
+    /// use heml_core::{Params, RuntimeLaw, InvariantLaw};
+    /// let law = RuntimeLaw::from_energy(
+    ///     "c10*(I1bar-3) + kappa/2*(J-1).powi(2)",
+    ///     &Params::from([("c10", 1.0e3), ("kappa", 1.0e5)]),
+    /// )?
+    /// .with_volumetric_energy("kappa/2*(J-1).powi(2)")?;
+    /// assert_eq!(law.volumetric(1.5), Some([0.125e5, 0.5e5, 1.0e5])); // U, U′, U″
+    /// // U must vanish with its slope at rest and curve like the law's bulk modulus:
+    /// assert!(law.with_volumetric_energy("kappa/2*(J-1)").is_err());
+    /// assert!(law.with_volumetric_energy("kappa*(J-1).powi(2)").is_err());
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    ///
+    /// Errors point into the text (column) as [`Self::from_energy`]'s do; an
+    /// invariant in it is one (U depends on J and the parameters only). U is then
+    /// checked at rest with the law's values: U(1) = U′(1) = 0 and U″(1) = K0, the
+    /// law's bulk modulus along pure dilations, to 1e-9 relative (what removes
+    /// locking without changing the law's small-strain stiffness; the registry's
+    /// tests hold every compiled law's declaration to the same).
+    pub fn with_volumetric_energy(self, text: &str) -> Result<Self> {
+        let bad = |problem: String| HemlError::Invalid(format!("volumetric energy {}: {problem}", quoted(text)));
+        let Some(c) = self.compiled else {
+            return Err(bad("the zero law has no volumetric energy to declare".into()));
+        };
+        let names: Vec<String> = c.params.iter().map(|p| p.name.to_string()).collect();
+        let v = compile_volumetric(text, names).map_err(bad)?;
+        let law = Self {
+            volumetric: Some(v),
+            ..self
+        };
+        law.volumetric_at_rest().map_err(bad)?;
+        Ok(law)
+    }
+
+    /// The declared volumetric energy's text, if any ([`Self::with_volumetric_energy`]).
+    pub fn volumetric_energy(&self) -> Option<&'static str> {
+        self.volumetric.map(|v| v.text)
+    }
+
+    /// U, U′ and U″ of the declared volumetric energy as text, `(name, expression)`
+    /// (empty when none is declared): what `heml materials --volumetric-energy`
+    /// prints.
+    pub fn volumetric_derivatives(&self) -> &'static [(String, String)] {
+        self.volumetric.map_or(&[], |v| &v.printed)
+    }
+
+    /// An error unless the declared U has U(1) = U′(1) = 0 and U″(1) = K0 (the law
+    /// along pure dilations) with this law's values, to 1e-9 of the larger of K0,
+    /// U″(1) and the shear modulus.
+    fn volumetric_at_rest(&self) -> std::result::Result<(), String> {
+        let Some([u, u1, u2]) = self.volumetric(1.0) else {
+            return Ok(());
+        };
+        let plain = Self {
+            volumetric: None,
+            ..*self
+        };
+        let dilation = crate::force::Dilation::new(plain);
+        let k0 = dilation.along_dilations(1.0).2;
+        let scale = k0.abs().max(u2.abs()).max(dilation.shear_modulus().abs());
+        // the declared U and the dilation are different expressions of the same
+        // numbers at rest: only round-off separates them (1e-9 leaves 10⁶ ulps)
+        let tol = 1e-9 * scale;
+        let with = crate::registry::with_values(self.param_info(), self.values(), "");
+        let problem = if !(u.is_finite() && u1.is_finite() && u2.is_finite()) {
+            Some("is not finite at rest")
+        } else if u.abs() > tol || u1.abs() > tol {
+            Some("must vanish with its slope at rest")
+        } else if (u2 - k0).abs() > tol {
+            Some("must have the law's bulk modulus as its curvature at rest")
+        } else {
+            None
+        };
+        match problem {
+            None => Ok(()),
+            Some(what) => Err(format!(
+                "{what}: U(1) = {u}, U'(1) = {u1}, U''(1) = {u2}, where the law along pure dilations has \
+                 U''(1) = K0 = {k0} ({with}); a volumetric energy needs U(1) = U'(1) = 0 and U''(1) = K0, \
+                 e.g. K0/2*(J-1).powi(2) written with the law's parameters"
+            )),
+        }
     }
 
     /// The energy and the stress factor 2w₁ + 4w₂ + w_J of P = (2w₁ + 4w₂ + w_J)·I at
@@ -317,6 +429,35 @@ fn compile(text: &str, names: Vec<String>, inversion_fix: bool) -> std::result::
     Ok(compiled)
 }
 
+/// The compiled form of the volumetric energy `text` over `names`, made once per
+/// process.
+fn compile_volumetric(text: &str, names: Vec<String>) -> std::result::Result<&'static CompiledVolumetric, String> {
+    let key = (text.to_string(), names);
+    let mut cache = COMPILED_VOLUMETRIC
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    if let Some(&c) = cache.get(&key) {
+        return Ok(c);
+    }
+    let (text, names) = &key;
+    let k = heml_symbolic::source::volumetric_kernels(text, names).map_err(|e| e.to_string())?;
+    let (g, d) = (&k.graph, &k.plain);
+    let show = |id| heml_symbolic::print::infix(g, id, names);
+    let compiled = CompiledVolumetric {
+        text: Box::leak(text.clone().into_boxed_str()),
+        exact: Tape::new(g, &[d.w, d.grad[2], d.hess[2][2]], names.len()),
+        fast: Tape::new(g, &[d.w, d.grad[2]], names.len()),
+        printed: vec![
+            ("U".to_string(), show(d.w)),
+            ("dU/dJ".to_string(), show(d.grad[2])),
+            ("d2U/dJ2".to_string(), show(d.hess[2][2])),
+        ],
+    };
+    let compiled: &'static CompiledVolumetric = Box::leak(Box::new(compiled));
+    cache.insert(key.clone(), compiled);
+    Ok(compiled)
+}
+
 /// Whether w depends on parameter `i`.
 fn uses_param(k: &InvariantKernels, i: usize) -> bool {
     let seen = k.graph.reachable(&[k.plain.w]);
@@ -352,6 +493,9 @@ impl MaterialInfo for RuntimeLaw {
     const ENERGY: &'static str = "";
     const DOC: &'static str = "A law declared at run time by its energy (`RuntimeLaw::from_energy`).";
 
+    fn params_of(&self) -> &'static [ParamInfo] {
+        self.param_info()
+    }
     fn to_params(&self) -> Vec<f64> {
         self.values().to_vec()
     }
@@ -362,6 +506,7 @@ impl MaterialInfo for RuntimeLaw {
     fn from_params(_values: &[f64]) -> Self {
         Self {
             compiled: None,
+            volumetric: None,
             values: [0.0; MAX_PARAMS],
         }
     }
@@ -405,6 +550,32 @@ impl InvariantLaw for RuntimeLaw {
     }
     fn dw_ext_fast(&self, i1: f64, i2: f64, j: f64, j0: f64) -> Derivs {
         self.derivs::<true>(true, i1, i2, j, j0)
+    }
+
+    /// The declared volumetric energy's exact tape ([`Self::with_volumetric_energy`]).
+    fn volumetric(&self, j: f64) -> Option<[f64; 3]> {
+        let v = self.volumetric?;
+        Some(
+            v.exact
+                .run::<1, false, _>([[3.0], [3.0], [j], [0.0]], &self.values, |o| {
+                    [o.get(0)[0], o.get(1)[0], o.get(2)[0]]
+                }),
+        )
+    }
+    #[inline]
+    fn volumetric_fast(&self, j: f64) -> Option<(f64, f64)> {
+        self.volumetric_lanes(&[j]).map(|[u, u1]| (u[0], u1[0]))
+    }
+    /// The declared volumetric energy's fast tape over all lanes at once.
+    #[inline]
+    fn volumetric_lanes<const N: usize>(&self, j: &[f64; N]) -> Option<[[f64; N]; 2]> {
+        let v = self.volumetric?;
+        Some(
+            v.fast
+                .run::<N, true, _>([[3.0; N], [3.0; N], *j, [0.0; N]], &self.values, |o| {
+                    [o.get(0), o.get(1)]
+                }),
+        )
     }
 
     /// The fast value-and-gradient tape over all lanes at once.

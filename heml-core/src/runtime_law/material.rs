@@ -6,7 +6,7 @@ use super::RuntimeLaw;
 use crate::error::Result;
 use crate::force::{ElasticForces, ForceOptions, TangentOperator};
 use crate::law::{Derivs, InvariantLaw, LawKind, MaterialInfo, OpCount, ParamInfo};
-use crate::material::{Invariant, Material};
+use crate::material::{Invariant, Material, Volumetric};
 use crate::mesh::TetMesh;
 use nalgebra::Matrix3;
 
@@ -65,6 +65,14 @@ impl Material for RuntimeLaw {
     ) -> Result<Option<Box<dyn TangentOperator>>> {
         Invariant(*self).tangent(mesh, tets, opts, project_psd)
     }
+    /// The anti-locking formulations of any invariant law, with the declared
+    /// volumetric energy when there is one ([`RuntimeLaw::with_volumetric_energy`]).
+    fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
+        match self.without_i2() {
+            Some(law) => Invariant(law).with_volumetric(v),
+            None => Invariant(*self).with_volumetric(v),
+        }
+    }
 }
 
 impl RuntimeLaw {
@@ -86,6 +94,9 @@ impl MaterialInfo for WithoutI2 {
     const PARAMS: &'static [ParamInfo] = RuntimeLaw::PARAMS;
     const ENERGY: &'static str = RuntimeLaw::ENERGY;
     const DOC: &'static str = RuntimeLaw::DOC;
+    fn params_of(&self) -> &'static [ParamInfo] {
+        self.0.params_of()
+    }
     fn to_params(&self) -> Vec<f64> {
         self.0.to_params()
     }
@@ -128,5 +139,16 @@ impl InvariantLaw for WithoutI2 {
     #[inline]
     fn dw_lanes<const N: usize>(&self, i1: &[f64; N], i2: &[f64; N], j: &[f64; N]) -> [[f64; N]; 4] {
         self.0.dw_lanes(i1, i2, j)
+    }
+    fn volumetric(&self, j: f64) -> Option<[f64; 3]> {
+        InvariantLaw::volumetric(&self.0, j)
+    }
+    #[inline]
+    fn volumetric_fast(&self, j: f64) -> Option<(f64, f64)> {
+        self.0.volumetric_fast(j)
+    }
+    #[inline]
+    fn volumetric_lanes<const N: usize>(&self, j: &[f64; N]) -> Option<[[f64; N]; 2]> {
+        self.0.volumetric_lanes(j)
     }
 }

@@ -598,8 +598,21 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec, mesh: &
         }
     }
     crate::system::validate_prony(&m.prony).map_err(|e| HemlError::Invalid(format!("prony: {e}")))?;
+    if m.volumetric_energy.is_some() && m.energy.is_none() {
+        return Err(HemlError::Invalid(format!(
+            "[[material]] gives volumetric_energy with law = \"{}\": it declares the volumetric energy of a \
+             law given as `energy`; a registry law declares its own or none (`heml materials` shows it)",
+            m.law
+        )));
+    }
     let law = match &m.energy {
-        Some(energy) if m.law.is_empty() => Box::new(crate::RuntimeLaw::from_energy(energy, &m.params)?),
+        Some(energy) if m.law.is_empty() => {
+            let law = crate::RuntimeLaw::from_energy(energy, &m.params)?;
+            Box::new(match &m.volumetric_energy {
+                Some(u) => law.with_volumetric_energy(u)?,
+                None => law,
+            })
+        }
         Some(_) => {
             return Err(HemlError::Invalid(format!(
                 "[[material]] gives both law = \"{}\" and energy: give one of them",

@@ -131,6 +131,11 @@ pub struct MaterialSpec {
     /// compiled at load time ([`crate::RuntimeLaw`]), in place of `law`; its
     /// parameters are the names in `params`.
     pub energy: Option<String>,
+    /// With `energy`: the law's volumetric energy U(J) as text (J and the names in
+    /// `params`), which `volumetric = "nodal"` or `"patch"` evaluate at averaged
+    /// volume ratios instead of the law along pure dilations
+    /// ([`crate::RuntimeLaw::with_volumetric_energy`]).
+    pub volumetric_energy: Option<String>,
     /// Parameters by name; laws with exactly `mu`, `lambda` also accept `E`, `nu`.
     #[serde(default)]
     pub params: Params,

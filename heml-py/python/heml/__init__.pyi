@@ -34,9 +34,12 @@ def integrators() -> list[tuple[str, str]]:
 def material(name: str, **params: float) -> Material:
     """The law `name` with keyword parameters (E/nu accepted where the law maps them)."""
 
-def material_from_energy(energy: str, *, inversion_fix: bool = True, **params: float) -> Material:
+def material_from_energy(
+    energy: str, *, volumetric_energy: str | None = None, inversion_fix: bool = True, **params: float
+) -> Material:
     """A law declared at run time by its strain energy over the keyword parameters;
-    a mistake in the text raises HemlError with the column."""
+    a mistake in the text raises HemlError with the column. `volumetric_energy`
+    declares its volumetric energy U(J) for the anti-locking formulations."""
 
 def read_mesh(path: _Path) -> Mesh:
     """Reads a .msh/.vtk/.vtu/.node/.ele/.mesh file and validates it."""
@@ -64,6 +67,13 @@ class Material:
     @property
     def params(self) -> dict[str, float]:
         """Resolved parameter values by name."""
+    @property
+    def volumetric(self) -> str:
+        """How the volumetric energy is discretised: "element", "nodal (...)" or "patch (...)"."""
+    def with_volumetric(
+        self, formulation: Literal["element", "nodal", "patch"], stabilization: float | None = None
+    ) -> Material:
+        """This law with the anti-locking "nodal" or "patch" volumetric term (or "element")."""
     def force_field(
         self, mesh: Mesh, tets: Sequence[int] | None = None, *, j0: float = 0.4, inversion_fix: bool = True
     ) -> ForceField:

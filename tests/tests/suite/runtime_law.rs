@@ -2,7 +2,7 @@
 //! with the same energy text, on every evaluation path, and their errors.
 
 use heml::force::{Assembly, HemlField, P1Field, TangentField, TangentOperator};
-use heml::law::{InvariantLaw, Material, MaterialInfo};
+use heml::law::{InvariantLaw, Material, MaterialInfo, Volumetric};
 use heml::materials::*;
 use heml::nalgebra::Matrix3;
 use heml::prelude::*;
@@ -307,7 +307,8 @@ duration = 0.01
 "#;
 
 /// A scene's `energy = "..."` material steps exactly as the registered law with
-/// the same energy; bad materials are errors naming the material and the column.
+/// the same energy, also with the patch term and a `volumetric_energy`; bad
+/// materials are errors naming the material and the column.
 #[test]
 fn scenes_accept_an_energy_in_place_of_a_law() {
     let _ = heml::materials_list();
@@ -341,4 +342,126 @@ fn scenes_accept_an_energy_in_place_of_a_law() {
     assert!(e.contains("give one of them"), "{e}");
     let e = err("density = 1000.0");
     assert!(e.contains("needs `law`"), "{e}");
+    // the anti-locking patch term, the runtime law with neo-Hookean's declared U
+    let patch = "\nvolumetric = \"patch\"";
+    let compiled = run(&format!("law = \"neo_hookean\"{patch}"));
+    let u = NeoHookean::VOLUMETRIC.unwrap();
+    let runtime = run(&format!(
+        "energy = \"{}\"\nvolumetric_energy = \"{u}\"{patch}",
+        NeoHookean::ENERGY
+    ));
+    assert!(max_diff(&compiled, &runtime) <= 1e-12 * moved);
+    let e = err(&format!("law = \"neo_hookean\"\nvolumetric_energy = \"{u}\""));
+    assert!(
+        e.contains("[[material]] #1") && e.contains("law given as `energy`"),
+        "{e}"
+    );
+    let e = err(&format!(
+        "energy = \"{}\"\nvolumetric_energy = \"mu*(J - 1)\"",
+        NeoHookean::ENERGY
+    ));
+    assert!(
+        e.contains("[[material]] #1") && e.contains("must vanish with its slope"),
+        "{e}"
+    );
+}
+
+/// A runtime law declaring its volumetric energy with the compiled law's
+/// `#[volumetric(...)]` text equals the compiled law in the anti-locking fields
+/// (nodal and patch, batched and reference paths), forces and energy, on a
+/// deformed jittered box with an inverted tet: the split uses the declared U. For
+/// neo-Hookean, whose declared U (K0/2·ln²J) is not the law along dilations, the
+/// runtime law *without* it differs from the compiled one by far more than
+/// round-off, so the comparison does see which U the split took.
+fn check_volumetric_equal<M: InvariantLaw>(seed: u64, differs_without: bool) {
+    let mut rng = rng(seed);
+    let mesh = jittered_box(&mut rng, [5, 4, 3]);
+    let mut x = random_deformation(&mut rng, &mesh, 0.7, 1.3, 0.05);
+    invert_first_tet(&mesh, &mut x, 0.3);
+    let (compiled, plain) = pair::<M>(&mut rng);
+    let text = M::VOLUMETRIC.unwrap_or_else(|| panic!("{} declares no volumetric energy", M::NAME));
+    let declared = plain.with_volumetric_energy(text).unwrap();
+    assert_eq!(declared.volumetric_energy(), Some(text));
+    let opts = ForceOptions::default();
+    for v in [Volumetric::nodal(), Volumetric::patch(6)] {
+        let run = |m: &dyn Material, assembly: Assembly| {
+            let mut field = m.with_volumetric(v).unwrap().force_field(&mesh, None, &opts).unwrap();
+            field.set_assembly(assembly);
+            field.forces(&x).unwrap()
+        };
+        for assembly in [Assembly::Batched, Assembly::Reference] {
+            let (ec, fc) = run(compiled.as_ref(), assembly);
+            let (er, fr) = run(&declared, assembly);
+            // [`TOL`]: the tapes of w and U against the generated code, summed at
+            // the nodes in the same order; relative to the largest nodal force
+            let err = max_diff(&fc, &fr) / max_norm(&fc);
+            assert!(err <= TOL, "{} ({v}, {assembly:?}): forces differ by {err:e}", M::NAME);
+            assert!(
+                (ec - er).abs() <= TOL * ec.abs(),
+                "{} ({v}): energy {ec} vs {er}",
+                M::NAME
+            );
+            if differs_without {
+                let (_, fp) = run(&plain, assembly);
+                let err = max_diff(&fc, &fp) / max_norm(&fc);
+                assert!(
+                    err > 1e-6,
+                    "{} ({v}): the dilation's U gives the same forces ({err:e})",
+                    M::NAME
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn runtime_laws_with_a_declared_volumetric_energy_equal_the_compiled_laws() {
+    check_volumetric_equal::<NeoHookean>(21, true);
+    check_volumetric_equal::<MooneyRivlin>(22, false);
+    check_volumetric_equal::<Gent>(23, false);
+}
+
+/// A declared volumetric energy must be a function of J and the law's parameters
+/// with U(1) = U′(1) = 0 and U″(1) = K0 at the law's values; each mistake is an
+/// error saying which, with the numbers (or the column).
+#[test]
+fn a_wrong_volumetric_energy_is_an_error_that_says_why() {
+    let law = RuntimeLaw::from_energy(
+        "c10*(I1bar - 3) + kappa/2*(J - 1).powi(2)",
+        &Params::from([("c10", 1.0e3), ("kappa", 1.0e5)]),
+    )
+    .unwrap();
+    let error = |u: &str| law.with_volumetric_energy(u).unwrap_err().to_string();
+    let e = error("kappa/2*(J - 1).powi(2) + kappa");
+    assert!(
+        e.contains("must vanish with its slope") && e.contains("U(1) = 100000"),
+        "{e}"
+    );
+    let e = error("kappa*(J - 1)");
+    assert!(
+        e.contains("must vanish with its slope") && e.contains("U'(1) = 100000"),
+        "{e}"
+    );
+    let e = error("kappa*(J - 1).powi(2)");
+    assert!(
+        e.contains("bulk modulus") && e.contains("U''(1) = 200000") && e.contains("K0 = 100000"),
+        "{e}"
+    );
+    // J and the parameters only: an invariant, or a name the law does not have,
+    // is an error at its column
+    let e = error("kappa/2*(J - 1).powi(2) + I1bar");
+    assert!(
+        e.contains("column 27") && e.contains("not available in a volumetric energy"),
+        "{e}"
+    );
+    let e = error("k/2*(J - 1).powi(2)");
+    assert!(e.contains("column 1") && e.contains("unknown identifier `k`"), "{e}");
+    // U″(1) = K0 holds for these values only: the check runs with the law's values
+    let other = RuntimeLaw::from_energy(
+        "c10*(I1bar - 3) + kappa/2*(J - 1).powi(2)",
+        &Params::from([("c10", 1.0e3), ("kappa", 2.0e5)]),
+    )
+    .unwrap();
+    assert!(other.with_volumetric_energy("1e5/2*(J - 1).powi(2)").is_err());
+    assert!(law.with_volumetric_energy("1e5/2*(J - 1).powi(2)").is_ok());
 }

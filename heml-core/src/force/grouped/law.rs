@@ -146,10 +146,10 @@ impl<M: InvariantLaw> GroupLaw<M> {
                 plain &= vq[l] > 0.0 && !opts.extend(M::INVERSION_FIX, j[l]);
             }
             if plain {
+                let [u, u1] = vol.value_slope_lanes(&j);
                 for l in 0..GROUP_LANES {
-                    let (u, u1) = vol.value_slope_plain(j[l]);
-                    e[l] += vq[l] * u;
-                    pq[l] = c * u1;
+                    e[l] += vq[l] * u[l];
+                    pq[l] = c * u1[l];
                 }
             } else {
                 for l in 0..GROUP_LANES {
