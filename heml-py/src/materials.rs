@@ -58,6 +58,7 @@ pub fn material(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Mate
     Ok(Material {
         law: Arc::from(build_law(name, params)?),
         energy: None,
+        volumetric_energy: None,
     })
 }
 
@@ -90,6 +91,7 @@ pub fn material_from_energy(
     Ok(Material {
         law: Arc::new(law),
         energy: Some(energy.to_string()),
+        volumetric_energy: volumetric_energy.map(str::to_string),
     })
 }
 
@@ -114,12 +116,21 @@ fn to_params(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Params>
     Ok(p)
 }
 
+/// Python's keywords, which cannot be keyword-argument names.
+const PYTHON_KEYWORDS: &[&str] = &[
+    "False", "None", "True", "and", "as", "assert", "async", "await", "break", "class", "continue", "def", "del",
+    "elif", "else", "except", "finally", "for", "from", "global", "if", "import", "in", "is", "lambda", "nonlocal",
+    "not", "or", "pass", "raise", "return", "try", "while", "with", "yield",
+];
+
 /// A hyperelastic law with its parameter values (from `heml.material`).
 #[pyclass(frozen, module = "heml")]
 pub struct Material {
     pub(crate) law: Arc<dyn heml::prelude::Material>,
     /// The energy text of a law from `heml.material_from_energy`.
     pub(crate) energy: Option<String>,
+    /// Its declared volumetric energy (`volumetric_energy=`), for the repr.
+    pub(crate) volumetric_energy: Option<String>,
 }
 
 #[pymethods]
@@ -171,6 +182,7 @@ impl Material {
         Ok(Material {
             law: Arc::from(self.law.with_volumetric(v).py()?),
             energy: self.energy.clone(),
+            volumetric_energy: self.volumetric_energy.clone(),
         })
     }
 
@@ -183,17 +195,36 @@ impl Material {
         ForceField::new(self.law.clone(), mesh.inner.clone(), tets, opts)
     }
 
+    /// Python that builds this law again: the parameters as keyword arguments,
+    /// those named like a Python keyword (`lambda`) in a `**{...}` dict.
     fn __repr__(&self) -> String {
-        let params: Vec<String> = self
-            .law
-            .param_info()
-            .iter()
-            .zip(self.law.param_values())
-            .map(|(i, v)| format!("{}={v}", i.name))
-            .collect();
-        match &self.energy {
-            Some(energy) => format!("heml.material_from_energy({energy:?}, {})", params.join(", ")),
-            None => format!("heml.material({:?}, {})", self.law.name(), params.join(", ")),
+        let (mut params, mut keywords) = (Vec::new(), Vec::new());
+        for (info, v) in self.law.param_info().iter().zip(self.law.param_values()) {
+            if PYTHON_KEYWORDS.contains(&info.name) {
+                keywords.push(format!("{:?}: {v:?}", info.name));
+            } else {
+                params.push(format!("{}={v:?}", info.name));
+            }
+        }
+        if !keywords.is_empty() {
+            params.push(format!("**{{{}}}", keywords.join(", ")));
+        }
+        let law = match (&self.energy, &self.volumetric_energy) {
+            (Some(energy), Some(u)) => format!(
+                "heml.material_from_energy({energy:?}, volumetric_energy={u:?}, {})",
+                params.join(", ")
+            ),
+            (Some(energy), None) => format!("heml.material_from_energy({energy:?}, {})", params.join(", ")),
+            _ => format!("heml.material({:?}, {})", self.law.name(), params.join(", ")),
+        };
+        match self.law.volumetric() {
+            heml::law::Volumetric::Element => law,
+            heml::law::Volumetric::Nodal { stabilization } => {
+                format!("{law}.with_volumetric(\"nodal\", {stabilization:?})")
+            }
+            heml::law::Volumetric::Patch { stabilization, .. } => {
+                format!("{law}.with_volumetric(\"patch\", {stabilization:?})")
+            }
         }
     }
 }

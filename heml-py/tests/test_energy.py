@@ -70,6 +70,12 @@ def test_anti_locking_runtime_law_with_its_volumetric_energy():
         assert law.volumetric.startswith(formulation) and built_in.volumetric == "element"
         e_ref, f_ref = law.force_field(mesh).forces(x)
         anti_locking = declared.with_volumetric(formulation)
+        # the repr is Python that builds the same law (`lambda` is a keyword: in a dict)
+        assert repr(anti_locking).endswith(
+            f'volumetric_energy="{u}", mu=1000.0, **{{"lambda": 9000.0}}).with_volumetric("{formulation}", 0.1)'
+        )
+        rebuilt = eval(repr(anti_locking), {"heml": heml})
+        assert np.array_equal(rebuilt.force_field(mesh).forces(x)[1], anti_locking.force_field(mesh).forces(x)[1])
         assert anti_locking.params == {"lambda": lam, "mu": mu} and anti_locking.energy == NEO_HOOKEAN
         e, f = anti_locking.force_field(mesh).forces(x)
         scale = np.abs(f_ref).max()
