@@ -492,7 +492,7 @@ fn bench_implicit_steps_at_the_given_dt() {
 #[test]
 fn materials_energy_checks_and_differentiates_a_text() {
     let energy = "mu/2*(I1-3) - mu*ln(J) + lambda/2*ln(J).powi(2)";
-    let (ok, out, err) = heml(&[
+    let law = [
         "materials",
         "--energy",
         energy,
@@ -500,7 +500,8 @@ fn materials_energy_checks_and_differentiates_a_text() {
         "mu=2",
         "--param",
         "lambda=4",
-    ]);
+    ];
+    let (ok, out, err) = heml(&law);
     assert!(ok, "{err}");
     assert!(out.contains("parameters: lambda = 4, mu = 2"), "{out}");
     assert!(out.contains("dw/dI1     = mu*0.5"), "{out}");
@@ -516,15 +517,6 @@ fn materials_energy_checks_and_differentiates_a_text() {
     ]);
     assert!(!ok && err.contains("column 16: unsupported operator"), "{err}");
     // a declared volumetric energy: checked against the law's bulk modulus, printed
-    let law = [
-        "materials",
-        "--energy",
-        energy,
-        "--param",
-        "mu=2",
-        "--param",
-        "lambda=4",
-    ];
     let (ok, out, err) = heml(&[&law[..], &["--volumetric-energy", "(lambda + 2*mu/3)/2*ln(J).powi(2)"]].concat());
     assert!(ok, "{err}");
     // K0 = λ + 2μ/3 = 16/3
