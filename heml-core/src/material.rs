@@ -97,6 +97,87 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     }
 }
 
+/// A shared material is a material: every method is the shared law's, so one law
+/// value (a `heml.Material` in Python, held by reference count) can serve several
+/// systems or regions as it is — a law declared at run time, its volumetric
+/// formulation and its fibres included — where rebuilding it by registry name
+/// would lose them.
+///
+/// ```
+/// use heml_core::material::{Material, Volumetric};
+/// use std::sync::Arc;
+/// let law: Arc<dyn Material> = Arc::from(
+///     heml_core::RuntimeLaw::from_energy("mu*(I1-3) + mu*(J-1).powi(2) - 2*mu*ln(J)", &heml_core::Params::from([("mu", 1.0)]))?
+///         .with_volumetric(Volumetric::patch(6))?,
+/// );
+/// let shared: Box<dyn Material> = Box::new(law.clone());
+/// assert_eq!((shared.name(), shared.volumetric()), ("energy", law.volumetric()));
+/// # Ok::<(), heml_core::HemlError>(())
+/// ```
+impl Material for Arc<dyn Material> {
+    fn name(&self) -> &'static str {
+        (**self).name()
+    }
+    fn kind(&self) -> LawKind {
+        (**self).kind()
+    }
+    fn param_info(&self) -> &'static [ParamInfo] {
+        (**self).param_info()
+    }
+    fn param_values(&self) -> Vec<f64> {
+        (**self).param_values()
+    }
+    fn ops(&self) -> OpCount {
+        (**self).ops()
+    }
+    fn uses(&self) -> (bool, bool) {
+        (**self).uses()
+    }
+    fn force_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Box<dyn ElasticForces>> {
+        (**self).force_field(mesh, tets, opts)
+    }
+    fn fem_field(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+    ) -> Result<Option<Box<dyn ElasticForces>>> {
+        (**self).fem_field(mesh, tets, opts)
+    }
+    fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
+        (**self).stress(f, opts)
+    }
+    fn tangent(
+        &self,
+        mesh: &TetMesh,
+        tets: Option<&[usize]>,
+        opts: &ForceOptions,
+        project_psd: bool,
+    ) -> Result<Option<Box<dyn TangentOperator>>> {
+        (**self).tangent(mesh, tets, opts, project_psd)
+    }
+    fn fibre_families(&self) -> usize {
+        (**self).fibre_families()
+    }
+    fn with_fibres(&self, fibres: Arc<Fibres>) -> Result<Box<dyn Material>> {
+        (**self).with_fibres(fibres)
+    }
+    fn volumetric(&self) -> Volumetric {
+        (**self).volumetric()
+    }
+    fn coupled_groups(&self, mesh: &TetMesh, tets: Option<&[usize]>) -> Result<Option<Vec<Vec<u32>>>> {
+        (**self).coupled_groups(mesh, tets)
+    }
+    fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
+        (**self).with_volumetric(v)
+    }
+}
+
 /// How a law's volumetric energy is discretised on linear tets.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Volumetric {

@@ -73,13 +73,9 @@ fn law_of(obj: &Bound<'_, PyAny>, params: Option<&Bound<'_, PyDict>>) -> PyResul
                 "params are given with a Material object: pass either heml.material(name, **params) or a law name with params",
             ));
         }
-        // the law's resolved values, rebuilt through the registry (laws are not Clone)
-        let law = &m.get().law;
-        let mut p = heml::Params::new();
-        for (info, v) in law.param_info().iter().zip(law.param_values()) {
-            p.set(info.name, v);
-        }
-        return heml::material(law.name(), &p).py();
+        // the law itself, shared: a law declared at run time and its volumetric
+        // formulation are kept (rebuilding it by registry name would lose them)
+        return Ok(Box::new(m.get().law.clone()));
     }
     let name: String = obj
         .extract()
