@@ -384,78 +384,85 @@ impl RuntimeLaw {
 
 /// The compiled form of `text` over `names`, made once per process.
 fn compile(text: &str, names: Vec<String>, inversion_fix: bool) -> std::result::Result<&'static Compiled, String> {
-    let key = (text.to_string(), names, inversion_fix);
-    // a panic elsewhere while holding the lock leaves a consistent map (inserts are atomic)
-    let mut cache = COMPILED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    if let Some(&c) = cache.get(&key) {
-        return Ok(c);
-    }
-    let (text, names, inversion_fix) = &key;
-    let k = heml_symbolic::source::invariant_kernels(text, names, *inversion_fix).map_err(|e| e.to_string())?;
-    let unused: Vec<&str> = names
-        .iter()
-        .enumerate()
-        .filter(|&(i, _)| !uses_param(&k, i))
-        .map(|(_, n)| n.as_str())
-        .collect();
-    if !unused.is_empty() {
-        return Err(format!(
-            "parameter(s) {} given but not used by the energy",
-            unused.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")
-        ));
-    }
-    let n = names.len();
-    let leak = |s: &str| -> &'static str { Box::leak(s.to_string().into_boxed_str()) };
-    let params: Vec<ParamInfo> = names
-        .iter()
-        .map(|name| ParamInfo {
-            name: leak(name),
-            doc: "",
-            signed: true,
-        })
-        .collect();
-    let printed = print(&k, names);
-    let compiled = Compiled {
-        text: leak(text),
-        params: Box::leak(params.into_boxed_slice()),
-        uses_i2: k.uses_i2,
-        uses_j: k.uses_j,
-        plain: Tapes::new(&k.graph, &k.plain, n),
-        ext: k.ext.as_ref().map(|d| Tapes::new(&k.graph, d, n)),
-        printed,
-    };
-    let compiled: &'static Compiled = Box::leak(Box::new(compiled));
-    cache.insert(key.clone(), compiled);
-    Ok(compiled)
+    cached(
+        &COMPILED,
+        (text.to_string(), names, inversion_fix),
+        |(text, names, inversion_fix)| {
+            let k = heml_symbolic::source::invariant_kernels(text, names, *inversion_fix).map_err(|e| e.to_string())?;
+            let unused: Vec<&str> = names
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| !uses_param(&k, i))
+                .map(|(_, n)| n.as_str())
+                .collect();
+            if !unused.is_empty() {
+                return Err(format!(
+                    "parameter(s) {} given but not used by the energy",
+                    unused.iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")
+                ));
+            }
+            let n = names.len();
+            let params: Vec<ParamInfo> = names
+                .iter()
+                .map(|name| ParamInfo {
+                    name: leak(name),
+                    doc: "",
+                    signed: true,
+                })
+                .collect();
+            Ok(Compiled {
+                text: leak(text),
+                params: Box::leak(params.into_boxed_slice()),
+                uses_i2: k.uses_i2,
+                uses_j: k.uses_j,
+                plain: Tapes::new(&k.graph, &k.plain, n),
+                ext: k.ext.as_ref().map(|d| Tapes::new(&k.graph, d, n)),
+                printed: print(&k, names),
+            })
+        },
+    )
 }
 
 /// The compiled form of the volumetric energy `text` over `names`, made once per
 /// process.
 fn compile_volumetric(text: &str, names: Vec<String>) -> std::result::Result<&'static CompiledVolumetric, String> {
-    let key = (text.to_string(), names);
-    let mut cache = COMPILED_VOLUMETRIC
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner());
-    if let Some(&c) = cache.get(&key) {
-        return Ok(c);
+    cached(&COMPILED_VOLUMETRIC, (text.to_string(), names), |(text, names)| {
+        let k = heml_symbolic::source::volumetric_kernels(text, names).map_err(|e| e.to_string())?;
+        let (g, d) = (&k.graph, &k.plain);
+        let show = |id| heml_symbolic::print::infix(g, id, names);
+        Ok(CompiledVolumetric {
+            text: leak(text),
+            exact: Tape::new(g, &[d.w, d.grad[2], d.hess[2][2]], names.len()),
+            fast: Tape::new(g, &[d.w, d.grad[2]], names.len()),
+            printed: vec![
+                ("U".to_string(), show(d.w)),
+                ("dU/dJ".to_string(), show(d.grad[2])),
+                ("d2U/dJ2".to_string(), show(d.hess[2][2])),
+            ],
+        })
+    })
+}
+
+/// The value of `cache` at `key`, made by `make` (and kept for the life of the
+/// process) the first time it is asked for; `make`'s errors are not cached.
+fn cached<K: std::hash::Hash + Eq, V>(
+    cache: &Mutex<HashMap<K, &'static V>>,
+    key: K,
+    make: impl FnOnce(&K) -> std::result::Result<V, String>,
+) -> std::result::Result<&'static V, String> {
+    // a panic elsewhere while holding the lock leaves a consistent map (inserts are atomic)
+    let mut cache = cache.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    if let Some(&v) = cache.get(&key) {
+        return Ok(v);
     }
-    let (text, names) = &key;
-    let k = heml_symbolic::source::volumetric_kernels(text, names).map_err(|e| e.to_string())?;
-    let (g, d) = (&k.graph, &k.plain);
-    let show = |id| heml_symbolic::print::infix(g, id, names);
-    let compiled = CompiledVolumetric {
-        text: Box::leak(text.clone().into_boxed_str()),
-        exact: Tape::new(g, &[d.w, d.grad[2], d.hess[2][2]], names.len()),
-        fast: Tape::new(g, &[d.w, d.grad[2]], names.len()),
-        printed: vec![
-            ("U".to_string(), show(d.w)),
-            ("dU/dJ".to_string(), show(d.grad[2])),
-            ("d2U/dJ2".to_string(), show(d.hess[2][2])),
-        ],
-    };
-    let compiled: &'static CompiledVolumetric = Box::leak(Box::new(compiled));
-    cache.insert(key.clone(), compiled);
-    Ok(compiled)
+    let v: &'static V = Box::leak(Box::new(make(&key)?));
+    cache.insert(key, v);
+    Ok(v)
+}
+
+/// `s` for the life of the process (the compiled forms' texts and names).
+fn leak(s: &str) -> &'static str {
+    Box::leak(s.to_string().into_boxed_str())
 }
 
 /// Whether w depends on parameter `i`.

@@ -37,10 +37,7 @@ impl Material for RuntimeLaw {
         tets: Option<&[usize]>,
         opts: &ForceOptions,
     ) -> Result<Box<dyn ElasticForces>> {
-        match self.without_i2() {
-            Some(law) => Invariant(law).force_field(mesh, tets, opts),
-            None => Invariant(*self).force_field(mesh, tets, opts),
-        }
+        self.typed(|law| law.force_field(mesh, tets, opts))
     }
     fn fem_field(
         &self,
@@ -48,10 +45,7 @@ impl Material for RuntimeLaw {
         tets: Option<&[usize]>,
         opts: &ForceOptions,
     ) -> Result<Option<Box<dyn ElasticForces>>> {
-        match self.without_i2() {
-            Some(law) => Invariant(law).fem_field(mesh, tets, opts),
-            None => Invariant(*self).fem_field(mesh, tets, opts),
-        }
+        self.typed(|law| law.fem_field(mesh, tets, opts))
     }
     fn stress(&self, f: &Matrix3<f64>, opts: &ForceOptions) -> Option<(f64, Matrix3<f64>)> {
         Invariant(*self).stress(f, opts)
@@ -68,17 +62,20 @@ impl Material for RuntimeLaw {
     /// The anti-locking formulations of any invariant law, with the declared
     /// volumetric energy when there is one ([`RuntimeLaw::with_volumetric_energy`]).
     fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
-        match self.without_i2() {
-            Some(law) => Invariant(law).with_volumetric(v),
-            None => Invariant(*self).with_volumetric(v),
-        }
+        self.typed(|law| law.with_volumetric(v))
     }
 }
 
 impl RuntimeLaw {
-    /// The law seen as not depending on I2, when its energy does not.
-    fn without_i2(&self) -> Option<WithoutI2> {
-        (!self.uses().0).then_some(WithoutI2(*self))
+    /// `f` of the generic invariant wrapper of this law, seen as not depending on
+    /// I2 ([`WithoutI2`]) when its energy does not: the fields it builds are then
+    /// the kernels without I2 terms.
+    fn typed<R>(&self, f: impl FnOnce(&dyn Material) -> R) -> R {
+        if self.uses().0 {
+            f(&Invariant(*self))
+        } else {
+            f(&Invariant(WithoutI2(*self)))
+        }
     }
 }
 
