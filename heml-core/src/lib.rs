@@ -16,6 +16,7 @@ pub mod io;
 pub mod law;
 pub mod material;
 pub mod mesh;
+mod parallel;
 pub mod params;
 pub mod registry;
 pub mod rest;

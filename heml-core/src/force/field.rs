@@ -318,21 +318,7 @@ impl<K: Formulation> ElasticForces for TetField<K> {
     /// and merge lists stay, so the forces of the remaining tets are those of a
     /// field built on them, summed in another order (equal to round-off).
     fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
-        // (an empty list builds the id index, so that a later cut need not)
-        let _ = self.layout.position(0);
-        let mut pos = Vec::with_capacity(tets.len());
-        for &t in tets {
-            match self.layout.position(t) {
-                Some(k) => pos.push(k),
-                None => {
-                    return Err(HemlError::Invalid(format!(
-                        "tet {t} is not in this force field (it covers {} tets)",
-                        self.layout.n_live()
-                    )))
-                }
-            }
-        }
-        Ok(pos.into_iter().filter(|&k| self.layout.remove(k)).count())
+        self.layout.remove_tets(tets)
     }
 }
 

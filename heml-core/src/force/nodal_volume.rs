@@ -61,7 +61,6 @@ use crate::error::Result;
 use crate::law::InvariantLaw;
 use crate::mesh::TetMesh;
 use crate::Vec3;
-use rayon::prelude::*;
 
 pub use super::grouped::{element_fraction, DEFAULT_STABILIZATION};
 
@@ -132,14 +131,9 @@ impl<M: InvariantLaw> NodalVolume<M> {
     /// in chunks of [`NODE_CHUNK`] nodes on rayon when `parallel` (the same bits
     /// either way).
     pub(crate) fn nodal_pass(&self, p: &mut [f64], parallel: bool) -> f64 {
-        let chunk = |(k, pc): (usize, &mut [f64])| -> f64 {
+        let parts = crate::parallel::map_chunks_mut(p, NODE_CHUNK, parallel, &|k, pc| {
             self.law.pressures(pc, &self.rest_v[k * NODE_CHUNK..][..pc.len()])
-        };
-        let parts: Vec<f64> = if parallel {
-            p.par_chunks_mut(NODE_CHUNK).enumerate().map(chunk).collect()
-        } else {
-            p.chunks_mut(NODE_CHUNK).enumerate().map(chunk).collect()
-        };
+        });
         parts.iter().sum()
     }
 }

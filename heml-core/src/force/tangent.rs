@@ -55,7 +55,6 @@ use crate::mesh::TetMesh;
 use crate::rest::{edge_vectors, rest_edge_matrix, RestTet, EDGES};
 use crate::Vec3;
 use nalgebra::{Matrix3, SMatrix, SymmetricEigen};
-use rayon::prelude::*;
 
 /// A 12×12 tet stiffness, rows and columns ordered (node 0 x, y, z, node 1 x, …).
 pub type TetStiffness = SMatrix<f64, 12, 12>;
@@ -78,6 +77,12 @@ pub const BLOCK_PAIRS: [(usize, usize); 10] = [
     (2, 3),
     (3, 3),
 ];
+
+/// Tets per call of a tangent update's loop body (`parallel::for_each_chunk_mut`):
+/// each a few microseconds of Hessian work, so one call per 64 costs nothing.
+const UPDATE_CHUNK: usize = 64;
+/// Nodes per call of a product's loop body (each node a few dozen 3×3 blocks).
+const PRODUCT_CHUNK: usize = 256;
 
 /// Index in [`BLOCK_PAIRS`] of the block (min(a, b), max(a, b)).
 const BLOCK_INDEX: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 4, 5, 6], [2, 5, 7, 8], [3, 6, 8, 9]];
@@ -694,18 +699,21 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
         // the first tet with a non-finite entry, found in the same pass (its blocks
         // are still in L1 there; a second pass over all of them took ~8 % of an update)
         let first_bad = std::sync::atomic::AtomicUsize::new(usize::MAX);
-        self.k.par_iter_mut().enumerate().with_min_len(64).for_each(|(k, out)| {
-            let p = crate::mesh::corners(x, &tets[k]);
-            kernel.blocks_into(k, &p, project, out);
-            // a weighted tet's stiffness is its weight times the unweighted one (the
-            // projection commutes with a positive factor)
-            if let Some(w) = weights {
-                for b in out.iter_mut() {
-                    *b *= w[k];
+        crate::parallel::for_each_chunk_mut(&mut self.k, UPDATE_CHUNK, true, &|c, chunk| {
+            for (o, out) in chunk.iter_mut().enumerate() {
+                let k = c * UPDATE_CHUNK + o;
+                let p = crate::mesh::corners(x, &tets[k]);
+                kernel.blocks_into(k, &p, project, out);
+                // a weighted tet's stiffness is its weight times the unweighted one (the
+                // projection commutes with a positive factor)
+                if let Some(w) = weights {
+                    for b in out.iter_mut() {
+                        *b *= w[k];
+                    }
                 }
-            }
-            if !all_finite(out) {
-                first_bad.fetch_min(k, std::sync::atomic::Ordering::Relaxed);
+                if !all_finite(out) {
+                    first_bad.fetch_min(k, std::sync::atomic::Ordering::Relaxed);
+                }
             }
         });
         let k = first_bad.into_inner();
@@ -720,15 +728,18 @@ impl<H: TetHessian> TangentOperator for TangentField<H> {
 
     fn add_product(&self, dx: &[Vec3], y: &mut [Vec3]) -> Result<()> {
         check_sizes(self.n_nodes, dx, Some(y))?;
-        y.par_iter_mut().enumerate().with_min_len(256).for_each(|(i, yi)| {
-            let mut acc = Vec3::zeros();
-            for &(k, a) in &self.inc[self.start[i]..self.start[i + 1]] {
-                let (k, a) = (k as usize, a as usize);
-                for (b, &j) in self.tets[k].iter().enumerate() {
-                    acc += tet_block(&self.k[k], a, b) * dx[j as usize];
+        crate::parallel::for_each_chunk_mut(y, PRODUCT_CHUNK, true, &|c, chunk| {
+            for (o, yi) in chunk.iter_mut().enumerate() {
+                let i = c * PRODUCT_CHUNK + o;
+                let mut acc = Vec3::zeros();
+                for &(k, a) in &self.inc[self.start[i]..self.start[i + 1]] {
+                    let (k, a) = (k as usize, a as usize);
+                    for (b, &j) in self.tets[k].iter().enumerate() {
+                        acc += tet_block(&self.k[k], a, b) * dx[j as usize];
+                    }
                 }
+                *yi += acc;
             }
-            *yi += acc;
         });
         Ok(())
     }

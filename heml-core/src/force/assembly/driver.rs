@@ -8,12 +8,11 @@
 #[cfg(target_arch = "x86_64")]
 use super::lane_io::Avx2;
 use super::lane_io::{scatter_lane, LaneIo, LaneScalars, Node4, Portable};
-use super::layout::{BlockBuffers, Layout, LocalBatch, LANES};
+use super::layout::{Block, BlockBuffers, Layout, LocalBatch, LANES};
 use super::simd::Isa;
 use crate::error::Result;
 use crate::force::field::check_sizes;
 use crate::Vec3;
-use rayon::prelude::*;
 
 /// Forces of the four corners of each lane, `[corner][xyz][lane]`.
 pub(crate) type LaneForces = [[[f64; LANES]; 3]; 4];
@@ -199,6 +198,23 @@ impl Layout {
         Ok(energy)
     }
 
+    /// Adds the blocks' private forces `bufs` into `f`, node by node in block order
+    /// (outside the generic pass: the same loop for every kernel).
+    fn merge_forces(&self, bufs: &[Node4], f: &mut [Vec3], parallel: bool) {
+        crate::parallel::for_each_chunk_mut(f, MERGE_CHUNK, parallel, &|c, chunk| {
+            for (o, fi) in chunk.iter_mut().enumerate() {
+                let i = c * MERGE_CHUNK + o;
+                let (lo, hi) = (self.merge_off[i] as usize, self.merge_off[i + 1] as usize);
+                for &slot in &self.merge[lo..hi] {
+                    *fi += bufs[slot as usize].to_vec();
+                }
+            }
+        });
+    }
+
+    /// One pass of kernel `k`: [`Self::run_blocks`] with the kernel's work on each
+    /// block as its body. Only this shell is compiled per kernel; the gathers, the
+    /// task list, the parallel loop and the merge are compiled once.
     #[allow(clippy::too_many_arguments)] // the pass's inputs, each its own kind
     fn evaluate<K: BatchKernel>(
         &self,
@@ -211,10 +227,35 @@ impl Layout {
         energy: Energy,
     ) -> f64 {
         let isa = Isa::current();
+        let n_tets = self.n_tets();
+        let body = |blk: &Block, bufs: BlockBuffers, lanes: &mut [[f64; LANES]]| {
+            let dead = &self.dead[blk.batch_start..blk.batch_end];
+            let weights = self.weights.as_ref().map(|w| &w[blk.batch_start..blk.batch_end]);
+            run_block(isa, energy, k, blk.batch_start, n_tets, dead, weights, bufs, lanes)
+        };
+        self.run_blocks(s, x, gather, f, parallel, energy, K::TWO_PHASE, &body)
+    }
+
+    /// Runs `body` on every block (its tets' energy returned), each with its
+    /// gathered node buffers and, when `two_phase`, its slice of per-batch lanes:
+    /// on rayon when `parallel`, else in order; then merges the blocks' forces into
+    /// `f` and returns the energy (0 when `energy` is skipped).
+    #[allow(clippy::too_many_arguments)] // the pass's inputs, each its own kind
+    fn run_blocks(
+        &self,
+        s: &mut Scratch,
+        x: &[Vec3],
+        gather: Gather,
+        f: &mut [Vec3],
+        parallel: bool,
+        energy: Energy,
+        two_phase: bool,
+        body: &BlockBody,
+    ) -> f64 {
         let parallel = self.runs_parallel(parallel);
         let blocks = self.blocks.list();
         s.ensure(self.n_slots, blocks.len(), false);
-        if K::TWO_PHASE && s.lanes.len() != self.n_batches() {
+        if two_phase && s.lanes.len() != self.n_batches() {
             s.lanes = vec![[0.0; LANES]; self.n_batches()];
         }
         // each block's own part of the flat buffers
@@ -223,7 +264,7 @@ impl Layout {
         let (mut xs, mut fs) = (&mut s.x[..], &mut s.f[..]);
         let mut ls = &mut s.lanes[..];
         for (b, e) in s.energy.iter_mut().enumerate() {
-            let n = if K::TWO_PHASE {
+            let n = if two_phase {
                 blocks[b].batch_end - blocks[b].batch_start
             } else {
                 0
@@ -232,7 +273,6 @@ impl Layout {
             ls = rest;
             tasks.push((b, self.blocks.buffers(b, &mut xs, &mut fs), e, mine));
         }
-        let n_tets = self.n_tets();
         let one = |(b, mut bufs, e, lanes): Task| {
             let blk = &blocks[b];
             match gather {
@@ -248,36 +288,20 @@ impl Layout {
                 }
             }
             bufs.f_mut().fill(Node4::default());
-            let dead = &self.dead[blk.batch_start..blk.batch_end];
-            let weights = self.weights.as_ref().map(|w| &w[blk.batch_start..blk.batch_end]);
-            *e = run_block(isa, energy, k, blk.batch_start, n_tets, dead, weights, bufs, lanes);
+            *e = body(blk, bufs, lanes);
         };
-        if parallel {
-            tasks.into_par_iter().with_max_len(1).for_each(one);
-        } else {
-            tasks.into_iter().for_each(one);
-        }
-        let bufs: &[Node4] = &s.f;
-        let merge = |(c, chunk): (usize, &mut [Vec3])| {
-            for (o, fi) in chunk.iter_mut().enumerate() {
-                let i = c * MERGE_CHUNK + o;
-                let (lo, hi) = (self.merge_off[i] as usize, self.merge_off[i + 1] as usize);
-                for &slot in &self.merge[lo..hi] {
-                    *fi += bufs[slot as usize].to_vec();
-                }
-            }
-        };
-        if parallel {
-            f.par_chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
-        } else {
-            f.chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
-        }
+        crate::parallel::for_each_task(tasks, parallel, &one);
+        self.merge_forces(&s.f, f, parallel);
         match energy {
             Energy::Summed => s.energy.iter().sum(),
             Energy::Skipped => 0.0,
         }
     }
 }
+
+/// A pass's work on one block: its gathered buffers and (two-phase kernels) its
+/// per-batch lanes in, its tets' energy out.
+type BlockBody<'k> = dyn Fn(&Block, BlockBuffers, &mut [[f64; LANES]]) -> f64 + Sync + 'k;
 
 /// Whether a pass sums the tets' energies or only wants the forces.
 #[derive(Clone, Copy, PartialEq, Eq)]

@@ -9,6 +9,7 @@
 
 use super::driver::Scratch;
 use super::lane_io::Node4;
+use crate::error::{HemlError, Result};
 use crate::mesh::reorder::morton_tet_order;
 use crate::mesh::TetMesh;
 use std::sync::{Mutex, OnceLock};
@@ -352,6 +353,27 @@ impl Layout {
         map.binary_search_by_key(&t, |&(g, _)| g)
             .ok()
             .map(|i| map[i].1 as usize)
+    }
+
+    /// Masks the removed tets `tets` (field ids; [`Self::remove`] for each) and
+    /// returns how many were still live; an id this layout does not hold is an error.
+    /// The first call sorts the ids once (even with an empty list, so that a later
+    /// cut need not).
+    pub(crate) fn remove_tets(&mut self, tets: &[usize]) -> Result<usize> {
+        let _ = self.position(0);
+        let mut pos = Vec::with_capacity(tets.len());
+        for &t in tets {
+            match self.position(t) {
+                Some(k) => pos.push(k),
+                None => {
+                    return Err(HemlError::Invalid(format!(
+                        "tet {t} is not in this force field (it covers {} tets)",
+                        self.n_live()
+                    )))
+                }
+            }
+        }
+        Ok(pos.into_iter().filter(|&k| self.remove(k)).count())
     }
 
     /// Removes the tet at field position `k` by masking its lane: the block driver

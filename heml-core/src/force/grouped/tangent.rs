@@ -22,9 +22,9 @@ use super::groups::{TetGroups, VolumeGroups};
 use crate::error::{HemlError, Result};
 use crate::force::field::check_sizes;
 use crate::force::{TangentOperator, TetStiffness};
+use crate::parallel::{fill_chunks, for_each_chunk_mut};
 use crate::Vec3;
 use nalgebra::Matrix3;
-use rayon::prelude::*;
 
 /// Tets (or nodes, or groups) per parallel task.
 const MIN_LEN: usize = 256;
@@ -89,28 +89,23 @@ impl<G: VolumeGroups> GroupedVolumeTangent<G> {
 
     /// ∇v_g·u of every group: s_t = ω_t ∇vol_t·u per tet, then q Σ_{t∋g} s_t.
     fn group_rates(&self, u: &[Vec3]) -> Vec<f64> {
-        let s: Vec<f64> = self
-            .pts
-            .par_iter()
-            .zip(&self.tets)
-            .zip(&self.weights)
-            .with_min_len(MIN_LEN)
-            .map(|((p, t), w)| {
-                let g = volume_gradient(p);
-                w * (0..4).map(|a| g[a].dot(&u[t[a] as usize])).sum::<f64>()
-            })
-            .collect();
-        (0..self.kg.len())
-            .into_par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|g| {
-                self.members[self.gstart[g]..self.gstart[g + 1]]
+        let s = fill_chunks(self.pts.len(), MIN_LEN, &|start, out: &mut [f64]| {
+            for (o, sk) in out.iter_mut().enumerate() {
+                let k = start + o;
+                let (g, t) = (volume_gradient(&self.pts[k]), &self.tets[k]);
+                *sk = self.weights[k] * (0..4).map(|a| g[a].dot(&u[t[a] as usize])).sum::<f64>();
+            }
+        });
+        fill_chunks(self.kg.len(), MIN_LEN, &|start, out: &mut [f64]| {
+            for (o, vg) in out.iter_mut().enumerate() {
+                let g = start + o;
+                *vg = self.members[self.gstart[g]..self.gstart[g + 1]]
                     .iter()
                     .map(|&k| s[k as usize])
                     .sum::<f64>()
-                    * G::SHARE
-            })
-            .collect()
+                    * G::SHARE;
+            }
+        })
     }
 
     /// ∇v_g = q Σ_{t∋g} ω_t ∇vol_t as (node, gradient) pairs over the nodes of
@@ -225,28 +220,29 @@ impl<G: VolumeGroups> TangentOperator for GroupedVolumeTangent<G> {
         check_sizes(self.n_nodes(), dx, Some(y))?;
         let dv = self.group_rates(dx);
         // r_t = ω_t q Σ_{g∋t} k_g δv_g
-        let r: Vec<f64> = self
-            .tet_groups
-            .par_iter()
-            .with_min_len(MIN_LEN)
-            .zip(&self.weights)
-            .map(|(t, w)| {
-                w * t
-                    .ids()
-                    .iter()
-                    .map(|&g| self.kg[g as usize] * dv[g as usize])
-                    .sum::<f64>()
-                    * G::SHARE
-            })
-            .collect();
-        y.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(i, yi)| {
-            for &(k, a) in &self.inc[self.start[i]..self.start[i + 1]] {
-                let (k, a) = (k as usize, a as usize);
-                let p = &self.pts[k];
-                *yi += volume_gradient(p)[a] * r[k];
-                if self.pbar[k] != 0.0 {
-                    let u = self.tets[k].map(|j| dx[j as usize]);
-                    *yi += volume_curvature(p, &u)[a] * self.pbar[k];
+        let r = fill_chunks(self.tet_groups.len(), MIN_LEN, &|start, out: &mut [f64]| {
+            for (o, rk) in out.iter_mut().enumerate() {
+                let k = start + o;
+                *rk = self.weights[k]
+                    * self.tet_groups[k]
+                        .ids()
+                        .iter()
+                        .map(|&g| self.kg[g as usize] * dv[g as usize])
+                        .sum::<f64>()
+                    * G::SHARE;
+            }
+        });
+        for_each_chunk_mut(y, MIN_LEN, true, &|c, chunk| {
+            for (o, yi) in chunk.iter_mut().enumerate() {
+                let i = c * MIN_LEN + o;
+                for &(k, a) in &self.inc[self.start[i]..self.start[i + 1]] {
+                    let (k, a) = (k as usize, a as usize);
+                    let p = &self.pts[k];
+                    *yi += volume_gradient(p)[a] * r[k];
+                    if self.pbar[k] != 0.0 {
+                        let u = self.tets[k].map(|j| dx[j as usize]);
+                        *yi += volume_curvature(p, &u)[a] * self.pbar[k];
+                    }
                 }
             }
         });
