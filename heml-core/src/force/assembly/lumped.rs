@@ -20,7 +20,6 @@ use super::layout::{Layout, LocalBatch, LANES};
 use super::simd::Isa;
 use crate::force::lanes::lane_crosses;
 use crate::Vec3;
-use rayon::prelude::*;
 
 impl Layout {
     /// Writes the lumped current volume v_a of every node at `x` to `v` (0 for nodes
@@ -71,24 +70,15 @@ impl Layout {
                 _ => unsafe { block_body(Portable, self, blk.batch_start, batches, xl, a) },
             }
         };
-        if parallel {
-            tasks.into_par_iter().with_max_len(1).for_each(one);
-        } else {
-            tasks.into_iter().for_each(one);
-        }
+        crate::parallel::for_each_task(tasks, parallel, &one);
         let acc: &[f64] = &s.lumped;
-        let merge = |(c, chunk): (usize, &mut [f64])| {
+        crate::parallel::for_each_chunk_mut(v, MERGE_CHUNK, parallel, &|c, chunk| {
             for (o, vi) in chunk.iter_mut().enumerate() {
                 let i = c * MERGE_CHUNK + o;
                 let (lo, hi) = (self.merge_off[i] as usize, self.merge_off[i + 1] as usize);
                 *vi = self.merge[lo..hi].iter().map(|&s| acc[s as usize]).sum();
             }
-        };
-        if parallel {
-            v.par_chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
-        } else {
-            v.chunks_mut(MERGE_CHUNK).enumerate().for_each(merge);
-        }
+        });
     }
 }
 
