@@ -4,8 +4,9 @@
 //! `DEFAULT_ADAPT_EVERY` steps), side by side in one run, in alternating rounds so
 //! that both see the same machine load.
 //!
-//! Run with `cargo bench -p heml-validation --bench adaptive_step`. Prints the per-step time of both
-//! and the overhead's median and range over the rounds; nothing is asserted.
+//! Run with `cargo bench -p heml-validation --features criterion --bench adaptive_step`.
+//! Prints the per-step time of both and the overhead's median and range over the
+//! rounds; nothing is asserted.
 
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;

@@ -3,9 +3,9 @@
 //! The cut topology (tet neighbours, the surface's face index) is built once, by
 //! `System::prepare_cutting` or the first cut: timed separately.
 //!
-//! Run with `cargo bench -p heml-validation --bench cut` (the mesh is looked up like
-//! the validation cases': `HEML_MESHES`, then `../shared/meshes`; a box of 100k tets
-//! stands in when it is missing). Prints medians; nothing is asserted.
+//! Run with `cargo bench -p heml-validation --features criterion --bench cut` (the mesh
+//! is looked up like the validation cases': `HEML_MESHES`, then `../shared/meshes`; a
+//! box of 100k tets stands in when it is missing). Prints medians; nothing is asserted.
 
 use heml::mesh::generate::box_of_about;
 use heml::prelude::*;

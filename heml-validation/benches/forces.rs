@@ -3,9 +3,10 @@
 //! every invariant law at ~100k tets. Fibre laws get the fibres of `heml bench`
 //! ([`heml_validation::fixtures::with_bench_fibres`]).
 //!
-//! Run with `cargo bench --bench forces` (add `-- --quick`, or a filter such as
-//! `-- neo_hookean`). Throughput is reported in tets/s. Fields run in their default
-//! (parallel) assembly on rayon's global pool, i.e. on all cores.
+//! Run with `cargo bench -p heml-validation --features criterion --bench forces` (add
+//! `-- --quick`, or a filter such as `-- neo_hookean`). Throughput is reported in
+//! tets/s. Fields run in their default (parallel) assembly on rayon's global pool, i.e.
+//! on all cores.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use heml::force::ElasticForces;

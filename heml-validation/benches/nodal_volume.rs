@@ -3,7 +3,7 @@
 //! neo-Hookean (I1 and J) and Mooney–Rivlin (Ī1, Ī2 and κ/2 (J−1)²) on a ~100k-tet
 //! box, in one run so that the ratio is measured under the same load.
 //!
-//! Run with `cargo bench -p heml-validation --bench nodal_volume`.
+//! Run with `cargo bench -p heml-validation --features criterion --bench nodal_volume`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use heml::law::Volumetric;

@@ -134,22 +134,45 @@ fn plot_err(e: impl std::fmt::Display) -> HemlError {
     HemlError::Invalid(format!("plot: {e}"))
 }
 
+/// The height of every plot, pixels (a 40-pixel title above the 480-pixel panels).
+const HEIGHT: u32 = 520;
+
 /// Draws `charts` side by side into a PNG at `path` (each panel 640×480 pixels).
+/// The picture is drawn in memory and written atomically ([`heml::io::atomic`]): a
+/// plot is either the new complete file or left as it was.
 pub fn draw(path: &Path, title: &str, charts: &[Chart]) -> Result<()> {
     register_font()?;
     let width = 640 * charts.len().max(1) as u32;
-    let root = BitMapBackend::new(path, (width, 520)).into_drawing_area();
-    root.fill(&WHITE).map_err(plot_err)?;
-    let root = root.titled(title, ("sans-serif", 22)).map_err(plot_err)?;
-    let panels = root.split_evenly((1, charts.len().max(1)));
-    for (chart, area) in charts.iter().zip(panels) {
-        match &chart.kind {
-            ChartKind::Xy(series) => draw_xy(&area, chart, series)?,
-            ChartKind::Bars { groups, series } => draw_bars(&area, chart, groups, series)?,
+    let mut rgb = vec![0u8; width as usize * HEIGHT as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (width, HEIGHT)).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err)?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(plot_err)?;
+        let panels = root.split_evenly((1, charts.len().max(1)));
+        for (chart, area) in charts.iter().zip(panels) {
+            match &chart.kind {
+                ChartKind::Xy(series) => draw_xy(&area, chart, series)?,
+                ChartKind::Bars { groups, series } => draw_bars(&area, chart, groups, series)?,
+            }
         }
+        root.present().map_err(plot_err)?;
     }
-    root.present().map_err(plot_err)?;
-    Ok(())
+    heml::io::atomic::write_atomic(path, |w| write_png(w, width, HEIGHT, &rgb))
+}
+
+/// Encodes an 8-bit RGB picture as PNG.
+fn write_png(w: impl std::io::Write, width: u32, height: u32, rgb: &[u8]) -> std::io::Result<()> {
+    let mut encoder = png::Encoder::new(w, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    // plots are mostly flat colour: per-row adaptive filters and the best deflate
+    // level make them ~9× smaller than the defaults (the locking case's plot: 350 →
+    // 40 kB; `heml validate --quick --case locking` took 4.1 s either way)
+    encoder.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
+    encoder.set_compression(png::Compression::Best);
+    let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
+    writer.write_image_data(rgb).map_err(std::io::Error::other)?;
+    writer.finish().map_err(std::io::Error::other)
 }
 
 fn axis(v: f64, log: bool) -> f64 {
@@ -190,7 +213,11 @@ fn tick(v: f64, log: bool) -> String {
     }
 }
 
-fn draw_xy(area: &DrawingArea<BitMapBackend, plotters::coord::Shift>, chart: &Chart, series: &[Series]) -> Result<()> {
+fn draw_xy(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    chart: &Chart,
+    series: &[Series],
+) -> Result<()> {
     let tx = |v: f64| axis(v, chart.log_x);
     let ty = |v: f64| axis(v, chart.log_y);
     let (x0, x1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| tx(p.0))));
@@ -249,7 +276,7 @@ fn draw_xy(area: &DrawingArea<BitMapBackend, plotters::coord::Shift>, chart: &Ch
 }
 
 fn draw_bars(
-    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
     chart: &Chart,
     groups: &[String],
     series: &[(String, Vec<f64>)],

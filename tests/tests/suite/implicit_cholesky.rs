@@ -862,8 +862,9 @@ fn cholesky_preset_follows_the_cg_preset_through_a_fast_sag_with_chord_iteration
 /// of the motion are what the preset gives: measured 12 % (3.5·10⁻⁴ m) with the
 /// dampers' dissipation potential in the line search's merit, 22 % without it
 /// (the Newton step, which solves for the dampers' forces, was then no descent
-/// direction of the merit and the line search cut it short); CG, whose
-/// iterations are full Newton steps on a fresh tangent, 1.5 % either way.
+/// direction of the merit and the line search cut it short), 5 % (1.5·10⁻⁴ m) on
+/// 2026-11-28's code; CG, whose iterations are full Newton steps on a fresh
+/// tangent, 1.5 % either way.
 #[test]
 fn a_damper_dominated_grasp_moves_without_stalling_the_line_search() {
     use heml::system::control::Pose;
@@ -885,13 +886,17 @@ fn a_damper_dominated_grasp_moves_without_stalling_the_line_search() {
         }
         (sys.positions().to_vec(), sys.warnings().to_vec())
     };
+    // The converged run is one backward-Euler trajectory whichever solver iterates
+    // it: Cholesky's and CG's ended 8·10⁻¹¹ m apart (2026-11-28), against the
+    // 4.5·10⁻⁴ m bound. Both presets are compared with the Cholesky one, as CG's
+    // took ~25 s (a 10⁻¹² CG tolerance on these damper-dominated nodes) against 0.2 s.
+    let (want, _) = run(converged(LinearSolver::Cholesky));
     for linear_solver in [LinearSolver::Cholesky, LinearSolver::Cg] {
         let (x, warnings) = run(ImplicitSettings {
             linear_solver,
             ..ImplicitSettings::default()
         });
         assert!(warnings.is_empty(), "{linear_solver:?}: {warnings:?}");
-        let (want, _) = run(converged(linear_solver));
         let err = x.iter().zip(&want).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
         assert!(
             err < 0.15 * 0.003,

@@ -92,5 +92,23 @@ fn plots_are_written_as_png() {
     let bytes = std::fs::read(&path).unwrap();
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
     assert!(bytes.len() > 5000, "suspiciously small plot: {} bytes", bytes.len());
+
+    // it decodes: 640 pixels per panel by 520, RGB, a white background, and more
+    // than one colour (axes, text and the series were drawn)
+    let mut reader = png::Decoder::new(std::io::Cursor::new(&bytes)).read_info().unwrap();
+    let mut rgb = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut rgb).unwrap();
+    assert_eq!(info.width % 640, 0, "width {}", info.width);
+    assert_eq!(info.height, 520);
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    assert_eq!(&rgb[..3], &[255, 255, 255], "white background");
+    let colours: std::collections::HashSet<&[u8]> = rgb.chunks_exact(3).collect();
+    assert!(colours.len() > 10, "only {} colours drawn", colours.len());
+    // written atomically: no temporary left beside it
+    let names: Vec<_> = std::fs::read_dir(path.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains(".tmp-")), "{names:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
