@@ -96,7 +96,7 @@ fn plots_are_written_as_png() {
     // it decodes: 640 pixels per panel by 520, RGB, a white background, and more
     // than one colour (axes, text and the series were drawn)
     let mut reader = png::Decoder::new(std::io::Cursor::new(&bytes)).read_info().unwrap();
-    let mut rgb = vec![0; reader.output_buffer_size()];
+    let mut rgb = vec![0; reader.output_buffer_size().expect("a plot's size fits in memory")];
     let info = reader.next_frame(&mut rgb).unwrap();
     assert_eq!(info.width % 640, 0, "width {}", info.width);
     assert_eq!(info.height, 520);
