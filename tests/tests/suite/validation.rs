@@ -94,7 +94,8 @@ fn plots_are_written_as_png() {
     assert!(bytes.len() > 5000, "suspiciously small plot: {} bytes", bytes.len());
 
     // it decodes: 640 pixels per panel by 520, RGB, a white background, and more
-    // than one colour (axes, text and the series were drawn)
+    // than ten colours (a blank plot has one; axes, anti-aliased text and the series
+    // add many)
     let mut reader = png::Decoder::new(std::io::Cursor::new(&bytes)).read_info().unwrap();
     let mut rgb = vec![0; reader.output_buffer_size().expect("a plot's size fits in memory")];
     let info = reader.next_frame(&mut rgb).unwrap();
