@@ -65,6 +65,33 @@ pub fn placement_for(threads: usize, placement: Placement) -> Placement {
     }
 }
 
+/// Most worker threads a pool may have: 4 × the CPUs this process may use, at
+/// most 1024 (at least 8).
+pub fn max_threads() -> usize {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    cpus.saturating_mul(4).clamp(8, 1024)
+}
+
+/// A `--threads` value (clap parser): 1 to [`max_threads`].
+pub fn thread_count(s: &str) -> std::result::Result<usize, String> {
+    thread_count_or_zero(s).and_then(|n| match n {
+        0 => Err("a thread pool needs at least 1 thread".into()),
+        n => Ok(n),
+    })
+}
+
+/// A thread count where 0 means a default (clap parser): 0 to [`max_threads`].
+pub fn thread_count_or_zero(s: &str) -> std::result::Result<usize, String> {
+    let n: usize = s.parse().map_err(|_| format!("{s:?} is not a number of threads"))?;
+    let max = max_threads();
+    if n > max {
+        return Err(format!(
+            "{n} threads is more than the {max} allowed (4 × the CPUs this process may use, at most 1024)"
+        ));
+    }
+    Ok(n)
+}
+
 /// The CPUs this process may use, when there are at least `threads` of them.
 fn cpus_for(threads: usize) -> Option<Vec<core_affinity::CoreId>> {
     core_affinity::get_core_ids().filter(|c| c.len() >= threads)
@@ -73,6 +100,17 @@ fn cpus_for(threads: usize) -> Option<Vec<core_affinity::CoreId>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn thread_counts_are_bounded() {
+        assert_eq!(thread_count("1"), Ok(1));
+        assert_eq!(thread_count(&max_threads().to_string()), Ok(max_threads()));
+        assert!(max_threads() <= 1024);
+        for bad in ["0", "100000", "18446744073709551616", "-1", "x"] {
+            assert!(thread_count(bad).is_err(), "{bad}");
+        }
+        assert_eq!(thread_count_or_zero("0"), Ok(0));
+    }
 
     #[test]
     fn zero_threads_is_an_error() {

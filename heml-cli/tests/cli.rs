@@ -525,3 +525,33 @@ fn materials_energy_checks_and_differentiates_a_text() {
     let (ok, _, err) = heml(&[&law[..], &["--volumetric-energy", "lambda/2*ln(J).powi(2)"]].concat());
     assert!(!ok && err.contains("must have the law's bulk modulus"), "{err}");
 }
+
+/// Absurd thread and repeat counts are refused up front, naming the flag (they used
+/// to abort, hang, or panic with "capacity overflow").
+#[test]
+fn absurd_thread_and_repeat_counts_are_refused() {
+    let cases: [(&[&str], &str); 6] = [
+        (&["view", "--demo", "--no-open", "--threads", "100000"], "--threads"),
+        (
+            &["view", "--demo", "--no-open", "--page-threads", "100000"],
+            "--page-threads",
+        ),
+        (&["view", "--demo", "--no-open", "--threads", "0"], "--threads"),
+        (&["bench", "--threads", "100000"], "--threads"),
+        (&["bench", "--repeats", "18446744073709551615"], "--repeats"),
+        (&["bench", "--repeats", "100000000000"], "--repeats"),
+    ];
+    for (args, flag) in cases {
+        let start = std::time::Instant::now();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
+            .args(args)
+            .output()
+            .expect("run heml");
+        let err = String::from_utf8_lossy(&out.stderr);
+        // a usage error (clap's exit code 2), not an abort or a panic
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(flag) && err.contains("invalid value"), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(start.elapsed().as_secs() < 10, "{args:?} took {:?}", start.elapsed());
+    }
+}

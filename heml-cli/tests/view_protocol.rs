@@ -282,3 +282,274 @@ duration = 1.0
     drop(server);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The live view plays the scene's script as `heml run` does: a `[[cut]]` at its
+/// time notches the tissue and the page receives the new surface (the live loop
+/// used to step the integrator alone, so a scene's cuts, ramped surface loads and
+/// scripted tools never happened in `heml view`).
+#[tokio::test(flavor = "current_thread")]
+async fn the_scenes_cuts_happen_in_the_live_view() {
+    let dir = bin::temp_dir("view", "scripted-cut");
+    let scene = dir.join("notched_block.toml");
+    std::fs::write(
+        &scene,
+        r#"[mesh]
+generate = { kind = "box", size = [0.08, 0.02, 0.02], cells = [8, 2, 2], split = "six" }
+
+[[material]]
+law = "neo_hookean"
+params = { E = 8.0e3, nu = 0.3 }
+density = 1000.0
+
+[[fix]]
+plane = { point = [0.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] }
+
+[solver]
+duration = 1.0
+
+[[cut]]
+time = 0.05
+from = [[0.045, -0.1, 0.1], [0.045, 0.1, 0.1]]
+to = [[0.045, -0.1, 0.01], [0.045, 0.1, 0.01]]
+"#,
+    )
+    .unwrap();
+    let server = ViewServer::start(&["view", scene.to_str().unwrap(), "--threads", "1"]);
+    let mut c = Client::connect(&server).await;
+    assert!(c.until(WAIT, |c| c.mesh.is_object()).await, "no mesh message");
+    let (version, triangles) = (
+        c.mesh["version"].as_u64().unwrap(),
+        c.mesh["triangles"].as_array().unwrap().len(),
+    );
+    // the cut comes at t = 0.05 s of a real-time run
+    assert!(
+        c.until(WAIT, |c| c.mesh["version"].as_u64() > Some(version)).await,
+        "no new surface after the cut (t = {})",
+        c.time()
+    );
+    // a notch's faces are added to the surface (the tets it removes were interior
+    // to the top half, so their neighbours' faces are now boundary)
+    let after = c.mesh["triangles"].as_array().unwrap().len();
+    assert!(after > triangles, "{triangles} -> {after} triangles");
+    drop(server);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The port of a server's URL (`http://127.0.0.1:PORT/`).
+fn port_of(server: &ViewServer) -> u16 {
+    server
+        .url
+        .trim_end_matches('/')
+        .rsplit(':')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+/// A WebSocket handshake with these headers: `Ok(())` if accepted, else the HTTP
+/// status of the refusal.
+async fn handshake(server: &ViewServer, headers: &[(&'static str, String)]) -> Result<(), u16> {
+    use tokio_tungstenite::tungstenite::{client::IntoClientRequest, Error};
+    let mut req = server.ws_url().into_client_request().unwrap();
+    for (name, value) in headers {
+        req.headers_mut().insert(*name, value.parse().unwrap());
+    }
+    match tokio_tungstenite::connect_async(req).await {
+        Ok(_) => Ok(()),
+        Err(Error::Http(resp)) => Err(resp.status().as_u16()),
+        Err(e) => panic!("handshake failed otherwise: {e}"),
+    }
+}
+
+/// Other sites cannot drive the simulation: a WebSocket handshake from another
+/// site's page (its `Origin`) is refused with 403, and so is any request naming
+/// another host (DNS rebinding); the server's own page (a loopback origin) and
+/// clients without an `Origin` are served.
+#[tokio::test(flavor = "current_thread")]
+async fn other_sites_pages_and_hosts_are_refused() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let server = ViewServer::start(&["view", "--demo", "--threads", "1"]);
+    let port = port_of(&server);
+    let mut c = Client::connect(&server).await;
+    c.send(json!({"type": "pause"})).await;
+    assert!(c.until(WAIT, |c| c.paused()).await, "no paused status");
+    c.drain(Duration::from_millis(300)).await;
+    let steps0 = c.steps();
+
+    let evil = [("Origin", "http://evil.example.com".to_string())];
+    assert_eq!(
+        handshake(&server, &evil).await,
+        Err(403),
+        "a foreign origin was accepted"
+    );
+    let https = [("Origin", format!("https://localhost:{port}"))];
+    assert_eq!(handshake(&server, &https).await, Err(403));
+    let rebound = [("Host", format!("rebind.attacker.example:{port}"))];
+    assert_eq!(
+        handshake(&server, &rebound).await,
+        Err(403),
+        "a foreign host was accepted"
+    );
+    // the page itself: a plain GET naming another host is refused, with a reason
+    let mut tcp = tokio::net::TcpStream::connect(("127.0.0.1", port)).await.unwrap();
+    tcp.write_all(b"GET / HTTP/1.1\r\nHost: rebind.attacker.example\r\nConnection: close\r\n\r\n")
+        .await
+        .unwrap();
+    let mut answer = String::new();
+    tokio::time::timeout(WAIT, tcp.read_to_string(&mut answer))
+        .await
+        .unwrap()
+        .unwrap();
+    assert!(answer.starts_with("HTTP/1.1 403"), "{answer}");
+    assert!(answer.contains("rebind.attacker.example"), "{answer}");
+
+    // the server's own pages are served
+    for origin in [format!("http://127.0.0.1:{port}"), format!("http://localhost:{port}")] {
+        assert_eq!(
+            handshake(&server, &[("Origin", origin.clone())]).await,
+            Ok(()),
+            "{origin}"
+        );
+    }
+    let mut tcp = tokio::net::TcpStream::connect(("127.0.0.1", port)).await.unwrap();
+    let get = format!("GET / HTTP/1.1\r\nHost: localhost:{port}\r\nConnection: close\r\n\r\n");
+    tcp.write_all(get.as_bytes()).await.unwrap();
+    let mut answer = String::new();
+    tokio::time::timeout(WAIT, tcp.read_to_string(&mut answer))
+        .await
+        .unwrap()
+        .unwrap();
+    assert!(
+        answer.starts_with("HTTP/1.1 200"),
+        "{}",
+        &answer[..answer.len().min(200)]
+    );
+
+    // nothing moved the simulation
+    c.drain(Duration::from_millis(300)).await;
+    assert!(c.paused());
+    assert_eq!(c.steps(), steps0);
+}
+
+/// A client flooding commands gets `busy` replies once the simulation's queue is
+/// full instead of growing it without bound, and a command after the flood is
+/// answered within seconds.
+#[tokio::test(flavor = "current_thread")]
+async fn a_flood_of_commands_is_refused_busy() {
+    let server = ViewServer::start(&["view", "--demo", "--threads", "1"]);
+    let mut c = Client::connect(&server).await;
+    c.send(json!({"type": "pause"})).await;
+    assert!(c.until(WAIT, |c| c.paused()).await, "no paused status");
+    // steps take the simulation far longer than the server takes to queue them
+    for _ in 0..15 {
+        for _ in 0..200 {
+            c.send_text(r#"{"type":"step"}"#).await;
+        }
+        c.drain(Duration::from_millis(1)).await;
+    }
+    let busy = |c: &Client| {
+        c.replies
+            .iter()
+            .any(|r| r["ok"] == false && r["message"].as_str().is_some_and(|m| m.contains("busy")))
+    };
+    assert!(
+        c.until(Duration::from_secs(10), busy).await,
+        "no busy reply to 3000 steps"
+    );
+    // the queue drains: quiet within seconds
+    let start = std::time::Instant::now();
+    loop {
+        let n = c.replies.len();
+        c.drain(Duration::from_millis(500)).await;
+        if c.replies.len() == n {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(20), "the replies never stop");
+    }
+    let n = c.replies.len();
+    let steps = c.steps();
+    c.send(json!({"type": "step"})).await;
+    assert!(
+        c.until(Duration::from_secs(5), |c| c.replies.len() > n).await,
+        "the step after the flood was not answered"
+    );
+    assert_eq!(c.replies[n]["command"], "step");
+    assert_eq!(c.replies[n]["ok"], true, "{}", c.replies[n]);
+    assert!(c.until(Duration::from_secs(5), |c| c.steps() == steps + 1).await);
+    assert!(!c.closed);
+}
+
+/// `heml view FILE.pvd`: its exit status and stderr, or a failure if it is still
+/// running (serving) after 20 s.
+fn view_exits(pvd: &std::path::Path) -> (bool, String) {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_heml"))
+        .args(["view", pvd.to_str().unwrap(), "--no-open", "--port", "0"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run heml view");
+    let end = std::time::Instant::now() + Duration::from_secs(20);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > end {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("heml view {} was still running after 20 s", pvd.display());
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+/// A `.pvd` whose times are not finite or do not increase is refused, naming the
+/// file and the entry (the player used to spin on them).
+#[test]
+fn a_pvd_with_bad_times_is_refused() {
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = bin::temp_dir("view", "bad-times");
+    let mesh = box_mesh([0.02, 0.01, 0.01], [2, 1, 1], HexSplit::Six).unwrap();
+    for f in ["f0.vtu", "f1.vtu", "f2.vtu"] {
+        heml::io::write_mesh(&dir.join(f), &mesh).unwrap();
+    }
+    let pvd = |name: &str, times: [&str; 3]| {
+        let path = dir.join(name);
+        let sets: String = times
+            .iter()
+            .enumerate()
+            .map(|(k, t)| format!("<DataSet timestep=\"{t}\" group=\"\" part=\"0\" file=\"f{k}.vtu\"/>\n"))
+            .collect();
+        std::fs::write(
+            &path,
+            format!(
+                "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n{sets}</Collection>\n</VTKFile>\n"
+            ),
+        )
+        .unwrap();
+        path
+    };
+    for (name, times, entry) in [
+        ("nan.pvd", ["0", "nan", "0.2"], "f1.vtu"),
+        ("decreasing.pvd", ["0", "0.2", "0.1"], "f2.vtu"),
+        ("repeated.pvd", ["0", "0", "0.1"], "f1.vtu"),
+    ] {
+        let (ok, err) = view_exits(&pvd(name, times));
+        assert!(!ok, "{name} was accepted");
+        assert!(err.contains(name) && err.contains(entry), "{name}: {err}");
+    }
+}
+
+/// A connection that never finishes its request's headers is closed after a few
+/// seconds (they used to stay open for good).
+#[tokio::test(flavor = "current_thread")]
+async fn a_request_without_its_end_is_closed() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let server = ViewServer::start(&["view", "--demo", "--threads", "1"]);
+    let mut tcp = tokio::net::TcpStream::connect(("127.0.0.1", port_of(&server)))
+        .await
+        .unwrap();
+    tcp.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n").await.unwrap();
+    let mut rest = Vec::new();
+    let closed = tokio::time::timeout(Duration::from_secs(15), tcp.read_to_end(&mut rest)).await;
+    assert!(closed.is_ok(), "a half-sent request was kept open 15 s");
+}

@@ -31,6 +31,14 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     fn ops(&self) -> OpCount;
     /// Whether the law uses I2 / J (invariant laws; false for link laws).
     fn uses(&self) -> (bool, bool);
+    /// Whether the law's energy is continued below J0 by the inversion fix (DESIGN
+    /// §1): true for most laws; false for laws declared `no_inversion_fix`, whose
+    /// energy is physical through inversion (stable neo-Hookean), so that an
+    /// inverted tet's stiffness is the law's own. The adaptive time step probes such
+    /// laws at inverted states too.
+    fn inversion_fix(&self) -> bool {
+        true
+    }
     /// The HEML force field over the tets `tets` of `mesh` (all when `None`).
     fn force_field(
         &self,
@@ -132,6 +140,9 @@ impl Material for Arc<dyn Material> {
     }
     fn uses(&self) -> (bool, bool) {
         (**self).uses()
+    }
+    fn inversion_fix(&self) -> bool {
+        (**self).inversion_fix()
     }
     fn force_field(
         &self,
@@ -371,6 +382,9 @@ impl<M: FibreLaw> Material for Fibre<M> {
     fn uses(&self) -> (bool, bool) {
         (M::USES_I2, M::USES_J)
     }
+    fn inversion_fix(&self) -> bool {
+        M::INVERSION_FIX
+    }
     fn force_field(
         &self,
         mesh: &TetMesh,
@@ -468,6 +482,9 @@ impl<M: InvariantLaw> Material for Invariant<M> {
     fn uses(&self) -> (bool, bool) {
         (M::USES_I2, M::USES_J)
     }
+    fn inversion_fix(&self) -> bool {
+        M::INVERSION_FIX
+    }
     fn with_volumetric(&self, v: Volumetric) -> Result<Box<dyn Material>> {
         match v {
             Volumetric::Element => Ok(Box::new(*self)),
@@ -529,6 +546,9 @@ impl<M: InvariantLaw> Material for GroupedInvariant<M> {
     law_identity!(InvariantLaw, Invariant, law);
     fn uses(&self) -> (bool, bool) {
         (M::USES_I2, true)
+    }
+    fn inversion_fix(&self) -> bool {
+        M::INVERSION_FIX
     }
     fn force_field(
         &self,
@@ -634,5 +654,8 @@ impl<M: StretchLaw> Material for Stretch<M> {
     /// (uses I2, uses J): a stretch law depends on all of C and on J.
     fn uses(&self) -> (bool, bool) {
         (true, true)
+    }
+    fn inversion_fix(&self) -> bool {
+        M::INVERSION_FIX
     }
 }

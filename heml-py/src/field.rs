@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays;
-use crate::errors::IntoPyResult;
+use crate::errors::{HemlError, IntoPyResult};
 
 /// Two float64 arrays (per-tet J and w).
 type ArrayPair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
@@ -55,6 +55,34 @@ impl ForceField {
         self.field.as_ref()
     }
 
+    /// The positions `x` as an (n, 3) input with finite coordinates (`HemlError`
+    /// naming the first node with a NaN or ∞ otherwise).
+    fn positions<'py>(&self, x: &Bound<'py, PyAny>) -> PyResult<arrays::Points<'py>> {
+        let x = arrays::points(x, "x", Some(self.field.n_nodes()))?;
+        x.check_finite("x")?;
+        Ok(x)
+    }
+
+    /// `HemlError` for a non-finite `result` (e.g. "energy inf") from finite
+    /// positions `x`, naming the first tet whose J or w is not finite (looked up only
+    /// on this error path, by one more evaluation).
+    fn not_finite(&self, what: &str, result: String, x: &[Vec3]) -> PyErr {
+        let tet = self.field.tet_states(x).ok().and_then(|s| {
+            let k = s.iter().position(|(j, w)| !(j.is_finite() && w.is_finite()))?;
+            Some(format!(
+                "; first tet with a non-finite state: tet {} (J = {}, w = {})",
+                self.field.tet_ids()[k],
+                s[k].0,
+                s[k].1
+            ))
+        });
+        HemlError::new_err(format!(
+            "{what}: the result is not finite at these finite positions: {result} (coordinates too large, or \
+             the law undefined there){}",
+            tet.unwrap_or_default()
+        ))
+    }
+
     fn tangent_at(&self, x: &[Vec3], project_psd: bool) -> PyResult<Box<dyn TangentOperator>> {
         let mut k = self
             .law
@@ -80,25 +108,54 @@ impl ForceField {
         self.field.n_tets()
     }
 
-    /// Total elastic energy W (J) at positions `x` ((n, 3) float64).
+    /// Total elastic energy W (J) at positions `x` ((n, 3) float64). A NaN or ∞
+    /// coordinate raises `HemlError` naming the node; so does a non-finite energy
+    /// from finite positions (naming the first tet concerned).
     fn energy(&self, x: &Bound<'_, PyAny>) -> PyResult<f64> {
-        let x = arrays::points(x, "x", Some(self.field.n_nodes()))?;
-        self.field.energy(x.as_slice()).py()
+        let x = self.positions(x)?;
+        let e = self.field.energy(x.as_slice()).py()?;
+        if !e.is_finite() {
+            return Err(self.not_finite("energy", format!("energy {e}"), x.as_slice()));
+        }
+        Ok(e)
     }
 
     /// `(energy, forces)` at positions `x`: the total energy (J) and the internal
-    /// forces, a new (n, 3) float64 array written by the library in place.
+    /// forces, a new (n, 3) float64 array written by the library in place. A NaN or
+    /// ∞ coordinate raises `HemlError` naming the node; so does a non-finite energy
+    /// or force from finite positions (naming the node and the first tet concerned).
     fn forces<'py>(&self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<(f64, Bound<'py, PyArray2<f64>>)> {
-        let x = arrays::points(x, "x", Some(self.field.n_nodes()))?;
-        let (f, e) = arrays::fill_vec3s(py, self.field.n_nodes(), |f| self.field.add_forces(x.as_slice(), f));
-        Ok((e.py()?, f))
+        let x = self.positions(x)?;
+        let (f, e) = arrays::fill_vec3s(py, self.field.n_nodes(), |f| {
+            let e = self.field.add_forces(x.as_slice(), f)?;
+            let bad = arrays::first_non_finite(f);
+            Ok::<_, heml::HemlError>((e, bad.map(|i| (i, f[i]))))
+        })?;
+        let (e, bad) = e.py()?;
+        if let Some((i, fi)) = bad {
+            let result = format!("force {:?} at node {i}, energy {e}", fi.as_slice());
+            return Err(self.not_finite("forces", result, x.as_slice()));
+        }
+        if !e.is_finite() {
+            return Err(self.not_finite("forces", format!("energy {e}"), x.as_slice()));
+        }
+        Ok((e, f))
     }
 
     /// Per tet of the field (in its order): `(J, w)` arrays, the volume ratio and
-    /// the energy per unit rest volume (Pa).
+    /// the energy per unit rest volume (Pa). A NaN or ∞ coordinate raises
+    /// `HemlError` naming the node; a non-finite J or w from finite positions names
+    /// the tet.
     fn tet_states<'py>(&self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<ArrayPair<'py>> {
-        let x = arrays::points(x, "x", Some(self.field.n_nodes()))?;
+        let x = self.positions(x)?;
         let s = self.field.tet_states(x.as_slice()).py()?;
+        if let Some(k) = s.iter().position(|(j, w)| !(j.is_finite() && w.is_finite())) {
+            let (j, w) = s[k];
+            let tet = self.field.tet_ids()[k];
+            return Err(HemlError::new_err(format!(
+                "tet_states: J = {j}, w = {w} of tet {tet} is not finite at these finite positions"
+            )));
+        }
         let (j, w): (Vec<f64>, Vec<f64>) = s.into_iter().unzip();
         Ok((PyArray1::from_vec(py, j), PyArray1::from_vec(py, w)))
     }
@@ -106,10 +163,11 @@ impl ForceField {
     /// The tangent stiffness K = ∂²W/∂x² at `x`, exact (from the law's generated
     /// second derivatives, the inversion extension included); with
     /// `project_psd=True` each tet's 12×12 matrix is projected to positive
-    /// semi-definite, as the implicit integrators do.
+    /// semi-definite, as the implicit integrators do. A NaN or ∞ coordinate raises
+    /// `HemlError` naming the node, a non-finite stiffness names the tet.
     #[pyo3(signature = (x, project_psd = false))]
     fn tangent(&self, x: &Bound<'_, PyAny>, project_psd: bool) -> PyResult<Tangent> {
-        let x = arrays::points(x, "x", Some(self.field.n_nodes()))?;
+        let x = self.positions(x)?;
         Ok(Tangent {
             op: self.tangent_at(x.as_slice(), project_psd)?,
             mesh: self.mesh.clone(),
@@ -177,17 +235,40 @@ impl Tangent {
         self.op.projects()
     }
 
-    /// K·dx for `dx` of shape (n, 3), a new (n, 3) float64 array.
+    /// K·dx for `dx` of shape (n, 3), a new (n, 3) float64 array. A NaN or ∞ in
+    /// `dx` raises `HemlError` naming the node, as does a product that overflows.
     fn dot<'py>(&self, py: Python<'py>, dx: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let dx = arrays::points(dx, "dx", Some(self.op.n_nodes()))?;
-        let (y, r) = arrays::fill_vec3s(py, self.op.n_nodes(), |y| self.op.add_product(dx.as_slice(), y));
-        r.py()?;
+        dx.check_finite("dx")?;
+        let (y, r) = arrays::fill_vec3s(py, self.op.n_nodes(), |y| {
+            self.op.add_product(dx.as_slice(), y)?;
+            Ok::<_, heml::HemlError>(arrays::first_non_finite(y).map(|i| (i, y[i])))
+        })?;
+        if let Some((i, yi)) = r.py()? {
+            return Err(HemlError::new_err(format!(
+                "dot: K·dx = {:?} at node {i} is not finite (the product of finite values overflowed)",
+                yi.as_slice()
+            )));
+        }
         Ok(y)
     }
 
     /// `K @ dx`, as `dot`.
     fn __matmul__<'py>(&self, py: Python<'py>, dx: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         self.dot(py, dx)
+    }
+
+    /// `dx @ K`: K is symmetric, so dxᵀ·K = (K·dx)ᵀ, returned as `dot` returns K·dx,
+    /// (n, 3). (`__array_ufunc__ = None` makes a NumPy array on the left defer to it.)
+    fn __rmatmul__<'py>(&self, py: Python<'py>, dx: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        self.dot(py, dx)
+    }
+
+    /// `None`: NumPy operators with a `Tangent` operand (`dx @ K`) return
+    /// `NotImplemented`, so that Python calls `Tangent.__rmatmul__`.
+    #[classattr]
+    fn __array_ufunc__() -> Option<()> {
+        None
     }
 
     /// The 12×12 matrix of every tet, (m, 12, 12) float64 (a copy), rows and

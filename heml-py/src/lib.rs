@@ -36,5 +36,6 @@ fn _heml(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<system::System>()?;
     m.add_class::<scene::Scene>()?;
     m.add_function(wrap_pyfunction!(bench::_time_forces, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::_reads_in_place, m)?)?;
     Ok(())
 }

@@ -5,9 +5,11 @@ use std::sync::Arc;
 
 use heml::law::LawKind;
 use heml::prelude::{ForceOptions, Params};
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyInt, PyList};
 
+use crate::arrays;
 use crate::errors::IntoPyResult;
 use crate::field::ForceField;
 use crate::mesh::Mesh;
@@ -106,7 +108,18 @@ fn to_params(name: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Params>
     for (k, v) in params.iter().flat_map(|d| d.iter()) {
         let key: String = k.extract()?;
         let value: f64 = v.extract().map_err(|_| {
-            pyo3::exceptions::PyTypeError::new_err(format!(
+            if v.is_instance_of::<PyInt>() {
+                // an int beyond the float64 range (1e308)
+                let digits = v
+                    .str()
+                    .map(|s| s.to_string().trim_start_matches('-').len())
+                    .unwrap_or(0);
+                return PyValueError::new_err(format!(
+                    "material '{name}': parameter {key} is out of range: an integer of {digits} digits, beyond \
+                     the float64 range (about 1.8e308)"
+                ));
+            }
+            PyTypeError::new_err(format!(
                 "material '{name}': parameter {key} must be a number, got {}",
                 v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
             ))
@@ -147,7 +160,8 @@ impl Material {
         self.law.name()
     }
 
-    /// `"invariant"` (w(I1, I2, J)), `"link"` (per-edge energy) or `"stretch"` (principal stretches).
+    /// `"invariant"` (w(I1, I2, J)), `"link"` (per-edge energy), `"stretch"` (principal
+    /// stretches) or `"fibre"` (fibre invariants I4, I5).
     #[getter]
     fn kind(&self) -> &'static str {
         kind_name(self.law.kind())
@@ -187,10 +201,22 @@ impl Material {
     }
 
     /// The HEML force field of this law over `mesh` (over the tets `tets` only when
-    /// given). `j0` and `inversion_fix` are the inversion extension's options
-    /// (DESIGN §1): below J = j0 the law is replaced by its Taylor extension.
+    /// given: tet ids, each at most once, or a boolean mask with one entry per tet;
+    /// a negative id is a `ValueError`, a repeated one a `HemlError`). `j0` and
+    /// `inversion_fix` are the inversion extension's options (DESIGN §1): below
+    /// J = j0 the law is replaced by its Taylor extension.
     #[pyo3(signature = (mesh, tets = None, *, j0 = 0.4, inversion_fix = true))]
-    fn force_field(&self, mesh: &Mesh, tets: Option<Vec<usize>>, j0: f64, inversion_fix: bool) -> PyResult<ForceField> {
+    fn force_field(
+        &self,
+        mesh: &Mesh,
+        tets: Option<&Bound<'_, PyAny>>,
+        j0: f64,
+        inversion_fix: bool,
+    ) -> PyResult<ForceField> {
+        let tets = match tets {
+            Some(t) => Some(arrays::id_set(t, "tets", mesh.inner.n_tets(), "tet")?),
+            None => None,
+        };
         let opts = ForceOptions { j0, inversion_fix };
         ForceField::new(self.law.clone(), mesh.inner.clone(), tets, opts)
     }

@@ -14,12 +14,14 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::arrays;
-use crate::errors::IntoPyResult;
+use crate::errors::{HemlError, IntoPyResult};
 
 /// A validated linear tetrahedral mesh (immutable).
 ///
 /// Built from `nodes` ((n, 3) float64) and `tets` ((m, 4) integers), with optional
-/// per-tet integer `tags` (regions). Construction checks finite coordinates,
+/// per-tet integer `tags` (regions: integers in the int32 range, or floats with
+/// integral values; anything else is a `ValueError` naming the tet, never
+/// truncated). Construction checks finite coordinates,
 /// indices in range, no degenerate tet, and reorients negatively oriented tets
 /// (their nodes 2 and 3 are swapped), exactly as the Rust `TetMesh`: a bad mesh
 /// raises `HemlError` naming the offending tets or nodes. The arrays are copied
@@ -65,16 +67,16 @@ impl Mesh {
     #[new]
     #[pyo3(signature = (nodes, tets, tags = None))]
     fn new(nodes: &Bound<'_, PyAny>, tets: &Bound<'_, PyAny>, tags: Option<&Bound<'_, PyAny>>) -> PyResult<Mesh> {
-        let nodes = arrays::points(nodes, "nodes", None)?.as_slice().to_vec();
+        let nodes = arrays::points(nodes, "nodes", None)?.to_vec("nodes")?;
         let tets = arrays::index_rows::<4>(tets, "tets")?;
         let tags = match tags {
-            None => vec![0; tets.len()],
-            Some(t) => {
-                let t: Vec<i32> = t.extract().map_err(|_| {
-                    pyo3::exceptions::PyTypeError::new_err("tags must be a sequence of int32 values, one per tet")
-                })?;
+            None => {
+                let mut t = Vec::new();
+                arrays::reserve(&mut t, tets.len(), "tags")?;
+                t.resize(tets.len(), 0);
                 t
             }
+            Some(t) => arrays::int32_tags(t, "tags", "tet", 0)?,
         };
         TetMesh::with_tags(nodes, tets, tags).py().map(Mesh::wrap)
     }
@@ -122,9 +124,15 @@ impl Mesh {
         self.inner.total_volume()
     }
 
-    /// Lumped nodal masses for `density` (kg/m³): m_i = Σ ρ Vol_k / 4, (n,) float64.
-    fn lumped_masses<'py>(&self, py: Python<'py>, density: f64) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_vec(py, self.inner.lumped_masses(density))
+    /// Lumped nodal masses for `density` (kg/m³, a finite number > 0, else
+    /// `HemlError`): m_i = Σ ρ Vol_k / 4, (n,) float64.
+    fn lumped_masses<'py>(&self, py: Python<'py>, density: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        if !(density.is_finite() && density > 0.0) {
+            return Err(HemlError::new_err(format!(
+                "lumped_masses: density {density} must be a finite number > 0"
+            )));
+        }
+        Ok(PyArray1::from_vec(py, self.inner.lumped_masses(density)))
     }
 
     /// The outward boundary surface as `(points, faces)`: `points` are all the mesh
@@ -154,13 +162,12 @@ impl Mesh {
     /// A mesh from a `meshio.Mesh`: its points and every `"tetra"` cell block
     /// (other cell types are skipped); tags from the first cell data among
     /// `"tag"`, `"gmsh:physical"`, `"medit:ref"`, `"CellEntityIds"` that it has
-    /// (0 otherwise). Points with 2 coordinates are refused.
+    /// (0 otherwise): integers in the int32 range or integral floats, else a
+    /// `ValueError` naming the block and cell (never truncated or wrapped). Points
+    /// with 2 coordinates are refused.
     #[staticmethod]
     fn from_meshio(m: &Bound<'_, PyAny>) -> PyResult<Mesh> {
-        let py = m.py();
-        let nodes = arrays::points(&m.getattr("points")?, "meshio points", None)?
-            .as_slice()
-            .to_vec();
+        let nodes = arrays::points(&m.getattr("points")?, "meshio points", None)?.to_vec("meshio points")?;
         let cells = m.getattr("cells")?;
         let cell_data = m.getattr("cell_data")?.cast_into::<PyDict>()?;
         let tag_key = ["tag", "gmsh:physical", "medit:ref", "CellEntityIds"]
@@ -176,12 +183,12 @@ impl Mesh {
             let t = arrays::index_rows::<4>(&block.getattr("data")?, "meshio tetra cells")?;
             match tag_key {
                 Some(k) => {
-                    let data = cell_data.get_item(k)?.expect("key checked").get_item(b)?;
-                    let np = py.import("numpy")?;
-                    let v: Vec<i32> = np
-                        .call_method1("asarray", (data, "int32"))?
-                        .call_method1("reshape", (-1,))?
-                        .extract()?;
+                    let data = cell_data
+                        .get_item(k)?
+                        .ok_or_else(|| PyValueError::new_err(format!("meshio cell data '{k}' disappeared")))?
+                        .get_item(b)?;
+                    let what = format!("meshio cell data '{k}' of block {b}");
+                    let v = arrays::int32_tags(&data, &what, "cell", 0)?;
                     if v.len() != t.len() {
                         return Err(PyValueError::new_err(format!(
                             "meshio cell data '{k}' of block {b} has {} entries for {} tets",
@@ -234,12 +241,18 @@ pub fn write_mesh(path: PathBuf, mesh: &Mesh) -> PyResult<()> {
     heml::io::write_mesh(&path, &mesh.inner).py()
 }
 
-/// A box `size` (m, 3 numbers) cut into `cells` (3 integers) hexahedra, each split
-/// into tets: `split` is `"five"`, `"six"` (default), `"ten"` (both five-tet
-/// cuttings, each tet weighted ½) or `"twentyfour"`.
+/// A box `size` (m, 3 numbers) cut into `cells` (3 integers >= 0; a negative one is
+/// a `ValueError`) hexahedra, each split into tets: `split` is `"five"`, `"six"`
+/// (default), `"ten"` (both five-tet cuttings, each tet weighted ½) or
+/// `"twentyfour"`.
 #[pyfunction]
 #[pyo3(signature = (size, cells, split = "six"))]
-pub fn box_mesh(size: [f64; 3], cells: [usize; 3], split: &str) -> PyResult<Mesh> {
+pub fn box_mesh(size: [f64; 3], cells: [i64; 3], split: &str) -> PyResult<Mesh> {
+    let mut counts = [0usize; 3];
+    for (c, &v) in counts.iter_mut().zip(&cells) {
+        *c = usize::try_from(v)
+            .map_err(|_| PyValueError::new_err(format!("cells must be 3 integers >= 0, got {cells:?}")))?;
+    }
     let split = match split {
         "five" => HexSplit::Five,
         "six" => HexSplit::Six,
@@ -247,9 +260,9 @@ pub fn box_mesh(size: [f64; 3], cells: [usize; 3], split: &str) -> PyResult<Mesh
         "twentyfour" => HexSplit::TwentyFour,
         other => {
             return Err(PyValueError::new_err(format!(
-                "split must be 'five', 'six' or 'twentyfour', got {other:?}"
+                "split must be 'five', 'six', 'ten' or 'twentyfour', got {other:?}"
             )))
         }
     };
-    heml::mesh::generate::box_mesh(size, cells, split).py().map(Mesh::wrap)
+    heml::mesh::generate::box_mesh(size, counts, split).py().map(Mesh::wrap)
 }

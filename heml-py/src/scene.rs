@@ -1,13 +1,16 @@
 //! `heml.Scene`: a TOML scene file run from Python, the progress callback called
 //! with the GIL re-taken only for the call.
 
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::sync::{Mutex, MutexGuard, TryLockError};
+use std::thread::ThreadId;
+use std::time::{Duration, Instant};
 
 use heml::scene::{Progress, Simulation};
 use heml::Vec3;
 use numpy::PyArray2;
-use pyo3::exceptions::PyRuntimeError;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -21,6 +24,17 @@ use crate::errors::IntoPyResult;
 pub struct Scene {
     scene: heml::scene::Scene,
     sim: Mutex<Option<Simulation>>,
+    /// The thread whose `run()` holds `sim`, for the message of a refused access.
+    runner: Mutex<Option<ThreadId>>,
+}
+
+/// Clears [`Scene::runner`] when `run()` returns (or unwinds).
+struct Running<'a>(&'a Mutex<Option<ThreadId>>);
+
+impl Drop for Running<'_> {
+    fn drop(&mut self) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    }
 }
 
 impl Scene {
@@ -30,9 +44,17 @@ impl Scene {
         match self.sim.try_lock() {
             Ok(g) => Ok(g),
             Err(TryLockError::Poisoned(e)) => Ok(e.into_inner()),
-            Err(TryLockError::WouldBlock) => Err(PyRuntimeError::new_err(
-                "the scene is running in another thread (wait for run() to return)",
-            )),
+            Err(TryLockError::WouldBlock) => {
+                let runner = *self.runner.lock().unwrap_or_else(|e| e.into_inner());
+                Err(PyRuntimeError::new_err(
+                    if runner == Some(std::thread::current().id()) {
+                        "the scene is running: its state cannot be read from inside its own progress callback \
+                     (run() holds it until it returns; the callback's info dict has the step and time)"
+                    } else {
+                        "the scene is running in another thread (wait for run() to return)"
+                    },
+                ))
+            }
         }
     }
 
@@ -81,36 +103,53 @@ impl Scene {
         Ok(Scene {
             scene: heml::scene::Scene::from_file(&path).py()?,
             sim: Mutex::new(None),
+            runner: Mutex::new(None),
         })
     }
 
-    /// Parses scene text; relative paths inside are resolved against `base_dir`.
+    /// Parses scene text; relative paths inside are resolved against `base_dir`
+    /// (default the current directory, ".").
     #[staticmethod]
-    #[pyo3(signature = (text, base_dir = PathBuf::from(".")))]
+    #[pyo3(signature = (text, base_dir = PathBuf::from(".")), text_signature = "(text, base_dir='.')")]
     fn from_toml(text: &str, base_dir: PathBuf) -> PyResult<Scene> {
         Ok(Scene {
             scene: heml::scene::Scene::from_toml_str(text, base_dir).py()?,
             sim: Mutex::new(None),
+            runner: Mutex::new(None),
         })
     }
 
     /// Builds the simulation (if not built yet) and runs it to its duration with
     /// the GIL released. `progress`, when given, is called as `progress(info)`
-    /// every `every` steps (and after the last step) with a dict: `step`, `steps`,
-    /// `time`, `duration`, `frames`, `cg_iterations`; the GIL is taken only for
-    /// that call. The run cannot be stopped midway: an exception raised by the
-    /// callback stops further calls and is raised when the run ends. `out_dir`
-    /// overrides the scene's `[output] dir` (as `heml run --out`). Returns the
-    /// run's summary as a dict.
+    /// every `every` steps (an integer >= 1, else `ValueError`; and after the last
+    /// step) with a dict: `step`, `steps`, `time`, `duration`, `frames`,
+    /// `cg_iterations`; the GIL is taken only for that call. The run stops right
+    /// after the step at which the callback raised, or at which a pending signal's
+    /// handler raised (Ctrl-C: `KeyboardInterrupt`; signals are checked every
+    /// ~0.1 s, with or without a callback): the state reached is written as a last
+    /// frame (and CSV row), then the exception is raised. The scene's state
+    /// (`positions`, `time`…) cannot be read while it runs, from the callback
+    /// either. `out_dir` overrides the scene's `[output] dir` (as `heml run --out`).
+    /// Returns the run's summary as a dict.
     #[pyo3(signature = (progress = None, every = 1, out_dir = None))]
     fn run<'py>(
         &self,
         py: Python<'py>,
         progress: Option<Py<PyAny>>,
-        every: u64,
+        every: i64,
         out_dir: Option<PathBuf>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let every = match u64::try_from(every) {
+            Ok(e) if e >= 1 => e,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "every must be >= 1 (steps), got {every}"
+                )))
+            }
+        };
         let mut guard = self.simulation()?;
+        *self.runner.lock().unwrap_or_else(|e| e.into_inner()) = Some(std::thread::current().id());
+        let _running = Running(&self.runner);
         if guard.is_none() {
             *guard = Some(self.scene.build().py()?);
         }
@@ -118,24 +157,35 @@ impl Scene {
         if let Some(dir) = out_dir {
             sim.out_dir = dir;
         }
-        let every = every.max(1);
-        let mut callback_error: Option<PyErr> = None;
+        // the callback's exception or the signal check's (KeyboardInterrupt…): it
+        // ends the run, and is raised once the last state is written
+        let mut error: Option<PyErr> = None;
+        let mut checked = Instant::now();
         let summary = py.detach(|| {
-            sim.run(|p| {
-                let Some(cb) = &progress else { return };
-                let due = p.step.is_multiple_of(every) || p.step >= p.steps;
-                if !due || callback_error.is_some() {
-                    return;
-                }
-                Python::attach(|py| {
-                    let r = progress_dict(py, p).and_then(|d| cb.call1(py, (d,)));
-                    if let Err(e) = r {
-                        callback_error = Some(e);
+            sim.run_until(|p| {
+                if let Some(cb) = &progress {
+                    if p.step.is_multiple_of(every) || p.step >= p.steps {
+                        Python::attach(|py| {
+                            if let Err(e) = progress_dict(py, p).and_then(|d| cb.call1(py, (d,))) {
+                                error = Some(e);
+                            }
+                        });
                     }
-                });
+                }
+                if error.is_none() && checked.elapsed() >= Duration::from_millis(100) {
+                    checked = Instant::now();
+                    if let Err(e) = Python::attach(|py| py.check_signals()) {
+                        error = Some(e);
+                    }
+                }
+                if error.is_some() {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
             })
         });
-        if let Some(e) = callback_error {
+        if let Some(e) = error {
             return Err(e);
         }
         let s = summary.py()?;

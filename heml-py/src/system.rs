@@ -1,26 +1,35 @@
 //! `heml.System`: a simulated body built with the Rust builder's options, stepped
 //! by a registered integrator or solved statically with the GIL released.
 
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard, TryLockError};
 use std::time::{Duration, Instant};
 
 use heml::prelude::{ForceOptions, Integrator, PronyTerm, Ramp as RustRamp, StaticOptions, StepStats, TimeStepPolicy};
 use heml::system::{CholeskyOrdering, Energies, FactorPrecision, LinearSolver};
 use numpy::{PyArray1, PyArray2};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::arrays;
-use crate::errors::IntoPyResult;
+use crate::errors::{HemlError, IntoPyResult};
 use crate::materials::{build_law, Material};
 use crate::mesh::{surface_tuple, Mesh};
 
-/// How a prescribed displacement is applied over time: x = X + r(t)·u.
+/// How a prescribed displacement is applied over time: x = X + r(t)·u. Every
+/// constructor checks its values as the library does (`HemlError` otherwise).
 #[pyclass(frozen, module = "heml")]
 #[derive(Clone)]
 pub struct Ramp {
     inner: RustRamp,
+}
+
+impl Ramp {
+    /// A checked ramp.
+    fn checked(inner: RustRamp) -> PyResult<Ramp> {
+        inner.validate().py()?;
+        Ok(Ramp { inner })
+    }
 }
 
 #[pymethods]
@@ -31,28 +40,24 @@ impl Ramp {
         Ramp { inner: RustRamp::Step }
     }
 
-    /// r = t / duration until `duration` (s), then 1.
+    /// r = t / duration until `duration` (s, a finite number > 0), then 1.
     #[staticmethod]
-    fn linear(duration: f64) -> Ramp {
-        Ramp {
-            inner: RustRamp::Linear { duration },
-        }
+    fn linear(duration: f64) -> PyResult<Ramp> {
+        Ramp::checked(RustRamp::Linear { duration })
     }
 
-    /// Smoothstep r = 3s² − 2s³, s = t / duration: zero velocity at both ends.
+    /// Smoothstep r = 3s² − 2s³, s = t / duration (s, a finite number > 0): zero
+    /// velocity at both ends.
     #[staticmethod]
-    fn smooth(duration: f64) -> Ramp {
-        Ramp {
-            inner: RustRamp::Smooth { duration },
-        }
+    fn smooth(duration: f64) -> PyResult<Ramp> {
+        Ramp::checked(RustRamp::Smooth { duration })
     }
 
-    /// Piecewise linear through `[[t, r], …]` (times increasing), held after.
+    /// Piecewise linear through `[[t, r], …]` (at least one pair; finite values,
+    /// times >= 0 and strictly increasing), held after the last time.
     #[staticmethod]
-    fn keyframes(points: Vec<[f64; 2]>) -> Ramp {
-        Ramp {
-            inner: RustRamp::Keyframes { points },
-        }
+    fn keyframes(points: Vec<[f64; 2]>) -> PyResult<Ramp> {
+        Ramp::checked(RustRamp::Keyframes { points })
     }
 
     /// r(t).
@@ -119,7 +124,8 @@ fn stats_dict<'py>(py: Python<'py>, s: &StepStats) -> PyResult<Bound<'py, PyDict
 /// * `fixed`: nodes held at rest, a boolean mask (n,) or node ids;
 /// * `prescribed`: list of `(nodes, displacement, ramp)` — nodes as for `fixed`,
 ///   displacement 3 numbers (m), ramp a `heml.Ramp` (default step);
-/// * `nodal_forces`: list of `(node id, force)` constant forces (N);
+/// * `nodal_forces`: list of `(node id, force)` constant forces (N; forces on one
+///   node add up);
 /// * `rayleigh`: `(alpha, beta)` damping; `prony`: list of `(alpha, tau)` terms of
 ///   the default material; `initial_velocity`: (n, 3) array;
 /// * `j0`, `inversion_fix`: the inversion extension; `dt_policy`: `"warn"`
@@ -129,13 +135,45 @@ fn stats_dict<'py>(py: Python<'py>, s: &StepStats) -> PyResult<Bound<'py, PyDict
 ///   and `energies()` evaluates it when asked).
 ///
 /// Errors of the description (bad ids, unknown law, missing material…) raise
-/// `HemlError` with the library's message.
-#[pyclass(module = "heml")]
+/// `HemlError` with the library's message; a node id listed twice in `fixed` or in
+/// one `prescribed` entry is a `HemlError` too (an integer 0/1 array is taken as
+/// ids: a mask must have dtype bool).
+///
+/// Threads: `step` and `solve_static` release the GIL; while one runs, any other
+/// use of the system from another thread raises `RuntimeError` ("the system is
+/// stepping in another thread") rather than wait.
+#[pyclass(frozen, module = "heml")]
 pub struct System {
-    pub(crate) sys: heml::prelude::System,
+    sys: Mutex<heml::prelude::System>,
     /// The integrator of the last `step` call, kept so that its state (e.g. an
     /// implicit solver's buffers) carries over between calls with the same name.
     integrator: Mutex<Option<Box<dyn Integrator>>>,
+}
+
+/// `RuntimeError` text when a `step`/`solve_static` of another thread holds the system.
+const BUSY: &str = "the system is stepping in another thread (a step() or solve_static() call there holds it \
+                    while the GIL is released); wait for that call to return";
+
+/// Locks without waiting (the holder runs without the GIL and may need it back to
+/// check for Ctrl-C, so waiting here, GIL held, could deadlock).
+fn try_lock<T>(m: &Mutex<T>) -> PyResult<MutexGuard<'_, T>> {
+    match m.try_lock() {
+        Ok(g) => Ok(g),
+        Err(TryLockError::Poisoned(e)) => Ok(e.into_inner()),
+        Err(TryLockError::WouldBlock) => Err(PyRuntimeError::new_err(BUSY)),
+    }
+}
+
+impl System {
+    /// The library's system, unless another thread is stepping it (`RuntimeError`).
+    pub(crate) fn lock(&self) -> PyResult<MutexGuard<'_, heml::prelude::System>> {
+        try_lock(&self.sys)
+    }
+
+    /// Number of nodes (locks briefly).
+    fn node_count(&self) -> PyResult<usize> {
+        Ok(self.lock()?.mesh().n_nodes())
+    }
 }
 
 #[pymethods]
@@ -165,7 +203,7 @@ impl System {
         inversion_fix: bool,
         dt_policy: &str,
         safety: Option<f64>,
-        energy_every: u64,
+        energy_every: i64,
         lazy_energy: bool,
         pin_unreferenced: bool,
     ) -> PyResult<System> {
@@ -177,7 +215,13 @@ impl System {
         }
         if let Some(regions) = regions {
             for (tag, law) in regions.iter() {
-                b = b.region_law(tag.extract()?, law_of(&law, None)?);
+                let t: i32 = tag.extract().map_err(|_| {
+                    PyTypeError::new_err(format!(
+                        "regions: keys must be integer region tags (int32, the values of Mesh.tags), got {}",
+                        tag.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into())
+                    ))
+                })?;
+                b = b.region_law(t, law_of(&law, None)?);
             }
         }
         b = b.density(density);
@@ -185,7 +229,7 @@ impl System {
             b = b.gravity(arrays::vec3(g, "gravity")?);
         }
         if let Some(f) = fixed {
-            b = b.fix_nodes(arrays::selection(f, "fixed", n)?);
+            b = b.fix_nodes(arrays::id_set(f, "fixed", n, "node")?);
         }
         for item in prescribed.iter().flat_map(|l| l.iter()) {
             let (nodes, u, ramp): (Bound<'_, PyAny>, Bound<'_, PyAny>, Option<Ramp>) = match item.extract() {
@@ -199,22 +243,29 @@ impl System {
             };
             let ramp = ramp.map_or(RustRamp::Step, |r| r.inner);
             b = b.prescribe(
-                arrays::selection(&nodes, "prescribed nodes", n)?,
+                arrays::id_set(&nodes, "prescribed nodes", n, "node")?,
                 arrays::vec3(&u, "prescribed displacement")?,
                 ramp,
             );
         }
-        for item in nodal_forces.iter().flat_map(|l| l.iter()) {
-            let (id, f): (usize, Bound<'_, PyAny>) = item
-                .extract()
-                .map_err(|_| PyTypeError::new_err("nodal_forces entries must be (node id, force) pairs"))?;
+        for (k, item) in nodal_forces.iter().flat_map(|l| l.iter()).enumerate() {
+            let (id, f): (i64, Bound<'_, PyAny>) = item.extract().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "nodal_forces entry {k} must be a (node id, force) pair with an integer id, got {}",
+                    item.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into())
+                ))
+            })?;
+            let id = usize::try_from(id)
+                .map_err(|_| PyValueError::new_err(format!("nodal_forces entry {k}: node id {id} must be >= 0")))?;
             b = b.nodal_force(id, arrays::vec3(&f, "nodal force")?);
         }
         if let Some((alpha, beta)) = rayleigh {
             b = b.rayleigh(alpha, beta);
         }
         if let Some(v) = initial_velocity {
-            let v = arrays::points(v, "initial_velocity", Some(n))?.as_slice().to_vec();
+            let v = arrays::points(v, "initial_velocity", Some(n))?;
+            v.check_finite("initial_velocity")?;
+            let v = v.to_vec("initial_velocity")?;
             // the builder evaluates its function of the rest position once per
             // node, in node order: hand out the rows in that order
             let next = std::cell::Cell::new(0);
@@ -238,18 +289,21 @@ impl System {
         if let Some(s) = safety {
             b = b.safety(s);
         }
-        b = b.energy_every(energy_every).lazy_energy(lazy_energy);
+        b = b
+            .energy_every(arrays::non_negative("energy_every", energy_every)?)
+            .lazy_energy(lazy_energy);
         if pin_unreferenced {
             b = b.pin_unreferenced();
         }
         Ok(System {
-            sys: b.build().py()?,
+            sys: Mutex::new(b.build().py()?),
             integrator: Mutex::new(None),
         })
     }
 
-    /// Advances the system by `n` steps of `dt` (s; default the stable estimate
-    /// `stable_dt`) with the integrator registered as `integrator`
+    /// Advances the system by `n` steps (an integer >= 1, else `ValueError`) of `dt`
+    /// (s; default the stable estimate `stable_dt`, which is infinite when no node is
+    /// free: then `dt` must be given) with the integrator registered as `integrator`
     /// (`heml.integrators()`). The GIL is released while stepping (re-taken every
     /// ~0.1 s to let Ctrl-C through). Returns the last step's statistics as a dict.
     /// A step that produces NaN/∞ raises `HemlError` naming the step and node; the
@@ -272,11 +326,11 @@ impl System {
     ))]
     #[allow(clippy::too_many_arguments)]
     fn step<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         integrator: &str,
         dt: Option<f64>,
-        n: u64,
+        n: i64,
         linear_solver: Option<&str>,
         cholesky_ordering: Option<&str>,
         factor_precision: Option<&str>,
@@ -285,8 +339,34 @@ impl System {
         cg_tolerance: Option<f64>,
         cg_max_iterations: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let dt = dt.unwrap_or_else(|| self.sys.stable_dt());
-        let slot = self.integrator.get_mut().unwrap_or_else(|e| e.into_inner());
+        let n = match u64::try_from(n) {
+            Ok(n) if n >= 1 => n,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "n must be >= 1 (the number of steps), got {n}"
+                )))
+            }
+        };
+        let mut guard = self.lock()?;
+        let dt = match dt {
+            Some(dt) => dt,
+            None => {
+                let dt = guard.stable_dt();
+                if !(dt.is_finite() && dt > 0.0) {
+                    let free = (0..guard.mesh().n_nodes()).any(|i| guard.is_free(i));
+                    return Err(PyValueError::new_err(if free {
+                        format!("the stable time step estimate is {dt}: give the time step dt explicitly")
+                    } else {
+                        format!(
+                            "no node is free (every node is fixed or prescribed), so the stable time step is {dt}: \
+                             give the time step dt explicitly"
+                        )
+                    }));
+                }
+                dt
+            }
+        };
+        let mut slot = try_lock(&self.integrator)?;
         if slot.as_ref().is_none_or(|i| i.name() != integrator) {
             *slot = Some(heml::integrator(integrator).py()?);
         }
@@ -336,7 +416,7 @@ impl System {
             *settings = s;
         }
         let stepper = slot.as_mut().expect("set above");
-        let sys = &mut self.sys;
+        let sys: &mut heml::prelude::System = &mut guard;
         let mut last: Option<StepStats> = None;
         let mut done = 0;
         while done < n {
@@ -359,167 +439,239 @@ impl System {
             r.py()?;
             py.check_signals()?;
         }
-        match last {
-            Some(s) => stats_dict(py, &s),
-            None => Ok(PyDict::new(py)),
-        }
+        let s = last.ok_or_else(|| PyRuntimeError::new_err("step: no step was taken"))?;
+        stats_dict(py, &s)
     }
 
     /// Solves for static equilibrium under the loads and supports (the Newton core
-    /// of the implicit integrators), GIL released. Returns a dict: `converged`,
-    /// `iterations`, `residual`, `load_scale`, `tol`, `criterion`.
+    /// of the implicit integrators, dynamic relaxation where it cannot apply), GIL
+    /// released. `max_iterations` caps the dynamic-relaxation iterations (an integer
+    /// >= 1, else `ValueError`; the few Newton iterations have their own cap); a
+    /// solve that reaches it raises `HemlError`. Ctrl-C (any pending signal whose
+    /// handler raises) is checked every ~0.1 s and stops the solve with that
+    /// exception (`KeyboardInterrupt`), the system left at the last iterate. Returns
+    /// a dict: `converged`, `iterations`, `residual`, `load_scale`, `tol`,
+    /// `roundoff` (the residual's round-off level, N: a residual at or below it
+    /// counts as converged), `criterion`.
     #[pyo3(signature = (tol = 1e-6, abs_tol = 0.0, max_iterations = 500_000))]
     fn solve_static<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         tol: f64,
         abs_tol: f64,
-        max_iterations: usize,
+        max_iterations: i64,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let max_iterations = match usize::try_from(max_iterations) {
+            Ok(m) if m >= 1 => m,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "max_iterations must be >= 1, got {max_iterations}"
+                )))
+            }
+        };
         let opts = StaticOptions {
             tol,
             abs_tol,
             max_iterations,
             ..StaticOptions::default()
         };
-        let sys = &mut self.sys;
-        let r = py.detach(|| sys.solve_static(&opts)).py()?;
+        let mut guard = self.lock()?;
+        let sys: &mut heml::prelude::System = &mut guard;
+        // the signal check's error (KeyboardInterrupt…), raised instead of the
+        // library's "stopped" error
+        let mut interrupt: Option<PyErr> = None;
+        let mut checked = Instant::now();
+        let r = py.detach(|| {
+            sys.solve_static_until(&[], &opts, &mut || {
+                // asked once per iteration: look at the signals every ~0.1 s only
+                if checked.elapsed() < Duration::from_millis(100) {
+                    return false;
+                }
+                checked = Instant::now();
+                match Python::attach(|py| py.check_signals()) {
+                    Ok(()) => false,
+                    Err(e) => {
+                        interrupt = Some(e);
+                        true
+                    }
+                }
+            })
+        });
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        let r = r.py()?;
         let d = PyDict::new(py);
         d.set_item("converged", r.converged)?;
         d.set_item("iterations", r.iterations)?;
         d.set_item("residual", r.residual)?;
         d.set_item("load_scale", r.load_scale)?;
         d.set_item("tol", r.tol)?;
+        d.set_item("roundoff", r.roundoff)?;
         d.set_item("criterion", r.criterion())?;
         Ok(d)
     }
 
     /// Evaluates the forces at the current state (`forces`, `reactions`).
-    fn compute_forces(&mut self) -> PyResult<()> {
-        self.sys.compute_forces().py()
+    fn compute_forces(&self) -> PyResult<()> {
+        self.lock()?.compute_forces().py()
     }
 
-    /// Current positions, (n, 3) float64 (a copy). Assignable: setting positions
-    /// moves the free nodes (constrained nodes are put back by the next step).
+    /// Current positions, (n, 3) float64 (a copy). Assignable: every node is moved
+    /// to the given position, then the constrained (fixed and prescribed) nodes are
+    /// put back at once at their constrained positions (and velocities) at the
+    /// current time, so that the next force evaluation sees them where the
+    /// constraints hold them. A NaN or ∞ raises `HemlError` naming the node, the
+    /// system unchanged.
     #[getter]
     fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        arrays::vec3s_to_py(py, self.sys.positions())
+        arrays::vec3s_to_py(py, self.lock()?.positions())
     }
 
     #[setter]
-    fn set_positions(&mut self, x: &Bound<'_, PyAny>) -> PyResult<()> {
-        let x = arrays::points(x, "positions", Some(self.sys.mesh().n_nodes()))?;
-        self.sys.positions_mut().copy_from_slice(x.as_slice());
+    fn set_positions(&self, x: &Bound<'_, PyAny>) -> PyResult<()> {
+        let x = arrays::points(x, "positions", Some(self.node_count()?))?;
+        x.check_finite("positions")?;
+        let mut sys = self.lock()?;
+        sys.positions_mut().copy_from_slice(x.as_slice());
+        let t = sys.time();
+        sys.apply_constraints(t);
         Ok(())
     }
 
-    /// Current velocities, (n, 3) float64 (a copy). Assignable.
+    /// Current velocities, (n, 3) float64 (a copy). Assignable, as `positions`: the
+    /// constrained nodes get their constraint's velocity back at once (zero for
+    /// fixed nodes). A NaN or ∞ raises `HemlError` naming the node, the system
+    /// unchanged.
     #[getter]
     fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        arrays::vec3s_to_py(py, self.sys.velocities())
+        arrays::vec3s_to_py(py, self.lock()?.velocities())
     }
 
     #[setter]
-    fn set_velocities(&mut self, v: &Bound<'_, PyAny>) -> PyResult<()> {
-        let v = arrays::points(v, "velocities", Some(self.sys.mesh().n_nodes()))?;
-        self.sys.velocities_mut().copy_from_slice(v.as_slice());
+    fn set_velocities(&self, v: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = arrays::points(v, "velocities", Some(self.node_count()?))?;
+        v.check_finite("velocities")?;
+        let mut sys = self.lock()?;
+        sys.velocities_mut().copy_from_slice(v.as_slice());
+        let t = sys.time();
+        sys.apply_constraints(t);
         Ok(())
     }
 
     /// Displacements x − X, (n, 3) float64.
     #[getter]
     fn displacements<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        arrays::vec3s_to_py(py, &self.sys.displacements())
+        arrays::vec3s_to_py(py, &self.lock()?.displacements())
     }
 
     /// Rest positions X, (n, 3) float64 (a copy).
     #[getter]
     fn rest_positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        arrays::vec3s_to_py(py, self.sys.rest_positions())
+        arrays::vec3s_to_py(py, self.lock()?.rest_positions())
     }
 
     /// Total nodal forces of the last force evaluation (zero on constrained
     /// nodes), (n, 3) float64.
     #[getter]
     fn forces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        arrays::vec3s_to_py(py, self.sys.forces())
+        arrays::vec3s_to_py(py, self.lock()?.forces())
     }
 
     /// Support reactions of the last force evaluation (zero on free nodes), (n, 3).
     #[getter]
     fn reactions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        arrays::vec3s_to_py(py, self.sys.reactions())
+        arrays::vec3s_to_py(py, self.lock()?.reactions())
     }
 
     /// Sum of the reactions (N), 3 floats.
     #[getter]
-    fn total_reaction(&self) -> [f64; 3] {
-        let r = self.sys.total_reaction();
-        [r.x, r.y, r.z]
+    fn total_reaction(&self) -> PyResult<[f64; 3]> {
+        let r = self.lock()?.total_reaction();
+        Ok([r.x, r.y, r.z])
     }
 
     /// Lumped nodal masses (kg), (n,) float64.
     #[getter]
-    fn masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, self.sys.masses())
+    fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        Ok(PyArray1::from_slice(py, self.lock()?.masses()))
     }
 
     /// Simulated time (s).
     #[getter]
-    fn time(&self) -> f64 {
-        self.sys.time()
+    fn time(&self) -> PyResult<f64> {
+        Ok(self.lock()?.time())
     }
 
     /// Completed steps.
     #[getter]
-    fn step_count(&self) -> u64 {
-        self.sys.step_count()
+    fn step_count(&self) -> PyResult<u64> {
+        Ok(self.lock()?.step_count())
     }
 
-    /// The stable explicit time step estimated at rest (s).
+    /// The stable explicit time step estimated at rest (s); infinite when no node
+    /// is free.
     #[getter]
-    fn stable_dt(&self) -> f64 {
-        self.sys.stable_dt()
+    fn stable_dt(&self) -> PyResult<f64> {
+        Ok(self.lock()?.stable_dt())
     }
 
     /// Number of nodes.
     #[getter]
-    fn n_nodes(&self) -> usize {
-        self.sys.mesh().n_nodes()
+    fn n_nodes(&self) -> PyResult<usize> {
+        self.node_count()
     }
 
     /// The system's mesh (rest configuration).
     #[getter]
-    fn mesh(&self) -> Mesh {
-        Mesh::wrap(self.sys.mesh().clone())
+    fn mesh(&self) -> PyResult<Mesh> {
+        Ok(Mesh::wrap(self.lock()?.mesh().clone()))
     }
 
     /// Warnings collected so far (e.g. a step above the stable estimate).
     #[getter]
-    fn warnings(&self) -> Vec<String> {
-        self.sys.warnings().to_vec()
+    fn warnings(&self) -> PyResult<Vec<String>> {
+        Ok(self.lock()?.warnings().to_vec())
     }
 
     /// Energies (J) at the current state: dict with `kinetic`, `elastic`,
-    /// `gravity`, `loads`, `total`.
+    /// `gravity`, `loads`, `total`. An energy that is not finite (positions too
+    /// large for the law) raises `HemlError` naming it.
     fn energies<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        energies_dict(py, &self.sys.energies().py()?)
+        let e = self.lock()?.energies().py()?;
+        let named = [
+            ("kinetic", e.kinetic),
+            ("elastic", e.elastic),
+            ("gravity", e.gravity),
+            ("loads", e.loads),
+            ("total", e.total),
+        ];
+        if let Some((name, v)) = named.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(HemlError::new_err(format!(
+                "energies: the {name} energy is {v} at the current (finite) state: not finite"
+            )));
+        }
+        energies_dict(py, &e)
     }
 
     /// The boundary surface at the current positions, `(points, faces)` as
     /// `Mesh.surface` (points are the current positions of all nodes).
     #[pyo3(signature = (padded = false))]
     fn surface<'py>(&self, py: Python<'py>, padded: bool) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyAny>)> {
-        surface_tuple(py, self.sys.surface(), self.sys.positions(), padded)
+        let sys = self.lock()?;
+        surface_tuple(py, sys.surface(), sys.positions(), padded)
     }
 
     fn __repr__(&self) -> String {
-        format!(
-            "heml.System({} nodes, {} tets, t = {} s, {} steps)",
-            self.sys.mesh().n_nodes(),
-            self.sys.mesh().n_tets(),
-            self.sys.time(),
-            self.sys.step_count()
-        )
+        match self.lock() {
+            Ok(sys) => format!(
+                "heml.System({} nodes, {} tets, t = {} s, {} steps)",
+                sys.mesh().n_nodes(),
+                sys.mesh().n_tets(),
+                sys.time(),
+                sys.step_count()
+            ),
+            Err(_) => "heml.System(stepping in another thread)".to_string(),
+        }
     }
 }

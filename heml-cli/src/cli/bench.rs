@@ -27,11 +27,12 @@ pub struct BenchArgs {
     /// Law (registry name, see `heml materials`).
     #[arg(long, default_value = "neo_hookean")]
     pub law: String,
-    /// Threads of the parallel runs (default: all cores). 1 thread is always measured too.
-    #[arg(long)]
+    /// Threads of the parallel runs (default: all cores; at most 4 × the CPUs, up to
+    /// 1024). 1 thread is always measured too.
+    #[arg(long, value_parser = crate::threads::thread_count)]
     pub threads: Option<usize>,
-    /// Timed samples per measurement (the median is reported).
-    #[arg(long, default_value_t = 25)]
+    /// Timed samples per measurement (the median is reported; at most 100 000).
+    #[arg(long, default_value_t = 25, value_parser = repeat_count)]
     pub repeats: usize,
     /// Shuffle node and tet numbering randomly before building the fields (as real
     /// meshes often arrive).
@@ -330,6 +331,17 @@ fn scaling(
         );
     }
     Ok(())
+}
+
+/// Most `--repeats`.
+pub const MAX_REPEATS: usize = 100_000;
+
+/// A `--repeats` value (clap parser): 0 to [`MAX_REPEATS`] (0 is taken as 1).
+fn repeat_count(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n <= MAX_REPEATS => Ok(n),
+        _ => Err(format!("{s:?} is not a number of repeats (at most {MAX_REPEATS})")),
+    }
 }
 
 /// Runs `heml bench`.

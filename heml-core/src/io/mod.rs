@@ -315,7 +315,52 @@ fn unknown_extension(path: &Path, verb: &str) -> HemlError {
 
 /// Reads a file whole, mapping failures to [`HemlError::Io`] with its path.
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| HemlError::io(path, e))
+    read_file(path, MAX_INPUT_BYTES)
+}
+
+/// Largest input file read (4 GiB): a mesh at the scene generator's own cap of 5·10⁷
+/// tets takes ~2.5 GB as ASCII Gmsh; a larger "file" (a link to `/dev/zero`, a
+/// sparse file) is refused before it is read instead of filling the memory.
+pub(crate) const MAX_INPUT_BYTES: u64 = 4 << 30;
+
+/// Reads a regular file of at most `max` bytes. A directory, pipe or device is
+/// refused before it is read: a pipe named `x.msh` blocked the reader forever, and
+/// `/dev/zero` was read until the memory ran out.
+pub(crate) fn read_file(path: &Path, max: u64) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let io = |e| HemlError::io(path, e);
+    let file = std::fs::File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(HemlError::Invalid(format!(
+            "{}: not a regular file (a directory, pipe or device); expected a file",
+            path.display()
+        )));
+    }
+    if meta.len() > max {
+        return Err(HemlError::Invalid(format!(
+            "{}: {} bytes, above the {max} bytes an input file may have",
+            path.display(),
+            meta.len()
+        )));
+    }
+    let mut bytes = Vec::new();
+    bytes.try_reserve_exact(meta.len() as usize).map_err(|_| {
+        HemlError::Invalid(format!(
+            "{}: cannot allocate {} bytes to read it",
+            path.display(),
+            meta.len()
+        ))
+    })?;
+    // (a file that grows while read is still held to the cap)
+    file.take(max + 1).read_to_end(&mut bytes).map_err(io)?;
+    if bytes.len() as u64 > max {
+        return Err(HemlError::Invalid(format!(
+            "{}: grew past the {max} bytes an input file may have while it was read",
+            path.display()
+        )));
+    }
+    Ok(bytes)
 }
 
 /// Reads the raw content of a mesh file, choosing the reader by extension.

@@ -41,6 +41,7 @@
 //! translations are in metres, on the converted mesh.
 
 mod build;
+mod exact;
 mod fibre_expr;
 mod fibres;
 mod output;
@@ -117,6 +118,22 @@ pub struct Scene {
     /// The TOML text, to give semantic errors a line number.
     #[serde(skip)]
     text: String,
+    /// The lines of the text's `[[table]]` headers, by table, found in one pass when
+    /// a message first needs one: rescanning the text per entry made loading a
+    /// scene of n entries O(n²) (20 000 `[[loads.nodal]]` entries took 21 s).
+    #[serde(skip)]
+    headers: HeaderLines,
+}
+
+/// A cache of what the scene's text says (see `Scene::headers`): scenes compare
+/// equal whether or not it is filled.
+#[derive(Debug, Clone, Default)]
+struct HeaderLines(std::sync::OnceLock<std::collections::HashMap<String, Vec<usize>>>);
+
+impl PartialEq for HeaderLines {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl Scene {
@@ -124,7 +141,16 @@ impl Scene {
     /// the file's directory.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| HemlError::io(path, e))?;
+        // a scene is a few kB; 64 MB bounds a hostile one (a pipe or a device is
+        // refused, not read forever)
+        let bytes = crate::io::read_file(path, 64 << 20)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            HemlError::Invalid(format!(
+                "{}: not UTF-8 text (byte {} is invalid); a scene is a TOML file",
+                path.display(),
+                e.utf8_error().valid_up_to()
+            ))
+        })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Self::parse(&text, base, path.to_path_buf())
     }
@@ -151,7 +177,8 @@ impl Scene {
     /// Names entry `index` (0-based) of the array of tables `table` for messages:
     /// `scene.toml:12: [[fix]] #2`.
     pub(crate) fn entry_name(&self, table: &str, index: usize) -> String {
-        match parse::entry_line(&self.text, table, index) {
+        let headers = self.headers.0.get_or_init(|| parse::entry_lines(&self.text));
+        match headers.get(table).and_then(|lines| lines.get(index).copied()) {
             Some(line) => format!("{}:{line}: [[{table}]] #{}", self.origin.display(), index + 1),
             None => format!("{}: [[{table}]] #{}", self.origin.display(), index + 1),
         }

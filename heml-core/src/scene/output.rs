@@ -116,7 +116,25 @@ impl Output {
         };
         let csv = if csv {
             let path = dir.join("energy.csv");
-            let mut file = File::create(&path).map_err(|e| HemlError::io(&path, e))?;
+            // a new file, never through what is there: an earlier run's CSV (or a
+            // link planted in its place, whose target a plain create would have
+            // overwritten) is removed first, and `create_new` refuses whatever
+            // appears at the path in between
+            match std::fs::symlink_metadata(&path) {
+                Ok(m) if m.is_dir() => {
+                    return Err(HemlError::Invalid(format!(
+                        "{}: is a directory, where the run writes its CSV",
+                        path.display()
+                    )))
+                }
+                Ok(_) => std::fs::remove_file(&path).map_err(|e| HemlError::io(&path, e))?,
+                Err(_) => {}
+            }
+            let mut file = std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+                .map_err(|e| HemlError::io(&path, e))?;
             let mut header = CSV_HEADER.to_string();
             for (_, name) in &tools {
                 let _ = write!(header, ",tool_{name}_fx,tool_{name}_fy,tool_{name}_fz");

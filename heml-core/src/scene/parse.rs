@@ -70,13 +70,22 @@ pub(crate) fn line_of(text: &str, pos: usize) -> usize {
 }
 
 /// Line of the `index`-th (0-based) `[[table]]` header, when written as a header.
+#[cfg(test)]
 pub(crate) fn entry_line(text: &str, table: &str, index: usize) -> Option<usize> {
-    let header = format!("[[{table}]]");
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| l.trim_start().starts_with(&header))
-        .nth(index)
-        .map(|(i, _)| i + 1)
+    entry_lines(text).get(table).and_then(|lines| lines.get(index).copied())
+}
+
+/// The 1-based lines of every `[[table]]` header of `text`, by table name (in one
+/// pass over the text).
+pub(crate) fn entry_lines(text: &str) -> std::collections::HashMap<String, Vec<usize>> {
+    let mut lines: std::collections::HashMap<String, Vec<usize>> = std::collections::HashMap::new();
+    for (i, l) in text.lines().enumerate() {
+        let l = l.trim_start();
+        let Some(rest) = l.strip_prefix("[[") else { continue };
+        let Some(end) = rest.find("]]") else { continue };
+        lines.entry(rest[..end].trim().to_string()).or_default().push(i + 1);
+    }
+    lines
 }
 
 /// Line of the `[table]` header.

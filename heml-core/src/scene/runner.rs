@@ -1,5 +1,6 @@
 //! Stepping a [`Simulation`] to its duration, with output and a progress callback.
 
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -56,6 +57,9 @@ pub struct RunSummary {
     pub energies: Energies,
     /// The output directory.
     pub out_dir: PathBuf,
+    /// Whether the progress callback of [`Simulation::run_until`] ended the run
+    /// before its duration.
+    pub stopped: bool,
 }
 
 impl std::fmt::Display for RunSummary {
@@ -63,8 +67,9 @@ impl std::fmt::Display for RunSummary {
         let e = &self.energies;
         write!(
             f,
-            "{} steps ({}), {:.4} s simulated in {:.2} s wall; {} frames in {}; \
+            "{}{} steps ({}), {:.4} s simulated in {:.2} s wall; {} frames in {}; \
              max displacement {:.4e} m; energies (J): kinetic {:.4e}, elastic {:.4e}, gravity {:.4e}, total {:.4e}",
+            if self.stopped { "stopped early: " } else { "" },
             self.steps,
             match self.min_j {
                 None => format!("dt = {:.3e} s", self.dt),
@@ -104,6 +109,54 @@ impl Simulation {
     /// — one whose positions, velocities and forces are all finite — which is
     /// written as a last frame (and the CSV flushed) before the error is returned.
     pub fn run(&mut self, mut progress: impl FnMut(&Progress)) -> Result<RunSummary> {
+        self.run_until(|p| {
+            progress(p);
+            ControlFlow::Continue(())
+        })
+    }
+
+    /// [`Simulation::run`] whose progress callback may end the run early by
+    /// returning [`ControlFlow::Break`]: the state after that step is written as a
+    /// last frame (and CSV row) and the summary says [`RunSummary::stopped`] — a
+    /// user interface's stop button, a Ctrl-C seen by the caller, or a condition on
+    /// the motion.
+    ///
+    /// (Not run here: heml-core's own doctests have no integrator registered; through
+    /// the `heml` facade it runs as it is, and `tests/tests/suite/scene.rs` runs it.)
+    ///
+    /// ```no_run
+    /// use std::ops::ControlFlow;
+    /// let dir = std::env::temp_dir().join(format!("heml-doc-run-until-{}", std::process::id()));
+    /// let scene = heml_core::scene::Scene::from_toml_str(
+    ///     r#"
+    ///     [mesh]
+    ///     generate = { kind = "box", size = [0.1, 0.02, 0.02], cells = [4, 1, 1] }
+    ///     [[material]]
+    ///     energy = "mu/2*(I1-3) - mu*ln(J) + lam/2*ln(J).powi(2)"
+    ///     params = { mu = 1e3, lam = 1e4 }
+    ///     density = 1000.0
+    ///     [[fix]]
+    ///     plane = { point = [0, 0, 0], normal = [1, 0, 0] }
+    ///     [loads]
+    ///     gravity = [0, 0, -9.81]
+    ///     [solver]
+    ///     dt = 1e-4
+    ///     duration = 1.0
+    ///     [output]
+    ///     vtu = false
+    ///     "#,
+    ///     ".",
+    /// )?;
+    /// let mut sim = scene.build()?;
+    /// sim.out_dir = dir.clone();
+    /// // stop after 25 of the 10 000 steps
+    /// let summary = sim.run_until(|p| if p.step >= 25 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })?;
+    /// assert!(summary.stopped && summary.steps == 25);
+    /// assert!((summary.time - 25.0 * 1e-4).abs() < 1e-12);
+    /// # std::fs::remove_dir_all(&dir).ok();
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    pub fn run_until(&mut self, mut progress: impl FnMut(&Progress) -> ControlFlow<()>) -> Result<RunSummary> {
         let start = Instant::now();
         if self.dt > self.system.stable_dt() && self.dt_policy == TimeStepPolicy::Warn {
             // the warning is in `self.warnings` already
@@ -150,6 +203,7 @@ impl Simulation {
         let (mut next_frame, mut next_row) = (1u64, 1u64);
         let (mut dt_min, mut dt_max) = (f64::INFINITY, 0.0_f64);
         let mut k = 0u64;
+        let mut stopped = false;
         loop {
             k += 1;
             // the step taken, and the controller's step and reason (the CSV's: a step
@@ -170,31 +224,35 @@ impl Simulation {
                         return Err(fail(&mut out, sys, e));
                     }
                     let (dt, reason) = a.next(sys);
+                    if dt < MIN_ADAPTIVE_FRACTION * self.dt {
+                        let e = HemlError::Numerical(format!(
+                            "the adaptive step fell to {dt:e} s, below {MIN_ADAPTIVE_FRACTION:e} of the base step \
+                             {:e} s, at t = {:e} s: the tissue's stiffness ran away (a law far outside its \
+                             range, or a crushed tet); soften the motion or check the material",
+                            self.dt,
+                            sys.time()
+                        ));
+                        return Err(fail(&mut out, sys, e));
+                    }
                     let t = sys.time();
                     let stop = (next_frame as f64 * frame_span)
                         .min(next_row as f64 * row_span)
                         .min(self.duration);
-                    // land on the stop; split the last stretch in two rather than
-                    // leave a sliver of a step before it
+                    // land on the stop in equal steps no longer than the
+                    // controller's: the output times are evenly spaced, so the step
+                    // stays constant while the controller's does. (Full steps then a
+                    // shorter last one alternated two sizes every output time —
+                    // every step or two with a CSV row per base step — and that
+                    // periodic modulation pumped the modes it resonates with: a
+                    // poked kidney at mass damping 20/s kept ~1e-5 J of jitter
+                    // instead of coming to rest, and a crushed one diverged.)
                     let rem = stop - t;
-                    let step = if rem <= dt + tol {
-                        rem
-                    } else if rem < 1.5 * dt {
-                        0.5 * rem
-                    } else {
-                        dt
-                    };
-                    (step, dt, reason)
+                    let n = ((rem - tol) / dt).ceil().max(1.0);
+                    (rem / n, dt, reason)
                 }
             };
-            if let Err(e) = self.surgery.before_step(sys, event_tol) {
+            if let Err(e) = script_step(&mut self.surgery, &self.tools, sys, dt, event_tol) {
                 return Err(fail(&mut out, sys, e));
-            }
-            // scripted tools: where their paths are at the end of the step
-            for tool in &self.tools {
-                if let Err(e) = sys.set_tool_pose(tool.id, tool.path.at(sys.time() + dt)) {
-                    return Err(fail(&mut out, sys, e));
-                }
             }
             let stats = match self.integrator.step(sys, dt) {
                 Ok(stats) => stats,
@@ -236,7 +294,7 @@ impl Simulation {
                 out.frame(sys)?;
                 out.flush_csv()?;
             }
-            progress(&Progress {
+            let asked = progress(&Progress {
                 step: k,
                 steps: self.steps.max(k),
                 time: sys.time(),
@@ -245,6 +303,19 @@ impl Simulation {
                 cg_iterations: stats.cg_iterations,
             });
             if last {
+                break;
+            }
+            if asked.is_break() {
+                // the state the run stops at is its last frame and row
+                if out.wants_csv() && !row_due {
+                    let e = sys.energies()?;
+                    out.row(sys, &e, chosen, reason, stats.cg_iterations);
+                }
+                if !frame_due {
+                    out.frame(sys)?;
+                }
+                out.flush_csv()?;
+                stopped = true;
                 break;
             }
         }
@@ -263,8 +334,81 @@ impl Simulation {
             max_displacement: sys.displacements().iter().map(|d| d.norm()).fold(0.0, f64::max),
             energies: sys.energies()?,
             out_dir: self.out_dir.clone(),
+            stopped,
         })
     }
+}
+
+/// The smallest adaptive step, as a fraction of the base step, before a run stops
+/// with an error rather than grind on: the kidney crushed to a tenth of its height
+/// needs 0.015 of it (`scenes/crush_kidney.toml`); an Ogden beam with α = 1000,
+/// whose stiffness runs away, collapsed towards 0 and ran for minutes on a plan of
+/// 23 steps.
+const MIN_ADAPTIVE_FRACTION: f64 = 1e-4;
+
+impl Simulation {
+    /// What the scene scripts before a step of `dt` from the system's current time:
+    /// the `[[cut]]`s whose time has come, the ramped `[[surface_load]]`s at their
+    /// value now and the scripted `[[tool]]`s at their path's pose at the end of the
+    /// step. [`Simulation::run`] does this before every step; a program that steps
+    /// the system itself (say, `heml view`'s live loop) calls it so that the scene
+    /// plays as it does in `heml run`. Returns whether a cut changed the mesh (its
+    /// boundary surface then changed too).
+    ///
+    /// (Not run here: heml-core's own doctests have no integrator registered; through
+    /// the `heml` facade it runs as it is, and `heml view`'s protocol test runs it.)
+    ///
+    /// ```no_run
+    /// let scene = heml_core::scene::Scene::from_toml_str(
+    ///     r#"
+    ///     [mesh]
+    ///     generate = { kind = "box", size = [0.04, 0.01, 0.01], cells = [4, 1, 1] }
+    ///     [[material]]
+    ///     energy = "mu/2*(I1-3) - mu*ln(J) + lam/2*ln(J).powi(2)"
+    ///     params = { mu = 1e3, lam = 1e4 }
+    ///     density = 1000.0
+    ///     [[fix]]
+    ///     plane = { point = [0, 0, 0], normal = [1, 0, 0] }
+    ///     [solver]
+    ///     dt = 1e-4
+    ///     duration = 1.0
+    ///     [[cut]]
+    ///     time = 0.0
+    ///     triangle = [[0.025, -0.1, 0.1], [0.025, 0.1, 0.1], [0.025, 0.0, -0.1]]
+    ///     "#,
+    ///     ".",
+    /// )?;
+    /// let mut sim = scene.build()?;
+    /// let tets = sim.system.n_tets_alive();
+    /// // stepping by hand: the cut at t = 0 comes with the first step
+    /// assert!(sim.before_step(sim.dt)?);
+    /// assert!(sim.system.n_tets_alive() < tets);
+    /// let dt = sim.dt;
+    /// sim.integrator.step(&mut sim.system, dt)?;
+    /// assert!(!sim.before_step(dt)?);
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    pub fn before_step(&mut self, dt: f64) -> Result<bool> {
+        script_step(&mut self.surgery, &self.tools, &mut self.system, dt, 1e-9 * self.dt)
+    }
+}
+
+/// [`Simulation::before_step`] on the simulation's parts (the run loop holds the
+/// system borrowed); `tol`: how early a cut's time counts as come.
+fn script_step(
+    surgery: &mut super::Surgery,
+    tools: &[super::tools::ScriptedTool],
+    sys: &mut crate::system::System,
+    dt: f64,
+    tol: f64,
+) -> Result<bool> {
+    let cuts = surgery.reports.len();
+    surgery.before_step(sys, tol)?;
+    let t = sys.time();
+    for tool in tools {
+        sys.set_tool_pose(tool.id, tool.path.at(t + dt))?;
+    }
+    Ok(surgery.reports.len() != cuts)
 }
 
 /// Saves the last good state as a frame, flushes the CSV, and adds where to the

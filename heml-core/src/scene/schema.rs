@@ -25,6 +25,7 @@ pub struct MeshSpec {
     /// Length unit of the mesh coordinates (and of the generated `size`).
     pub units: Option<Units>,
     /// Translation in metres, applied after the scaling.
+    #[serde(default, deserialize_with = "super::exact::opt_vec3")]
     pub translate: Option<[f64; 3]>,
     /// Hold nodes that belong to no tet in place (with a warning) instead of
     /// refusing the mesh.
@@ -106,6 +107,7 @@ pub struct GenerateSpec {
     /// `box` or `beam`.
     pub kind: GenerateKind,
     /// Extent along x, y, z (in the mesh units).
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub size: [f64; 3],
     /// Hexahedral cells: `[nx, ny, nz]`, or `[n]` along the length of a beam.
     pub cells: Vec<usize>,
@@ -156,6 +158,7 @@ pub struct MaterialSpec {
     pub volumetric_stabilization: Option<f64>,
     /// Fibre laws: one or two constant fibre directions (rest frame) for the
     /// region, `[[1, 0, 0]]` or `[[1, 0, 0], [0, 1, 0]]`.
+    #[serde(default, deserialize_with = "super::exact::opt_rows")]
     pub fibres: Option<Vec<[f64; 3]>>,
     /// Fibre laws: two helical families around an axis, at ±`angle` degrees from
     /// the circumferential direction at each tet's rest centroid (vessel walls).
@@ -174,9 +177,11 @@ pub struct MaterialSpec {
 #[serde(deny_unknown_fields)]
 pub struct HelixSpec {
     /// Direction of the axis (any length > 0).
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub axis: [f64; 3],
     /// A point of the axis (metres, default the origin).
     #[serde(default)]
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub origin: [f64; 3],
     /// Angle of the fibres to the circumferential direction, in degrees.
     pub angle: f64,
@@ -187,8 +192,10 @@ pub struct HelixSpec {
 #[serde(deny_unknown_fields)]
 pub struct BoxSpec {
     /// Lower corner.
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub min: [f64; 3],
     /// Upper corner.
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub max: [f64; 3],
 }
 
@@ -197,8 +204,10 @@ pub struct BoxSpec {
 #[serde(deny_unknown_fields)]
 pub struct PlaneSpec {
     /// A point of the plane (metres).
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub point: [f64; 3],
     /// Its normal (any length > 0).
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub normal: [f64; 3],
     /// Largest distance (metres) of a selected node; default 1e-6 × the mesh's
     /// bounding-box diagonal.
@@ -236,6 +245,7 @@ pub struct PrescribeSpec {
     pub tag: Option<i32>,
     /// Full displacement (metres), reached when the ramp reaches 1. With `ramp`;
     /// exclusive with `keyframes`.
+    #[serde(default, deserialize_with = "super::exact::opt_vec3")]
     pub displacement: Option<[f64; 3]>,
     /// Time profile: `{ kind = "linear"|"smooth", duration = s }`, `{ kind = "step" }`
     /// or `{ kind = "keyframes", points = [[t, r], …] }`.
@@ -244,6 +254,7 @@ pub struct PrescribeSpec {
     /// strictly increasing, held after the last; an implicit `[0, 0, 0, 0]` precedes
     /// a first time > 0): motions that go back down (press, hold, release). The
     /// displacements must lie along one direction (they scale one vector).
+    #[serde(default, deserialize_with = "super::exact::opt_rows")]
     pub keyframes: Option<Vec<[f64; 4]>>,
 }
 
@@ -261,6 +272,7 @@ pub struct NodalLoadSpec {
     /// Nodes of the tets with this mesh tag.
     pub tag: Option<i32>,
     /// Total force (newtons), split equally over the selected nodes.
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub force: [f64; 3],
 }
 
@@ -269,6 +281,7 @@ pub struct NodalLoadSpec {
 #[serde(deny_unknown_fields)]
 pub struct LoadsSpec {
     /// Gravity acceleration (m/s²), e.g. `[0, 0, -9.81]`; default none.
+    #[serde(default, deserialize_with = "super::exact::opt_vec3")]
     pub gravity: Option<[f64; 3]>,
     /// Constant nodal forces.
     #[serde(default)]

@@ -24,10 +24,13 @@ pub struct CutSpec {
     /// When (s, ≥ 0): applied before the first step that starts at or after it.
     pub time: f64,
     /// The blade's edge at the start: two points.
+    #[serde(default, deserialize_with = "super::exact::opt_points")]
     pub from: Option<[[f64; 3]; 2]>,
     /// The blade's edge at the end: two points.
+    #[serde(default, deserialize_with = "super::exact::opt_points")]
     pub to: Option<[[f64; 3]; 2]>,
     /// Or a triangular blade: three points.
+    #[serde(default, deserialize_with = "super::exact::opt_points")]
     pub triangle: Option<[[f64; 3]; 3]>,
 }
 
@@ -37,8 +40,10 @@ pub struct CutSpec {
 #[serde(deny_unknown_fields)]
 pub struct FacePlaneSpec {
     /// A point of the plane (metres).
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub point: [f64; 3],
     /// Its normal (any length > 0).
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub normal: [f64; 3],
     /// Largest distance (metres) of a face centroid; default 1e-6 × the mesh's
     /// bounding-box diagonal.
@@ -57,6 +62,7 @@ pub struct SurfaceLoadSpec {
     /// Pressure (Pa).
     pub pressure: Option<f64>,
     /// Traction (N/m²).
+    #[serde(default, deserialize_with = "super::exact::opt_vec3")]
     pub traction: Option<[f64; 3]>,
     /// The faces of the tets with this tag.
     pub tag: Option<i32>,

@@ -29,10 +29,12 @@ pub struct KeyframeSpec {
     /// Time (s), strictly increasing along the path.
     pub time: f64,
     /// Position of the tool's origin (m).
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub position: [f64; 3],
     /// Rotation vector (axis × angle, radians) from the tool's own frame; default
     /// none.
     #[serde(default)]
+    #[serde(deserialize_with = "super::exact::vec3")]
     pub rotation: [f64; 3],
 }
 

@@ -200,7 +200,7 @@ impl DeformedEstimate {
             let r = &sys.regions()[g.region];
             let s = Self::stretches(g, sys);
             j_min = j_min.min(s.j_min);
-            let a = largest_modulus(&*r.material, &s, &opts);
+            let a = largest_modulus(&*r.material, &s, &opts, !r.material.inversion_fix());
             if a > 0.0 && a.is_finite() {
                 dt = dt.min(self.calibration * WAVE_FACTOR * g.h0 / (a / r.density).sqrt());
             }
@@ -215,9 +215,11 @@ impl DeformedEstimate {
 
 /// The largest diagonal tangent ∂P_ii/∂F_ii of `material` over the deformations the
 /// stretch extremes describe (see the module docs). Stretches and J are floored at
-/// 1e-3: an inverted tet (J ≤ 0) is in the law's J0 extension, whose tangent is
-/// frozen below J0, so the floor only keeps the probes finite.
-fn largest_modulus(material: &dyn Material, s: &Stretches, opts: &ForceOptions) -> f64 {
+/// 1e-3: an inverted tet (J ≤ 0) of a law with the inversion fix is in its J0
+/// extension, whose tangent is frozen below J0, so the floor only keeps the probes
+/// finite. A law physical through inversion (`inverted_probes`: no inversion fix)
+/// is also probed at the inverted states with |J_min|.
+fn largest_modulus(material: &dyn Material, s: &Stretches, opts: &ForceOptions, inverted_probes: bool) -> f64 {
     const FLOOR: f64 = 1e-3;
     let j = s.j_min.clamp(FLOOR, 1.0);
     let (l, big) = stretch_bounds(s.tr_c_max.max(3.0 * j.powf(2.0 / 3.0)), j);
@@ -225,8 +227,28 @@ fn largest_modulus(material: &dyn Material, s: &Stretches, opts: &ForceOptions) 
     let squeeze = Matrix3::from_diagonal(&nalgebra::Vector3::new(l, (j / l).sqrt(), (j / l).sqrt()));
     let stretch = Matrix3::from_diagonal(&nalgebra::Vector3::new(big, (j / big).sqrt(), (j / big).sqrt()));
     let volume = Matrix3::identity() * j.cbrt();
-    [squeeze, stretch, volume, Matrix3::identity()]
+    let upright = [squeeze, stretch, volume, Matrix3::identity()];
+    // inverted tets: the same probes turned inside out (one stretch negative) at
+    // |J_min|, for the laws that are physical there (stable neo-Hookean's energy is
+    // defined through inversion and stiffens as a tet turns over; the clamped probes
+    // above saw it soften as J fell to 0, and a crush diverged once tets inverted).
+    // Not for the laws with the J0 extension: their probes at negative J measured
+    // stiffer than their inverted tets behave (the crushed kidney took 2x the steps
+    // with neo-Hookean, 8x with Mooney–Rivlin, and was stable without).
+    let inverted = (inverted_probes && s.j_min < 0.0).then(|| {
+        let j = (-s.j_min).max(FLOOR);
+        let (l, big) = stretch_bounds(s.tr_c_max.max(3.0 * j.powf(2.0 / 3.0)), j);
+        let l = l.max(FLOOR);
+        let flip = |a: f64, b: f64| Matrix3::from_diagonal(&nalgebra::Vector3::new(-a, b, b));
+        [
+            flip(l, (j / l).sqrt()),
+            flip(big, (j / big).sqrt()),
+            flip(j.cbrt(), j.cbrt()),
+        ]
+    });
+    upright
         .iter()
+        .chain(inverted.iter().flatten())
         .map(|f| diagonal_tangent(material, f, opts))
         .fold(0.0, f64::max)
 }

@@ -134,6 +134,9 @@ fn keyframe_interval(points: &[[f64; 2]], t: f64) -> (usize, (f64, f64), (f64, f
     let i = points.partition_point(|p| p[0] <= t);
     let end = |k: usize| (points[k][0], points[k][1]);
     match i {
+        // no keyframe at all ([`Ramp::validate`] refuses it; a ramp built without
+        // checking stays at r = 0 rather than panic)
+        _ if points.is_empty() => (0, (0.0, 0.0), (0.0, 0.0)),
         0 => (0, (0.0, 0.0), end(0)),
         i if i == points.len() => (i, end(i - 1), end(i - 1)),
         i => (i, end(i - 1), end(i)),
@@ -240,6 +243,9 @@ mod tests {
         }
         let bad = |points: Vec<[f64; 2]>| Ramp::Keyframes { points }.validate().unwrap_err().to_string();
         assert!(bad(vec![]).contains("at least one"));
+        // unchecked, an empty list is r = 0 at every time (it used to index out of bounds)
+        let empty = Ramp::Keyframes { points: vec![] };
+        assert_eq!((empty.value(0.5), empty.rate(0.5), empty.value(-1.0)), (0.0, 0.0, 0.0));
         assert!(bad(vec![[1.0, 0.0], [1.0, 1.0]]).contains("#2 at t = 1"));
         assert!(bad(vec![[-1.0, 0.0]]).contains(">= 0"));
         assert!(bad(vec![[1.0, f64::NAN]]).contains("#1"));

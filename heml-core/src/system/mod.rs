@@ -93,7 +93,7 @@ pub use implicit::{
 };
 pub use integrator::{find_integrator, integrators, Integrator, IntegratorEntry};
 pub use passes::{parallel_pass_threshold, set_parallel_pass_threshold, DEFAULT_PARALLEL_PASS_THRESHOLD};
-pub use prony::{relaxation, validate_prony, PronyTerm};
+pub use prony::{relaxation, validate_prony, PronyTerm, MAX_PRONY_TERMS};
 pub use stability::{
     lame_at_rest, power_iteration_time_step, stable_time_step, wave_speed_time_step, TimeStepPolicy, DEFAULT_SAFETY,
     WAVE_FACTOR,

@@ -11,6 +11,7 @@ use crate::registry::MaterialEntry;
 
 mod lazy_snapshot;
 mod logging;
+mod statics;
 
 /// Mass–spring: w = k/2 (√l − √L)².
 #[derive(Debug, Clone, Copy)]

@@ -246,3 +246,32 @@ fn output_compression_is_a_scene_key_defaulting_to_zlib() {
     let e = Scene::from_toml_str(&bad, ".").unwrap_err().to_string();
     assert!(e.contains("lz4") && e.contains("zlib"), "{e}");
 }
+
+/// Only regular files are read: a pipe named like a mesh or a scene blocked the
+/// reader forever, and a link to `/dev/zero` was read until the memory ran out.
+#[cfg(unix)]
+#[test]
+fn pipes_and_devices_are_refused_not_read() {
+    let dir = std::env::temp_dir().join(format!("heml-nonregular-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let zero = dir.join("zero.msh");
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let e = heml_core::io::read_mesh(&zero).unwrap_err().to_string();
+    assert!(e.contains("zero.msh") && e.contains("not a regular file"), "{e}");
+    let fifo = dir.join("pipe.vtu");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if made.is_ok_and(|s| s.success()) {
+        // opening a pipe for reading blocks until a writer comes: open it for
+        // writing too from another thread, so that a refusal is what ends the test
+        let writer = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::OpenOptions::new().write(true).open(&fifo).map(drop))
+        };
+        let e = heml_core::io::read_mesh(&fifo).unwrap_err().to_string();
+        assert!(e.contains("pipe.vtu") && e.contains("not a regular file"), "{e}");
+        writer.join().unwrap().unwrap();
+        let e = heml_core::scene::Scene::from_file(&zero).unwrap_err().to_string();
+        assert!(e.contains("not a regular file"), "{e}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

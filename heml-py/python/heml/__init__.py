@@ -12,11 +12,17 @@ NumPy arrays go in and out; no per-node Python objects are created.
 True
 
 Where data is copied: (n, 3) float64 inputs (positions, displacements) that are
-C-contiguous are read in place; other layouts are copied once; ndarrays of another
-dtype raise TypeError, wrong shapes ValueError. Index inputs (tets, node ids) are
+C-contiguous and aligned are read in place; other layouts are copied once; ndarrays
+of another dtype raise TypeError, wrong shapes ValueError, NaN or infinite
+coordinates HemlError naming the node. Index inputs (tets, node ids) are
 converted (copied) once. Outputs are fresh arrays; ``ForceField.forces`` and
 ``Tangent.dot`` have the library write straight into the array they return.
 Library errors raise :class:`HemlError` with the library's message.
+
+The dicts some functions return are described by the TypedDicts :class:`MaterialInfo`
+(``materials()``), :class:`StepStats` (``System.step``), :class:`Energies`
+(``System.energies``) and :class:`StaticReport` (``System.solve_static``), importable
+for annotations (``from heml import StepStats``).
 """
 
 from ._heml import (
@@ -37,14 +43,19 @@ from ._heml import (
     read_mesh,
     write_mesh,
 )
+from ._types import Energies, MaterialInfo, StaticReport, StepStats
 
 __all__ = [
+    "Energies",
     "ForceField",
     "HemlError",
     "Material",
+    "MaterialInfo",
     "Mesh",
     "Ramp",
     "Scene",
+    "StaticReport",
+    "StepStats",
     "System",
     "Tangent",
     "__version__",

@@ -1,10 +1,38 @@
 """Type stubs of the `heml` package (the extension module `heml._heml`)."""
 
 from os import PathLike
-from typing import Any, Callable, Literal, Sequence, TypedDict
+from typing import Any, Callable, Literal, Sequence, final
 
 import numpy as np
 import numpy.typing as npt
+
+from ._types import Energies as Energies
+from ._types import MaterialInfo as MaterialInfo
+from ._types import StaticReport as StaticReport
+from ._types import StepStats as StepStats
+
+__all__ = [
+    "Energies",
+    "ForceField",
+    "HemlError",
+    "Material",
+    "MaterialInfo",
+    "Mesh",
+    "Ramp",
+    "Scene",
+    "StaticReport",
+    "StepStats",
+    "System",
+    "Tangent",
+    "__version__",
+    "box_mesh",
+    "integrators",
+    "material",
+    "material_from_energy",
+    "materials",
+    "read_mesh",
+    "write_mesh",
+]
 
 __version__: str
 
@@ -15,15 +43,6 @@ _Selection = _ArrayLike  # node or tet ids, or a boolean mask
 
 class HemlError(Exception):
     """An error reported by the library (bad mesh, unknown law, malformed file, NaN step…)."""
-
-class MaterialInfo(TypedDict):
-    name: str
-    parameters: list[str]
-    parameter_docs: list[str]
-    energy: str
-    kind: Literal["invariant", "link", "stretch"]
-    young_poisson: bool
-    doc: str
 
 def materials() -> list[MaterialInfo]:
     """Every registered law, sorted by name."""
@@ -48,10 +67,11 @@ def write_mesh(path: _Path, mesh: Mesh) -> None:
     """Writes `mesh` in the format of the extension, atomically."""
 
 def box_mesh(
-    size: Sequence[float], cells: Sequence[int], split: Literal["five", "six", "twentyfour"] = "six"
+    size: Sequence[float], cells: Sequence[int], split: Literal["five", "six", "ten", "twentyfour"] = "six"
 ) -> Mesh:
-    """A box of `size` (m) cut into `cells` hexahedra, each split into tets."""
+    """A box of `size` (m) cut into `cells` (>= 0) hexahedra, each split into tets."""
 
+@final
 class Material:
     """A law with its parameter values."""
 
@@ -62,8 +82,8 @@ class Material:
     def energy(self) -> str | None:
         """The energy text of a law from material_from_energy, else None."""
     @property
-    def kind(self) -> Literal["invariant", "link", "stretch"]:
-        """Invariant or link law."""
+    def kind(self) -> Literal["invariant", "link", "stretch", "fibre"]:
+        """Invariant, link, stretch or fibre law."""
     @property
     def params(self) -> dict[str, float]:
         """Resolved parameter values by name."""
@@ -75,15 +95,16 @@ class Material:
     ) -> Material:
         """This law with the anti-locking "nodal" or "patch" volumetric term (or "element")."""
     def force_field(
-        self, mesh: Mesh, tets: Sequence[int] | None = None, *, j0: float = 0.4, inversion_fix: bool = True
+        self, mesh: Mesh, tets: _Selection | None = None, *, j0: float = 0.4, inversion_fix: bool = True
     ) -> ForceField:
-        """The HEML force field of this law over `mesh` (or over the tets `tets`)."""
+        """The HEML force field of this law over `mesh` (or over the tets `tets`: ids, each once, or a mask)."""
 
+@final
 class Mesh:
     """A validated, immutable linear tetrahedral mesh."""
 
-    def __init__(self, nodes: _ArrayLike, tets: _ArrayLike, tags: Sequence[int] | None = None) -> None:
-        """nodes (n, 3) float64, tets (m, 4) integers, tags (m,) optional."""
+    def __new__(cls, nodes: _ArrayLike, tets: _ArrayLike, tags: _ArrayLike | None = None) -> Mesh:
+        """nodes (n, 3) float64, tets (m, 4) integers, tags (m,) int32 values, optional."""
     @property
     def nodes(self) -> _F64:
         """Rest positions (n, 3), a copy."""
@@ -106,7 +127,7 @@ class Mesh:
     def volume(self) -> float:
         """Total rest volume (m³)."""
     def lumped_masses(self, density: float) -> _F64:
-        """Lumped nodal masses (n,) for `density`."""
+        """Lumped nodal masses (n,) for `density` (finite, > 0)."""
     def surface(self, padded: bool = False) -> tuple[_F64, npt.NDArray[np.int64]]:
         """(points, faces) of the outward boundary; padded=True gives PyVista's flat faces."""
     def to_meshio(self) -> Any:
@@ -115,6 +136,7 @@ class Mesh:
     def from_meshio(m: Any) -> Mesh:
         """A mesh from a meshio.Mesh's points and tetra cells."""
 
+@final
 class ForceField:
     """Energy and internal forces of one law over a mesh."""
 
@@ -125,9 +147,9 @@ class ForceField:
     def n_tets(self) -> int:
         """Number of tets summed over."""
     def energy(self, x: _ArrayLike) -> float:
-        """Total elastic energy (J) at positions x (n, 3)."""
+        """Total elastic energy (J) at positions x (n, 3); non-finite input or result raises HemlError."""
     def forces(self, x: _ArrayLike) -> tuple[float, _F64]:
-        """(energy, internal forces (n, 3)) at positions x."""
+        """(energy, internal forces (n, 3)) at positions x; non-finite input or result raises HemlError."""
     def tet_states(self, x: _ArrayLike) -> tuple[_F64, _F64]:
         """(J, w) per tet at positions x."""
     def tangent(self, x: _ArrayLike, project_psd: bool = False) -> Tangent:
@@ -137,6 +159,7 @@ class ForceField:
     def stiffness(self, x: _ArrayLike, project_psd: bool = False, format: str = "csr") -> Any:
         """K(x) as a scipy.sparse matrix (3n, 3n) (needs scipy)."""
 
+@final
 class Tangent:
     """The stiffness of a force field at one configuration."""
 
@@ -149,49 +172,43 @@ class Tangent:
     @property
     def tet_ids(self) -> npt.NDArray[np.uintp]:
         """Global tet ids in the order of tet_matrices()."""
+    __array_ufunc__: None
     def dot(self, dx: _ArrayLike) -> _F64:
         """K·dx, (n, 3)."""
-    def __matmul__(self, dx: _ArrayLike) -> _F64:
+    def __matmul__(self, dx: _ArrayLike, /) -> _F64:
         """K @ dx."""
+    def __rmatmul__(self, dx: _ArrayLike, /) -> _F64:
+        """dx @ K = K·dx (K is symmetric)."""
     def tet_matrices(self) -> _F64:
         """(m, 12, 12) tet stiffness matrices."""
     def to_scipy(self, format: str = "csr") -> Any:
         """K as a scipy.sparse matrix (needs scipy)."""
 
+@final
 class Ramp:
-    """Time profile r(t) of a prescribed displacement."""
+    """Time profile r(t) of a prescribed displacement (checked: HemlError on bad values)."""
 
     @staticmethod
     def step() -> Ramp:
         """r = 1 from t = 0."""
     @staticmethod
     def linear(duration: float) -> Ramp:
-        """r = t / duration, then 1."""
+        """r = t / duration (duration finite, > 0), then 1."""
     @staticmethod
     def smooth(duration: float) -> Ramp:
-        """Smoothstep over duration."""
+        """Smoothstep over duration (finite, > 0)."""
     @staticmethod
     def keyframes(points: Sequence[Sequence[float]]) -> Ramp:
-        """Piecewise linear through [[t, r], …]."""
+        """Piecewise linear through [[t, r], …] (at least one; finite; times >= 0, increasing)."""
     def value(self, t: float) -> float:
         """r(t)."""
 
-class StepStats(TypedDict):
-    step: int
-    time: float
-    dt: float
-    max_speed: float
-    reaction: list[float]
-    energies: dict[str, float] | None
-    newton_iterations: int
-    cg_iterations: int
-    factorizations: int
-
+@final
 class System:
     """A simulated body (the Rust SystemBuilder's options as keywords)."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         mesh: Mesh,
         material: Material | str,
         params: dict[str, float] | None = None,
@@ -212,7 +229,7 @@ class System:
         energy_every: int = 1,
         lazy_energy: bool = False,
         pin_unreferenced: bool = False,
-    ) -> None:
+    ) -> System:
         """Builds and checks the system."""
     def step(
         self,
@@ -228,16 +245,16 @@ class System:
         cg_tolerance: float | None = None,
         cg_max_iterations: int | None = None,
     ) -> StepStats:
-        """n steps of dt with the named integrator, GIL released; the keywords set the
+        """n (>= 1) steps of dt with the named integrator, GIL released; the keywords set the
         implicit integrators' settings (kept for later calls)."""
-    def solve_static(self, tol: float = 1e-6, abs_tol: float = 0.0, max_iterations: int = 500_000) -> dict[str, Any]:
-        """Static equilibrium, GIL released."""
+    def solve_static(self, tol: float = 1e-6, abs_tol: float = 0.0, max_iterations: int = 500_000) -> StaticReport:
+        """Static equilibrium, GIL released, Ctrl-C checked every ~0.1 s; max_iterations >= 1."""
     def compute_forces(self) -> None:
         """Evaluates forces and reactions at the current state."""
     positions: _F64
-    """Current positions (n, 3) (copy; assignable)."""
+    """Current positions (n, 3) (copy; assignable: constrained nodes are put back at once)."""
     velocities: _F64
-    """Current velocities (n, 3) (copy; assignable)."""
+    """Current velocities (n, 3) (copy; assignable: constrained nodes get their constraint's velocity)."""
     @property
     def displacements(self) -> _F64:
         """x − X (n, 3)."""
@@ -274,7 +291,7 @@ class System:
     @property
     def warnings(self) -> list[str]:
         """Warnings collected so far."""
-    def energies(self) -> dict[str, float]:
+    def energies(self) -> Energies:
         """kinetic, elastic, gravity, loads, total (J)."""
     def surface(self, padded: bool = False) -> tuple[_F64, npt.NDArray[np.int64]]:
         """(current points, boundary faces)."""
@@ -282,7 +299,7 @@ class System:
     def set_gravity(self, g: Sequence[float]) -> None:
         """Sets gravity (m/s²) from the next step on."""
     def fix_nodes(self, nodes: _Selection) -> None:
-        """Fixes nodes where they are now."""
+        """Holds nodes at their rest positions (moved there at once)."""
     def release_nodes(self, nodes: _Selection) -> None:
         """Frees fixed or prescribed nodes."""
     def prescribe_pose(
@@ -297,19 +314,19 @@ class System:
         translation: Sequence[float] | None = None,
         rotation: Sequence[float] | None = None,
     ) -> int:
-        """Ties nodes to a target pose by springs; returns the grasp id."""
+        """Ties nodes by springs to where they are; the pose is the frame of later targets. Returns the grasp id."""
     def move_grasp(self, grasp: int, translation: Sequence[float], rotation: Sequence[float] | None = None) -> None:
-        """Moves a grasp's target (relative to where its nodes were grasped)."""
+        """Moves a grasp's target to T: the nodes follow by T·T0⁻¹ (T0 the grasp's pose)."""
     def release_grasp(self, grasp: int) -> None:
         """Lets go of a grasp."""
     def grasp_force(self, grasp: int) -> list[float]:
         """Force (N) the tissue applies to the grasp."""
     def add_tool(
         self,
-        shape: str,
+        shape: Literal["sphere", "capsule", "half_space"],
         stiffness: float,
-        radius: float = 0.0,
-        half_length: float = 0.0,
+        radius: float | None = None,
+        half_length: float | None = None,
         damping: float = 0.0,
         translation: Sequence[float] | None = None,
         rotation: Sequence[float] | None = None,
@@ -329,6 +346,7 @@ class System:
     def n_tets(self) -> int:
         """Tets left by cuts."""
 
+@final
 class Scene:
     """A scene file, run to its duration."""
 
@@ -344,7 +362,8 @@ class Scene:
         every: int = 1,
         out_dir: _Path | None = None,
     ) -> dict[str, Any]:
-        """Runs the scene, GIL released; progress(info) every `every` steps."""
+        """Runs the scene, GIL released; progress(info) every `every` (>= 1) steps; an
+        exception of the callback or a Ctrl-C stops the run and is raised."""
     @property
     def positions(self) -> _F64:
         """Positions after run(), file node order."""

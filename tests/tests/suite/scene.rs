@@ -499,15 +499,35 @@ fn kidney_crush_and_release_at_default_settings() {
         "no row limited by stiffness"
     );
     assert!(!csv.contains("NaN") && !csv.contains("inf"));
-    // recovered: after the release and 2 s of damping the RMS displacement is below
-    // 1 % of the height (the issue's criterion)
+    // recovered: after the release and 2 s of damping at 20/s (e^-40 on the motion)
+    // the organ is at rest. Measured 6.9e-13 m at most, 2e-11 of the height; bound
+    // 1e-9 of it. (The issue's criterion was RMS < 1 % of the height; the runs
+    // ended with nodes still jittering at 0.6 m/s, 4e-4 m off rest, while the
+    // adaptive steps alternated two sizes to land on the CSV rows.)
     let u = sim.system.displacements();
     let rms = (u.iter().map(|d| d.norm_squared()).sum::<f64>() / u.len() as f64).sqrt();
+    let largest = u.iter().map(|d| d.norm()).fold(0.0, f64::max);
     eprintln!(
         "kidney crush: min J {min_j:.3}, RMS displacement after release {:.3e} of the height",
         rms / height
     );
-    assert!(rms < 1e-2 * height, "RMS displacement {rms:e} m, height {height:e} m");
+    assert!(
+        largest < 1e-9 * height,
+        "largest displacement {largest:e} m, height {height:e} m"
+    );
+    // stable neo-Hookean (physical through inversion, no J0 extension) crushed the
+    // same way: it diverged at t = 0.67 s, when its first tets inverted, while the
+    // adaptive estimate probed only upright states
+    let mut snh = scene.clone();
+    snh.materials[0].law = "stable_neo_hookean".into();
+    let summary = snh
+        .build()
+        .unwrap()
+        .run(|_| {})
+        .expect("stable neo-Hookean's crush must finish");
+    let min_j = summary.min_j.expect("adaptive");
+    assert!(min_j < 0.0, "the crush inverts tets: min J {min_j}");
+    assert!(summary.max_displacement < 1e-9 * height, "{summary}");
     // the same crush with the step fixed at the rest estimate (the old default) blows up
     scene.solver.dt_policy = Some(TimeStepPolicy::Warn);
     let e = scene.build().unwrap().run(|_| {}).unwrap_err().to_string();
@@ -927,4 +947,142 @@ fn volumetric_keys_choose_the_nodal_formulation_per_material_or_for_all() {
         "law = \"mass_spring\"\nparams = { k = 10.0 }",
     ));
     assert!(e.contains("mass_spring") && e.contains("link law"), "{e}");
+}
+
+/// The example scene as a user runs it (`heml run scenes/example.toml`), to its end:
+/// its cut at t = 0.3 s meets the sagged beam and notches it at x = 51 mm (the
+/// blade once sat at the rest top, 2 cm above the sagged beam, and the documented
+/// command failed there; the reduced-duration test above stops before the cut).
+#[test]
+fn example_scene_runs_to_its_end_and_its_cut_notches_the_sagged_beam() {
+    link();
+    let mut scene = Scene::from_file(scenes_dir().join("example.toml")).unwrap();
+    let dir = temp_dir("example-full");
+    scene.output.dir = Some(dir.to_string_lossy().into_owned());
+    let mut sim = scene.build().unwrap();
+    let before = sim.system.n_tets_alive();
+    let summary = sim.run(|_| {}).unwrap();
+    assert!((summary.time - scene.solver.duration).abs() < 1e-12 && !summary.stopped);
+    let after = sim.system.n_tets_alive();
+    // a notch, not a severed beam: some tets, far fewer than a cross-section's worth
+    // times the beam's 20 cells
+    assert!(after < before && before - after < before / 10, "{before} -> {after}");
+    // every removed tet has a corner within one cell (5 mm) of the blade's x = 51 mm
+    let removed: Vec<usize> = (0..before).filter(|&t| !sim.system.tet_alive(t)).collect();
+    let rest = sim.system.rest_positions();
+    for &t in &removed {
+        let near = sim.system.mesh().tets()[t]
+            .iter()
+            .any(|&i| (rest[i as usize].x - 0.051).abs() <= 0.005 + 1e-12);
+        assert!(near, "tet {t} removed away from the blade");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An adaptive run lands on its output times in equal steps: the step is constant
+/// while the controller's is. It used to take full steps then a shorter last one,
+/// so with a CSV row every base step it alternated two sizes, and that periodic
+/// modulation pumped the modes it resonates with: a poked, damped body never came
+/// to rest. Here a block poked by 6 mm and released: the step may change at most
+/// once per controller check (20 steps).
+#[test]
+fn an_adaptive_run_lands_on_its_rows_without_pumping_the_tissue() {
+    link();
+    let text = r#"
+[mesh]
+generate = { kind = "box", size = [0.04, 0.03, 0.025], cells = [8, 6, 5], split = "six" }
+[[material]]
+law = "neo_hookean"
+params = { E = 8.0e3, nu = 0.45 }
+density = 1000.0
+[[fix]]
+plane = { point = [0.0, 0.0, 0.0], normal = [1.0, 0.0, 0.0] }
+[[prescribe]]
+box = { min = [0.015, 0.01, 0.025], max = [0.025, 0.02, 0.025] }
+keyframes = [[0.1, 0.0, 0.0, -0.006], [0.2, 0.0, 0.0, 0.0]]
+[damping]
+mass = 20.0
+[solver]
+duration = 1.7
+[output]
+vtu = false
+csv_every = 1
+"#;
+    let dir = temp_dir("adaptive-landing");
+    let mut scene = Scene::from_toml_str(text, ".").unwrap();
+    scene.output.dir = Some(dir.to_string_lossy().into_owned());
+    let mut sim = scene.build().unwrap();
+    assert_eq!(sim.dt_policy, TimeStepPolicy::Adapt);
+    // every step's end time, from the progress callback
+    let mut times = vec![0.0];
+    let summary = sim.run(|p| times.push(p.time)).unwrap();
+    let steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    // the controller decides at most once per check (20 steps); landing on a row
+    // time no longer changes the step in between
+    let changes = steps.windows(2).filter(|w| ((w[1] - w[0]) / w[0]).abs() > 1e-9).count();
+    eprintln!("landing: {changes} step changes in {} steps; {summary}", steps.len());
+    assert!(
+        changes <= steps.len() / 20 + 1,
+        "the step changed {changes} times in {} steps",
+        steps.len()
+    );
+    // and back at rest after the 6 mm poke (measured 3.2e-10 m; this box's motion
+    // settles either way, the kidney of `kidney_crush_and_release_at_default_settings`
+    // did not: the step count above is the check that tells the two landings apart,
+    // 8 changes against 309)
+    assert!(summary.max_displacement < 1e-8, "{summary}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A link planted where the run writes `energy.csv` is replaced, not followed: the
+/// file it points to keeps its contents (a plain create overwrote it with the CSV).
+#[cfg(unix)]
+#[test]
+fn a_link_at_the_csv_path_is_not_followed() {
+    link();
+    let dir = temp_dir("csv-link");
+    std::fs::create_dir_all(&dir).unwrap();
+    let victim = dir.join("victim.txt");
+    std::fs::write(&victim, "keep me").unwrap();
+    std::os::unix::fs::symlink(&victim, dir.join("energy.csv")).unwrap();
+    let mut scene = Scene::from_toml_str(&demo_block("duration = 0.001", "vtu = false"), ".").unwrap();
+    scene.output.dir = Some(dir.to_string_lossy().into_owned());
+    scene.build().unwrap().run(|_| {}).unwrap();
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me");
+    let csv = dir.join("energy.csv");
+    assert!(!std::fs::symlink_metadata(&csv).unwrap().file_type().is_symlink());
+    assert!(std::fs::read_to_string(&csv)
+        .unwrap()
+        .starts_with(heml::scene::CSV_HEADER));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `run_until` ends a run when its callback says so, after writing the state it
+/// stopped at as a last frame and CSV row, and the summary says it stopped.
+#[test]
+fn a_run_stops_when_its_callback_says_so() {
+    link();
+    let dir = temp_dir("run-until");
+    let mut scene = Scene::from_toml_str(&demo_block("duration = 1.0", "frame_interval = 0.5"), ".").unwrap();
+    scene.output.dir = Some(dir.to_string_lossy().into_owned());
+    let mut sim = scene.build().unwrap();
+    let summary = sim
+        .run_until(|p| {
+            if p.step >= 25 {
+                std::ops::ControlFlow::Break(())
+            } else {
+                std::ops::ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+    assert!(summary.stopped && summary.steps == 25, "{summary}");
+    assert!(summary.to_string().starts_with("stopped early: 25 steps"), "{summary}");
+    // frame 0 and the stopped state (the 0.5 s frame interval is far off)
+    let frames = read_pvd(&dir.join("frames.pvd")).unwrap();
+    assert_eq!(frames.len(), 2);
+    assert!((frames[1].0 - summary.time).abs() < 1e-12, "{:?}", frames[1]);
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    let last: f64 = csv.lines().last().unwrap().split(',').next().unwrap().parse().unwrap();
+    assert!((last - summary.time).abs() < 1e-12);
+    std::fs::remove_dir_all(&dir).unwrap();
 }

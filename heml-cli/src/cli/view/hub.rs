@@ -4,8 +4,11 @@
 //!
 //! The producer never waits: it replaces the value in a `watch` (a slow page skips
 //! the frames it had no time for, nothing queues) and drains its command channel
-//! without blocking. Replies to a command go back to the connection that sent it
-//! through a small bounded channel, dropped when full.
+//! without blocking. The command channel is bounded ([`COMMAND_CAPACITY`]): a
+//! connection that finds it full answers that command `busy` instead of queueing it
+//! (a client flooding commands cannot grow the server's memory or delay the others'
+//! commands without bound). Replies to a command go back to the connection that sent
+//! it through a small bounded channel, dropped when full.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc;
@@ -18,6 +21,10 @@ use super::protocol::Request;
 
 /// Capacity of a connection's reply channel (replies beyond it are dropped).
 pub const REPLY_CAPACITY: usize = 32;
+
+/// Most commands waiting for the producer, all connections together; a command
+/// beyond them is refused with a `busy` reply.
+pub const COMMAND_CAPACITY: usize = 256;
 
 /// A command with where to answer it.
 pub struct Envelope {
@@ -42,8 +49,9 @@ pub struct Hub {
     pub status: watch::Sender<Utf8Bytes>,
     /// Current mesh JSON.
     pub mesh: watch::Sender<Utf8Bytes>,
-    /// Commands to the producer.
-    pub commands: mpsc::Sender<Envelope>,
+    /// Commands to the producer (at most [`COMMAND_CAPACITY`] waiting: send with
+    /// `try_send`, never blocking the server's runtime).
+    pub commands: mpsc::SyncSender<Envelope>,
     /// Connections that ack their frames: pages that draw them (a client that only
     /// reads the status, as the tests' and measurements' do, is not counted).
     pub pages: AtomicUsize,
@@ -69,7 +77,7 @@ impl Drop for PageCount<'_> {
 impl Hub {
     /// A hub and the producer's end of the command channel.
     pub fn new() -> (Hub, mpsc::Receiver<Envelope>) {
-        let (commands, rx) = mpsc::channel();
+        let (commands, rx) = mpsc::sync_channel(COMMAND_CAPACITY);
         let hub = Hub {
             frames: watch::Sender::new(Bytes::new()),
             status: watch::Sender::new(Utf8Bytes::from_static("")),

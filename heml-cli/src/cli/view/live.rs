@@ -255,18 +255,28 @@ impl Live {
 
     fn step(&mut self) {
         let start = Instant::now();
-        let Simulation {
-            integrator, system, dt, ..
-        } = &mut self.sim;
         let dt = match &mut self.adapt {
-            Some(adapt) => adapt.next(system).0,
-            None => *dt,
+            Some(adapt) => adapt.next(&self.sim.system).0,
+            None => self.sim.dt,
         };
-        let pool = match &self.page_pool {
-            Some(p) if self.hub.pages.load(std::sync::atomic::Ordering::Relaxed) > 0 => p,
-            _ => &self.pool,
+        // the scene's script, as `heml run` plays it: cuts, ramped surface loads,
+        // scripted tools
+        let result = match self.sim.before_step(dt) {
+            Ok(cut) => {
+                if cut {
+                    self.fields = SurfaceFields::new(&self.sim.system);
+                    self.mesh_version += 1;
+                    self.publish_mesh();
+                }
+                let pool = match &self.page_pool {
+                    Some(p) if self.hub.pages.load(std::sync::atomic::Ordering::Relaxed) > 0 => p,
+                    _ => &self.pool,
+                };
+                let Simulation { integrator, system, .. } = &mut self.sim;
+                pool.install(|| integrator.step(system, dt))
+            }
+            Err(e) => Err(e),
         };
-        let result = pool.install(|| integrator.step(system, dt));
         self.step_ms.push(start.elapsed().as_secs_f64() * 1e3);
         if let Err(e) = result {
             log::error!("view: the simulation stopped: {e}");

@@ -22,6 +22,47 @@ use super::protocol::{encode_frame, request_name, FieldKind, MeshMessage, Reply,
 /// Most frames a playback loads.
 pub const MAX_FRAMES: usize = 100_000;
 
+/// Most bytes of frames a playback keeps (f32 positions and colour values, 16 bytes
+/// per surface vertex and frame), checked from the first frame before loading.
+pub const MAX_FRAME_BYTES: usize = 2 << 30;
+
+/// Longest span of simulated time a playback plays (its player waits in real time).
+pub const MAX_SPAN_SECONDS: f64 = 1e9;
+
+/// Checks that the `.pvd` entries' times are finite and increasing, over a span a
+/// player can wait for.
+fn check_times(pvd: &Path, entries: &[(f64, String)]) -> Result<()> {
+    let bad = |k: usize, what: String| {
+        Err(HemlError::Invalid(format!(
+            "{}: entry {} ({}): {what}",
+            pvd.display(),
+            k + 1,
+            entries[k].1
+        )))
+    };
+    for (k, (t, _)) in entries.iter().enumerate() {
+        if !t.is_finite() {
+            return bad(k, format!("timestep {t} is not a finite number"));
+        }
+        if k > 0 && *t <= entries[k - 1].0 {
+            return bad(
+                k,
+                format!(
+                    "timestep {t} is not after the previous entry's {} (the times must increase)",
+                    entries[k - 1].0
+                ),
+            );
+        }
+        if t - entries[0].0 > MAX_SPAN_SECONDS {
+            return bad(
+                k,
+                format!("timestep {t}: more than {MAX_SPAN_SECONDS} s after the first"),
+            );
+        }
+    }
+    Ok(())
+}
+
 /// A loaded run: surface vertex positions per frame.
 pub struct Recording {
     /// Where it was read from.
@@ -83,12 +124,25 @@ impl Recording {
                 entries.len()
             )));
         }
+        check_times(&pvd, &entries)?;
         let dir = pvd.parent().unwrap_or(Path::new("."));
         let first_path = dir.join(&entries[0].1);
         let mesh = heml::io::vtu::read(&first_path)?.into_mesh()?;
         let surface = BoundarySurface::of_tet_mesh(&mesh);
         let rest = mesh.nodes().to_vec();
         let nodes = surface.nodes().to_vec();
+        // every frame has the first's points: its size times the count, before loading
+        let bytes = entries.len().saturating_mul(nodes.len()).saturating_mul(16);
+        if bytes > MAX_FRAME_BYTES {
+            return Err(HemlError::Invalid(format!(
+                "{}: {} frames of {} surface vertices would take {:.1} GiB, more than the {} GiB a playback loads",
+                pvd.display(),
+                entries.len(),
+                nodes.len(),
+                bytes as f64 / (1u64 << 30) as f64,
+                MAX_FRAME_BYTES >> 30
+            )));
+        }
         let mut frames = Vec::with_capacity(entries.len());
         let mut values = Vec::with_capacity(entries.len());
         for (time, file) in &entries {

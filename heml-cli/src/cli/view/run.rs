@@ -31,8 +31,9 @@ pub struct ViewArgs {
     /// to the network (there is no authentication).
     #[arg(long, default_value = "127.0.0.1")]
     pub host: String,
-    /// Worker threads of the force assembly (pinned to CPUs when there are enough).
-    #[arg(long, default_value_t = default_threads())]
+    /// Worker threads of the force assembly (pinned to CPUs when there are enough;
+    /// at most 4 × the CPUs, up to 1024).
+    #[arg(long, default_value_t = default_threads(), value_parser = crate::threads::thread_count)]
     pub threads: usize,
     /// Let the OS place the worker threads instead of pinning the k-th to the k-th CPU.
     #[arg(long)]
@@ -41,7 +42,7 @@ pub struct ViewArgs {
     /// when listening on loopback: its browser shares this machine's CPUs, and
     /// without a GPU it renders on them. 0: one fewer than `--threads` (at least 1),
     /// a core left to the browser.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::threads::thread_count_or_zero)]
     pub page_threads: usize,
     /// Most frames per second sent to a page (1-240).
     #[arg(long, default_value_t = live::FRAME_HZ, value_parser = frame_rate)]

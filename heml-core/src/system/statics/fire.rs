@@ -14,14 +14,27 @@ const ALPHA0: f64 = 0.25;
 const F_ALPHA: f64 = 0.99;
 
 impl System {
-    /// Relaxes from the current positions until the criterion holds or
-    /// `opts.max_iterations` force evaluations are spent (an error).
-    pub(super) fn fire(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<StaticReport> {
+    /// Relaxes from the current positions until the criterion holds, `stop()`
+    /// returns true or `opts.max_iterations` force evaluations are spent (both
+    /// errors).
+    pub(super) fn fire(
+        &mut self,
+        sliders: &[Slider],
+        opts: &StaticOptions,
+        stop: &mut dyn FnMut() -> bool,
+    ) -> Result<StaticReport> {
         let t = self.state.t;
         self.state.v.fill(Vec3::zeros());
         self.apply_constraints(t);
         self.apply_sliders(sliders);
         let mut slider_reactions = vec![0.0; sliders.len()];
+        self.compute_forces()?;
+        self.slider_forces(sliders, &mut slider_reactions);
+        // at equilibrium already (nothing free, or nothing loaded): no step needed
+        let start = self.static_report(&slider_reactions, opts, 0);
+        if start.converged {
+            return Ok(start);
+        }
         let dt_max = self.stepping.stable_dt;
         if !(dt_max.is_finite() && dt_max > 0.0) {
             return Err(HemlError::Numerical(format!(
@@ -32,8 +45,6 @@ impl System {
         let mut dt = 0.5 * dt_max;
         let mut alpha = ALPHA0;
         let mut n_pos = 0usize;
-        self.compute_forces()?;
-        self.slider_forces(sliders, &mut slider_reactions);
         let mut it = 0usize;
         loop {
             let report = self.static_report(&slider_reactions, opts, it);
@@ -47,9 +58,15 @@ impl System {
             if report.converged {
                 return Ok(report);
             }
-            if it >= opts.max_iterations {
+            let stopped = stop();
+            if stopped || it >= opts.max_iterations {
+                let why = if stopped {
+                    "was stopped after"
+                } else {
+                    "did not converge in"
+                };
                 return Err(HemlError::Numerical(format!(
-                    "quasi-static solve did not converge in {it} iterations: residual max|f_free| = {residual:.3e} N, \
+                    "quasi-static solve {why} {it} iterations: residual max|f_free| = {residual:.3e} N, \
                      {:.3e} of the load scale {scale:.3e} N (tolerance {:.1e}); the system keeps the last iterate",
                     report.relative_residual(),
                     opts.tol

@@ -34,8 +34,14 @@
 //! **Convergence criterion**: max |f_i| over the free nodes ≤ `tol` × the load scale,
 //! where the load scale is the largest nodal external load |m_i g + f_i,nodal| or
 //! reaction force on a constrained node, whichever is larger (so displacement-driven
-//! problems are measured against their reactions). A run that reaches
-//! `max_iterations` first is an error that states the residual reached.
+//! problems are measured against their reactions), or ≤ `abs_tol`, or ≤ the
+//! residual's round-off level ε·λ_max·m_max·|x|_max (λ_max = (2/Δt_crit)², the
+//! largest eigenvalue of M⁻¹K; m_max the largest free nodal mass; |x|_max the largest
+//! coordinate), whichever is largest: an unloaded body, whose load scale is only the
+//! round-off of its reactions, is at equilibrium at rest rather than relaxing to the
+//! iteration cap. A body with nothing free is at equilibrium as it is. A run that
+//! reaches `max_iterations` first, or whose caller stops it
+//! ([`System::solve_static_until`]), is an error that states the residual reached.
 //!
 //! Load stepping: [`System::set_load_time`] moves the clock (and with it the ramps of
 //! prescribed displacements) without dynamics; solve again at each load level.

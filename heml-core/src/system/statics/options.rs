@@ -68,6 +68,9 @@ pub struct StaticReport {
     pub load_scale: f64,
     /// The relative tolerance asked for.
     pub tol: f64,
+    /// The round-off level of the residual (N; see the [module docs](super)): a
+    /// residual at or below it counts as converged whatever the load scale.
+    pub roundoff: f64,
     /// Reaction force component on each slider of [`System::solve_static_with`], in
     /// the order given (empty for [`System::solve_static`]).
     pub slider_reactions: Vec<f64>,
@@ -88,12 +91,18 @@ impl StaticReport {
     /// The criterion in words, with the values reached, e.g.
     /// `max|f_free| / max|load| = 3.1e-7 (tolerance 1e-6: met; 1234 it.)`. The
     /// outcome is said in words, so that a line never reads as a false inequality.
-    /// A solve that converged by [`StaticOptions::abs_tol`] (an unloaded body, whose
-    /// load scale is only the round-off of its reactions) says so rather than "not met".
+    /// A solve that converged by the round-off level or [`StaticOptions::abs_tol`] (an
+    /// unloaded body, whose load scale is only the round-off of its reactions) says
+    /// so rather than "not met".
     pub fn criterion(&self) -> String {
         let ratio = self.relative_residual();
         let outcome = if ratio <= self.tol {
             "met".to_string()
+        } else if self.converged && self.residual <= self.roundoff {
+            format!(
+                "not met, but max|f_free| = {:.1e} N is at the round-off level ({:.1e} N)",
+                self.residual, self.roundoff
+            )
         } else if self.converged {
             format!(
                 "not met, but max|f_free| = {:.1e} N is within the absolute tolerance",
@@ -120,6 +129,7 @@ mod tests {
             residual,
             load_scale: 1.0,
             tol: 1e-6,
+            roundoff: 1e-3,
             slider_reactions: Vec::new(),
         }
     }
@@ -140,6 +150,12 @@ mod tests {
         assert!(
             absolute.contains("not met, but max|f_free| = 1.7e-1 N is within the absolute tolerance"),
             "{absolute}"
+        );
+        // converged at rest with no load: the round-off level is named
+        let rest = report(2e-4, true).criterion();
+        assert!(
+            rest.contains("not met, but max|f_free| = 2.0e-4 N is at the round-off level (1.0e-3 N)"),
+            "{rest}"
         );
     }
 }

@@ -37,6 +37,44 @@ impl System {
     /// ([`Slider`]s) on top of the system's constraints. Their reaction components
     /// are returned in [`StaticReport::slider_reactions`] and count in the load scale.
     pub fn solve_static_with(&mut self, sliders: &[Slider], opts: &StaticOptions) -> Result<StaticReport> {
+        self.solve_static_until(sliders, opts, &mut || false)
+    }
+
+    /// [`System::solve_static_with`] that ends with an error as soon as `stop()`
+    /// returns true, leaving the system at the last iterate. `stop` is asked between
+    /// the dynamic-relaxation iterations (the Newton iterations before them are
+    /// few), one force evaluation apart: say, a flag set by a signal handler or a
+    /// user interface, or the time spent (a caller that must look elsewhere, like
+    /// the Python bindings checking for Ctrl-C, does so at most every ~0.1 s).
+    ///
+    /// ```
+    /// use heml_core::mesh::generate::{box_mesh, HexSplit};
+    /// use heml_core::system::{StaticOptions, System};
+    /// use heml_core::Vec3;
+    /// let mesh = box_mesh([0.1, 0.02, 0.02], [10, 2, 2], HexSplit::Six)?;
+    /// let law = heml_core::RuntimeLaw::from_energy(
+    ///     "mu/2*(I1-3) - mu*ln(J) + lam/2*ln(J).powi(2)",
+    ///     &heml_core::Params::from([("mu", 1e3), ("lam", 1e4)]),
+    /// )?;
+    /// let mut sys = System::builder(mesh)
+    ///     .material_law(Box::new(law))
+    ///     .gravity(Vec3::new(0.0, 0.0, -9.81))
+    ///     .fix_where(|p| p.x < 1e-9)
+    ///     .build()?;
+    /// // a solve that may not outlast a deadline
+    /// let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    /// let report = sys.solve_static_until(&[], &StaticOptions::default(), &mut || {
+    ///     std::time::Instant::now() > deadline
+    /// })?;
+    /// assert!(report.converged && sys.displacements().iter().any(|d| d.z < 0.0));
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    pub fn solve_static_until(
+        &mut self,
+        sliders: &[Slider],
+        opts: &StaticOptions,
+        stop: &mut dyn FnMut() -> bool,
+    ) -> Result<StaticReport> {
         if let Some(s) = sliders
             .iter()
             .find(|s| s.node >= self.state.x.len() || s.axis > 2 || !s.value.is_finite())
@@ -55,7 +93,7 @@ impl System {
         let damping = std::mem::take(&mut self.model.damping);
         let result = match self.static_newton(sliders, opts) {
             Ok(Some(report)) => Ok(report),
-            Ok(None) => self.fire(sliders, opts),
+            Ok(None) => self.fire(sliders, opts, stop),
             Err(e) => Err(e),
         };
         self.model.damping = damping;
