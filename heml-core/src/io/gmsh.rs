@@ -459,8 +459,9 @@ fn read_nodes_v41(c: &mut Cursor<'_>, data: &mut MeshData, map: &mut HashMap<u64
         let dim = c.parse::<i64>("the entity dimension of a node block")?;
         c.parse::<i32>("the entity tag of a node block")?;
         let parametric = c.parse::<i64>("the parametric flag (0 or 1) of a node block")?;
+        check_node_block(dim, parametric).map_err(|why| c.err(why))?;
         let n = count(c, "the number of nodes in a block")?;
-        let extra = if parametric == 1 { dim.clamp(0, 3) as usize } else { 0 };
+        let extra = if parametric == 1 { dim as usize } else { 0 };
         let what = NodeLine {
             layout: ["x y z", "x y z u", "x y z u v", "x y z u v w"][extra],
             extra,
@@ -793,6 +794,19 @@ fn read_elements_v2_bin(
     Ok(())
 }
 
+/// A 4.1 node block's entity dimension (0–3) and parametric flag (0 or 1): any
+/// other value was read on as if it were valid (a flag of 2³¹−1 as 0, a
+/// dimension of −7 clamped).
+fn check_node_block(dim: i64, parametric: i64) -> std::result::Result<(), String> {
+    if !(0..=3).contains(&dim) {
+        return Err(format!("node block entity dimension {dim}: expected 0, 1, 2 or 3"));
+    }
+    if !(0..=1).contains(&parametric) {
+        return Err(format!("node block parametric flag {parametric}: expected 0 or 1"));
+    }
+    Ok(())
+}
+
 /// Binary 4.1 `$Nodes`: `size_t blocks, total, min, max`, then per block `int dim,
 /// int entity, int parametric, size_t count`, the node tags, then the coordinates.
 fn read_nodes_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &mut HashMap<u64, usize>) -> Result<()> {
@@ -808,8 +822,9 @@ fn read_nodes_v41_bin(c: &mut Cursor<'_>, b: Binary, data: &mut MeshData, map: &
         let dim = b.int(c, "the entity dimension of a node block")?;
         b.int(c, "the entity tag of a node block")?;
         let parametric = b.int(c, "the parametric flag of a node block")?;
+        check_node_block(dim.into(), parametric.into()).map_err(|why| c.err(why))?;
         let n = b.count(c, "the number of nodes in a block")?;
-        let extra = if parametric == 1 { dim.clamp(0, 3) as usize } else { 0 };
+        let extra = if parametric == 1 { dim as usize } else { 0 };
         b.check_room(c, n, b.size_t + 8 * (3 + extra), "nodes of a block")?;
         let mut tags = Vec::with_capacity(n);
         for _ in 0..n {

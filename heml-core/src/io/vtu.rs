@@ -89,6 +89,30 @@ fn attr(e: &BytesStart<'_>, key: &str) -> Option<String> {
         .map(|a| String::from_utf8_lossy(&a.value).into_owned())
 }
 
+/// Most attributes one element of a `.vtu` file may have (VTK writes at most
+/// seven): the parser's duplicate check compares each attribute with those before
+/// it, so 100 000 of them took 73 s.
+const MAX_ATTRIBUTES: usize = 64;
+
+/// Refuses an element with more than [`MAX_ATTRIBUTES`] attributes, or with a
+/// malformed or repeated one (a repeated `byte_order` was read as its first value).
+fn check_attributes(e: &BytesStart<'_>) -> std::result::Result<(), String> {
+    let name = String::from_utf8_lossy(e.local_name().as_ref()).into_owned();
+    if e.attributes().with_checks(false).take(MAX_ATTRIBUTES + 1).count() > MAX_ATTRIBUTES {
+        return Err(format!(
+            "<{}> has more than {MAX_ATTRIBUTES} attributes",
+            shorten(&name)
+        ));
+    }
+    match e.attributes().find_map(|a| a.err()) {
+        Some(err) => {
+            let msg: String = err.to_string().chars().take(MAX_XML_MESSAGE).collect();
+            Err(format!("<{}>: bad attribute: {msg}", shorten(&name)))
+        }
+        None => Ok(()),
+    }
+}
+
 /// Parses the bytes of a `.vtu` file (`path` is used in error messages).
 pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     parse_counting(path, bytes).0
@@ -101,6 +125,9 @@ const MAX_XML_MESSAGE: usize = 80;
 /// [`parse`], also returning how many bytes were scanned to number the lines of
 /// the tags (the work that used to be quadratic; tested to be one pass).
 fn parse_counting(path: &Path, bytes: &[u8]) -> (Result<MeshData>, usize) {
+    // a UTF-8 byte-order mark is allowed before the XML declaration (meshio reads
+    // such files; here it shifted every data slice by its three bytes)
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let mut lines = LineCounter::new(bytes);
     let r = parse_with(path, bytes, &mut lines);
     (r, lines.scanned())
@@ -185,6 +212,7 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
         };
         if let Some(e) = start {
             let line = lines.line_at(tag_start);
+            check_attributes(&e).map_err(|msg| perr(line, msg))?;
             match e.local_name().as_ref() {
                 b"VTKFile" => {
                     seen_root = true;
@@ -198,7 +226,16 @@ fn parse_with(path: &Path, bytes: &[u8], lines: &mut LineCounter<'_>) -> Result<
                             ),
                         ));
                     }
-                    layout.little_endian = attr(&e, "byte_order").as_deref() != Some("BigEndian");
+                    layout.little_endian = match attr(&e, "byte_order").as_deref() {
+                        None | Some("LittleEndian") => true,
+                        Some("BigEndian") => false,
+                        Some(other) => {
+                            return Err(perr(
+                                line,
+                                format!("byte_order '{}': expected LittleEndian or BigEndian", shorten(other)),
+                            ))
+                        }
+                    };
                     layout.header = match attr(&e, "header_type").as_deref() {
                         None | Some("UInt32") => HeaderType::U32,
                         Some("UInt64") => HeaderType::U64,

@@ -126,6 +126,9 @@ impl Scene {
                             "{what}: file = {file:?}: cannot read {}: {source}",
                             path.display()
                         )),
+                        // (not a mesh format, not a regular file, too large): the
+                        // scene's key too; a parse error names the mesh file's line
+                        HemlError::Invalid(msg) => HemlError::Invalid(format!("{what}: file = {file:?}: {msg}")),
                         e => e,
                     })?
                     .0;

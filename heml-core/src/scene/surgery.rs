@@ -167,6 +167,13 @@ impl Scene {
                     ))
                 }
             };
+            // the scene gives degrees; checked here, in the user's unit (the
+            // system's check speaks radians)
+            if let Some(a) = l.plane.as_ref().and_then(|p| p.max_angle) {
+                if !(a.is_finite() && (0.0..=180.0).contains(&a)) {
+                    return invalid(format!("{what}: plane.max_angle = {a} must be in 0..=180 (degrees)"));
+                }
+            }
             let sel = match (l.tag, l.bbox, l.plane) {
                 (Some(tag), None, None) => FaceSelection::Tag(tag),
                 (None, Some(b), None) => FaceSelection::Box {

@@ -275,3 +275,93 @@ fn pipes_and_devices_are_refused_not_read() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// VTU header hostility: a UTF-8 byte-order mark is allowed (meshio reads such
+/// files; the data slices were off by its three bytes), an unknown or repeated
+/// `byte_order` is refused (the first value was used), and so is an element with
+/// more attributes than VTK ever writes (100 000 took 73 s to check).
+#[test]
+fn vtu_headers_are_read_strictly() {
+    use heml_core::mesh::generate::{box_mesh, HexSplit};
+    let dir = scratch("vtu_headers");
+    let path = dir.join("cube.vtu");
+    let cube = box_mesh([1.0, 1.0, 1.0], [2, 2, 2], HexSplit::Six).unwrap();
+    heml_core::io::write_mesh(&path, &cube).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("byte_order=\"LittleEndian\""), "{}", &text[..200]);
+    let write = |name: &str, bytes: &[u8]| {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    let bom = [b"\xEF\xBB\xBF".as_slice(), text.as_bytes()].concat();
+    let read = read_mesh(&write("bom.vtu", &bom)).unwrap().0;
+    assert_eq!((read.n_nodes(), read.n_tets()), (cube.n_nodes(), cube.n_tets()));
+    let middle = text.replace("byte_order=\"LittleEndian\"", "byte_order=\"Middle\"");
+    let e = read_mesh(&write("middle.vtu", middle.as_bytes()))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("middle.vtu") && e.contains("byte_order 'Middle'"), "{e}");
+    let twice = text.replace(
+        "byte_order=\"LittleEndian\"",
+        "byte_order=\"LittleEndian\" byte_order=\"BigEndian\"",
+    );
+    let e = read_mesh(&write("twice.vtu", twice.as_bytes()))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("twice.vtu") && e.contains("bad attribute"), "{e}");
+    let many: String = (0..65).map(|i| format!(" a{i}=\"x\"")).collect();
+    let crowded = text.replacen("<VTKFile", &format!("<VTKFile{many}"), 1);
+    let e = read_mesh(&write("crowded.vtu", crowded.as_bytes()))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("more than 64 attributes"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A mesh `file` the readers refuse before parsing (a directory, an unknown
+/// extension) is named with the scene's key and line, not only by its path.
+#[test]
+fn refused_mesh_files_name_the_scene_key() {
+    let dir = scratch("scene_mesh_file");
+    std::fs::create_dir_all(dir.join("folder.msh")).unwrap();
+    for (file, why) in [
+        ("folder.msh", "not a regular file"),
+        ("mesh.obj", "unknown mesh extension"),
+    ] {
+        std::fs::write(dir.join("mesh.obj"), "v 0 0 0\n").unwrap();
+        let text =
+            format!("[mesh]\nfile = \"{file}\"\n[[material]]\nlaw = \"x\"\nparams = {{}}\n[solver]\nduration = 1.0\n");
+        let e = Scene::from_toml_str(&text, &dir)
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("[mesh]") && e.contains(&format!("file = \"{file}\"")) && e.contains(why),
+            "{e}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A Gmsh 4.1 node block's entity dimension and parametric flag take only their
+/// valid values (a flag of 2 was read as 0, a dimension of −7 clamped).
+#[test]
+fn gmsh_node_block_headers_are_checked() {
+    let mesh = |block: &str| {
+        format!(
+            "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n{block}\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n$EndNodes\n\
+             $Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n"
+        )
+    };
+    let dir = scratch("gmsh_block_headers");
+    std::fs::write(dir.join("ok.msh"), mesh("3 1 0 4")).unwrap();
+    assert_eq!(read_mesh(&dir.join("ok.msh")).unwrap().0.n_tets(), 1);
+    for (block, what) in [("3 1 2 4", "parametric flag 2"), ("-7 1 0 4", "entity dimension -7")] {
+        let e = read_text("gmsh_block_headers_bad", &[("bad.msh", &mesh(block))]);
+        let (line, msg) = parse_error(&e, "bad.msh");
+        assert!(line == 6 && msg.contains(what), "{line}: {msg}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -493,6 +493,14 @@ fn bad_scene_cuts_and_loads_name_their_entry_and_key() {
     assert!(e.contains("[[cut]] #1") && e.contains("time = -1"), "{e}");
     let e = build_err("[[cut]]\ntime = 0.0\ntriangle = [[0, 0, 0], [1, 0, 0], [2, 0, 0]]");
     assert!(e.contains("[[cut]] #1") && e.contains("no area"), "{e}");
+    // the angle is checked in the unit the scene gives it (it was reported in radians)
+    let e = build_err(
+        "[[surface_load]]\npressure = 1.0\nplane = { point = [0, 0, 0.01], normal = [0, 0, 1], max_angle = -10.0 }",
+    );
+    assert!(
+        e.contains("[[surface_load]] #1") && e.contains("max_angle = -10 must be in 0..=180 (degrees)"),
+        "{e}"
+    );
     let e = build_err("[[surface_load]]\npressure = 1.0\nbbox = { min = [1, 1, 1], max = [2, 2, 2] }");
     assert!(
         e.contains("[[surface_load]] #1") && e.contains("no boundary face"),
