@@ -401,6 +401,12 @@ impl Scene {
         let steps = ((s.duration / requested) * (1.0 - 1e-12)).ceil().max(1.0);
         let o = &self.output;
         let out_what = self.table_name("output");
+        if o.dir.as_deref().is_some_and(|d| d.trim().is_empty()) {
+            // (the run's error was ": No such file or directory", naming nothing)
+            return invalid(format!(
+                "{out_what}: dir = \"\" is empty; name the output directory (default \"heml-output\")"
+            ));
+        }
         let limits = Limits {
             warn_steps: s.warn_steps.unwrap_or(DEFAULT_WARN_STEPS),
             max_steps: s.max_steps.unwrap_or(DEFAULT_MAX_STEPS),

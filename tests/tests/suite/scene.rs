@@ -722,6 +722,10 @@ fn scene_messages_name_the_key_and_line() {
         "{e}"
     );
     assert!(!e.contains("tolerance"), "{e}");
+    // an empty output directory is named with its key (the run said only ": No such
+    // file or directory")
+    let e = err_of(&format!("{BASE}\n[output]\ndir = \"\"\n"));
+    assert!(e.contains("[output]") && e.contains("dir = \"\" is empty"), "{e}");
     // a spring constant of zero: no stable estimate, and the message says why
     let spring = BASE.replace(
         "law = \"neo_hookean\"\nparams = { E = 3e3, nu = 0.45 }",
