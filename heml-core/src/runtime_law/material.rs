@@ -30,6 +30,9 @@ impl Material for RuntimeLaw {
     fn uses(&self) -> (bool, bool) {
         RuntimeLaw::uses(self)
     }
+    fn inversion_fix(&self) -> bool {
+        self.extended()
+    }
     // the fields of any invariant law, through the generic wrapper
     fn force_field(
         &self,
