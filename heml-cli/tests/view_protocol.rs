@@ -331,6 +331,37 @@ to = [[0.045, -0.1, 0.01], [0.045, 0.1, 0.01]]
     // to the top half, so their neighbours' faces are now boundary)
     let after = c.mesh["triangles"].as_array().unwrap().len();
     assert!(after > triangles, "{triangles} -> {after} triangles");
+
+    // changing E keeps the cut: the law is replaced in the running system (it used
+    // to be rebuilt from the scene, uncut, and the scene's cut then came again as a
+    // new surface)
+    assert!(c.until(WAIT, |c| c.time().is_finite()).await, "no status");
+    let (version, mu0, n) = (c.mesh["version"].as_u64(), c.law_param("mu"), c.replies.len());
+    c.send(json!({"type": "set_param", "name": "E", "value": 1.6e4})).await;
+    assert!(c.until(WAIT, |c| c.replies.len() > n).await, "no reply to set_param");
+    assert_eq!(c.replies[n]["ok"], true, "{}", c.replies[n]);
+    let t = c.time();
+    assert!(
+        c.until(WAIT, |c| c.time() > t + 0.05).await,
+        "the run stopped after set_param: {}",
+        c.status
+    );
+    // (mu = E / (2 (1 + nu)): doubled, to round-off of the division)
+    assert!(
+        (c.law_param("mu") / mu0 - 2.0).abs() < 1e-12,
+        "mu {mu0} -> {}",
+        c.law_param("mu")
+    );
+    assert_eq!(
+        c.mesh["version"].as_u64(),
+        version,
+        "the surface changed after set_param"
+    );
+    assert_eq!(
+        c.mesh["triangles"].as_array().unwrap().len(),
+        after,
+        "the cut was undone"
+    );
     drop(server);
     let _ = std::fs::remove_dir_all(&dir);
 }

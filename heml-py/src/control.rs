@@ -1,5 +1,5 @@
 //! Runtime control of a `heml.System` between steps: gravity, fixed nodes, moved node
-//! groups, soft grasps, rigid tools with their haptic wrench, and cuts. Each call
+//! groups, soft grasps, rigid tools with their haptic wrench, cuts, and laws. Each call
 //! checks its input first; on error it raises `HemlError` and leaves the system
 //! unchanged (the Rust library's guarantee). Grasps and tools are named by the
 //! integers these calls return.
@@ -293,6 +293,35 @@ impl System {
         let ids = arrays::id_set(tets, "tets", n, "tet")?;
         let r = self.lock()?.remove_tets(&ids).py()?;
         report(py, &r)
+    }
+
+    /// Replaces the law of a region (`region`: its mesh tag, as a key of the
+    /// constructor's `regions`; `None`: the main material, the tets no tagged region
+    /// claims), as the constructor takes it (a `heml.Material`, or a law name with
+    /// `params`). The state, cuts, grasps, tools and viscous history stay; the stable
+    /// step is estimated again.
+    #[pyo3(signature = (material, params = None, *, region = None))]
+    fn set_material(
+        &self,
+        material: &Bound<'_, PyAny>,
+        params: Option<&Bound<'_, PyDict>>,
+        region: Option<i32>,
+    ) -> PyResult<()> {
+        let law = crate::system::law_of(material, params)?;
+        let mut sys = self.lock()?;
+        let Some(r) = sys.regions().iter().position(|r| r.tag() == region) else {
+            let tags: Vec<String> = sys
+                .regions()
+                .iter()
+                .map(|r| r.tag().map_or("None".into(), |t| t.to_string()))
+                .collect();
+            return Err(PyKeyError::new_err(format!(
+                "set_material: no region {} in this system (its regions: {})",
+                region.map_or("None".into(), |t| t.to_string()),
+                tags.join(", ")
+            )));
+        };
+        sys.set_material(r, law).py()
     }
 
     /// Number of tets left by cuts.

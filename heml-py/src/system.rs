@@ -71,7 +71,10 @@ impl Ramp {
 }
 
 /// The law of a region: a `Material`, or a law name with `params`.
-fn law_of(obj: &Bound<'_, PyAny>, params: Option<&Bound<'_, PyDict>>) -> PyResult<Box<dyn heml::prelude::Material>> {
+pub(crate) fn law_of(
+    obj: &Bound<'_, PyAny>,
+    params: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Box<dyn heml::prelude::Material>> {
     if let Ok(m) = obj.cast::<Material>() {
         if params.is_some() {
             return Err(PyValueError::new_err(

@@ -79,3 +79,38 @@ def test_bad_control_calls_raise_and_change_nothing():
         sys.cut([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
     after = (sys.positions, sys.masses, sys.n_tets)
     assert np.array_equal(before[0], after[0]) and np.array_equal(before[1], after[1]) and before[2] == after[2]
+
+
+def test_a_law_replaced_after_a_cut_keeps_the_cut_and_stiffens_the_block():
+    sys = block()
+    # a notch through the top layer, then a sag under sideways gravity
+    sys.cut([[-0.01, 0.02, 0.05], [0.05, 0.02, 0.05], [-0.01, 0.02, 0.028]])
+    tets, masses = sys.n_tets, sys.masses.copy()
+    sys.set_gravity([9.81, 0.0, 0.0])
+    sys.solve_static()
+    soft = sys.displacements[:, 0].max()
+    # the same law again: the stable step estimated anew on the cut block
+    sys.set_material("neo_hookean", {"E": 5e3, "nu": 0.45})
+    dt = sys.stable_dt
+    sys.set_material("neo_hookean", {"E": 2e4, "nu": 0.45})
+    # the cut stays (same tets, same masses) and the state too
+    assert sys.n_tets == tets and np.array_equal(sys.masses, masses)
+    assert sys.displacements[:, 0].max() == soft
+    # four times E: twice the highest frequency ω, so half the undamped step; the
+    # mass damping α = 20/s shortens a step by √(1 + ζ²) − ζ, ζ = α/(2ω), less at the
+    # higher ω: a little over half
+    assert 0.5 < sys.stable_dt / dt < 0.6, sys.stable_dt / dt
+    # a quarter of the sag (a neo-Hookean block at a few percent strain is linear to
+    # within its strain: 5 %)
+    sys.solve_static()
+    stiff = sys.displacements[:, 0].max()
+    assert abs(stiff / soft - 0.25) < 0.05 * 0.25, (soft, stiff)
+    # a heml.Material works too (back to the first law: the same estimate, to the
+    # bit); bad regions and parameters raise, nothing changes
+    sys.set_material(heml.material("neo_hookean", E=5e3, nu=0.45))
+    assert sys.stable_dt == dt
+    with pytest.raises(KeyError, match="no region 3"):
+        sys.set_material("neo_hookean", {"E": 2e4, "nu": 0.45}, region=3)
+    with pytest.raises(heml.HemlError):
+        sys.set_material("neo_hookean", {"E": -1.0, "nu": 0.45})
+    assert sys.stable_dt == dt

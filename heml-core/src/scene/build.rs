@@ -184,6 +184,70 @@ impl Scene {
         finish_mesh(data, scale, translate, &what)
     }
 
+    /// The law of `[[material]]` entry `index` (from 0) on `mesh`, as
+    /// [`Scene::build`] makes it. Errors name the entry and its line.
+    pub fn material_law(&self, index: usize, mesh: &TetMesh) -> Result<Box<dyn crate::Material>> {
+        let Some(m) = self.materials.get(index) else {
+            return invalid(format!(
+                "{}: no [[material]] #{} (the scene has {})",
+                self.origin.display(),
+                index + 1,
+                self.materials.len()
+            ));
+        };
+        material_law(m, &self.solver, mesh)
+            .map_err(|e| HemlError::Invalid(format!("{}: {e}", self.entry_name("material", index))))
+    }
+
+    /// Gives the running system `sys`, built from this scene, the laws of the
+    /// `[[material]]` entries `entries` (indices from 0) as the scene now declares
+    /// them — after editing their parameters, say — through
+    /// [`System::set_materials`](crate::system::System::set_materials): the state,
+    /// cuts, grasps, tools and history stay. Each entry's region is the one with its
+    /// tag. All laws are built before any is set: an error leaves `sys` unchanged.
+    ///
+    /// # Example
+    ///
+    /// (Not run here: heml-core's own doctests have no integrator registered; through
+    /// the `heml` facade it runs as it is, and `tests/tests/suite/scene.rs` runs it.)
+    ///
+    /// ```no_run
+    /// let mut scene = heml_core::scene::Scene::from_toml_str(
+    ///     r#"
+    ///     [mesh]
+    ///     generate = { kind = "box", size = [0.02, 0.01, 0.01], cells = [4, 2, 2] }
+    ///     [[material]]
+    ///     energy = "mu/2*(I1-3) - mu*ln(J) + lam/2*ln(J).powi(2)"
+    ///     params = { mu = 1e3, lam = 4e3 }
+    ///     [solver]
+    ///     duration = 0.01
+    ///     "#,
+    ///     ".",
+    /// )?;
+    /// let mut sim = scene.build()?;
+    /// let dt = sim.system.stable_dt();
+    /// scene.materials[0].params.set("mu", 4e3);
+    /// scene.materials[0].params.set("lam", 16e3);
+    /// scene.update_laws(&mut sim.system, &[0])?;
+    /// // four times as stiff: half the stable step
+    /// assert!((sim.system.stable_dt() / dt - 0.5).abs() < 1e-6);
+    /// # Ok::<(), heml_core::HemlError>(())
+    /// ```
+    pub fn update_laws(&self, sys: &mut crate::system::System, entries: &[usize]) -> Result<()> {
+        let mut laws = Vec::with_capacity(entries.len());
+        for &k in entries {
+            let tag = self.materials.get(k).and_then(|m| m.tag);
+            let region = sys.regions().iter().position(|r| r.tag() == tag).ok_or_else(|| {
+                HemlError::Invalid(format!(
+                    "{}: the system has no region for it (was it built from this scene?)",
+                    self.entry_name("material", k)
+                ))
+            })?;
+            laws.push((region, self.material_law(k, sys.mesh())?));
+        }
+        sys.set_materials(laws)
+    }
+
     /// Builds the system and the integrator. Law and integrator names are looked up
     /// in the registry (see the [module docs](super) about linking).
     pub fn build(&self) -> Result<Simulation> {
@@ -607,9 +671,23 @@ fn registry_hint(empty: bool) -> &'static str {
     }
 }
 
-/// Adds one `[[material]]` to the builder, with a "did you mean" for misspelt
-/// parameter names.
+/// Adds one `[[material]]` to the builder: its law ([`material_law`]), region,
+/// density and Prony terms.
 fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec, mesh: &TetMesh) -> Result<SystemBuilder> {
+    let law = material_law(m, solver, mesh)?;
+    let b = match m.tag {
+        None => b.material_law(law),
+        Some(tag) => b.region_law(tag, law),
+    };
+    let b = b.region_density(m.density.unwrap_or(1000.0));
+    Ok(if m.prony.is_empty() { b } else { b.prony(&m.prony) })
+}
+
+/// The law of one `[[material]]` on `mesh`: registry law or energy text, fibre
+/// directions and volumetric form, with a "did you mean" for misspelt parameter
+/// names. Density and Prony terms are checked here too, so that every error of the
+/// entry comes before the system is built.
+pub(super) fn material_law(m: &MaterialSpec, solver: &SolverSpec, mesh: &TetMesh) -> Result<Box<dyn crate::Material>> {
     // checked before the law is built (the builder checks them too), so that the
     // errors name the [[material]] entry and its line
     if let Some(d) = m.density {
@@ -665,16 +743,10 @@ fn add_material(b: SystemBuilder, m: &MaterialSpec, solver: &SolverSpec, mesh: &
         }
         (None, None) => None,
     };
-    let law = match volumetric {
+    Ok(match volumetric {
         Some((v, stab)) => law.with_volumetric(crate::material::Volumetric::parse(v, stab)?)?,
         None => law,
-    };
-    let b = match m.tag {
-        None => b.material_law(law),
-        Some(tag) => b.region_law(tag, law),
-    };
-    let b = b.region_density(m.density.unwrap_or(1000.0));
-    Ok(if m.prony.is_empty() { b } else { b.prony(&m.prony) })
+    })
 }
 
 /// The registered law `m.law` with `m.params`.

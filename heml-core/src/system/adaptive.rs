@@ -310,8 +310,9 @@ pub struct AdaptiveStep {
     reason: DtReason,
     min_j: f64,
     checks: u64,
-    /// The system's [`System::topology_version`] the estimate was built for.
-    topology: u64,
+    /// The system's [`System::topology_version`] and laws version
+    /// ([`System::set_material`]) the estimate was built for.
+    topology: (u64, u64),
 }
 
 impl AdaptiveStep {
@@ -328,17 +329,19 @@ impl AdaptiveStep {
             reason: DtReason::Base,
             min_j: 1.0,
             checks: 0,
-            topology: sys.topology_version(),
+            topology: (sys.topology_version(), sys.model.laws_version),
         }
     }
 
     /// The step to take now and why; re-estimates every `every` calls (the first
     /// call included).
     pub fn next(&mut self, sys: &System) -> (f64, DtReason) {
-        if sys.topology_version() != self.topology {
-            // a cut removed tets: the estimate's geometry follows, and is checked now
+        let now = (sys.topology_version(), sys.model.laws_version);
+        if now != self.topology {
+            // a cut removed tets or a law changed: the estimate follows, and is
+            // checked now
             self.estimate = DeformedEstimate::new(sys);
-            self.topology = sys.topology_version();
+            self.topology = now;
             self.calls = 0;
         }
         if self.calls.is_multiple_of(self.every) {

@@ -552,6 +552,7 @@ impl SystemBuilder {
                 mesh,
                 grasps: Grasps::default(),
                 revision: 0,
+                laws_version: 0,
                 cut: Default::default(),
                 surface_loads: Default::default(),
                 tools: Default::default(),

@@ -48,6 +48,10 @@ pub(crate) struct Model {
     /// Counts the runtime changes of the model (caches that outlive a step, such as
     /// Newmark's acceleration, compare it to know they are stale).
     pub(crate) revision: u64,
+    /// Counts the runtime changes of the regions' laws
+    /// ([`System::set_material`](super::System::set_material)): the implicit
+    /// solver's tangents, built from the laws, compare it.
+    pub(crate) laws_version: u64,
     /// Which tets cuts removed, and the topology that keeps cuts local.
     pub(crate) cut: super::cut::CutState,
     /// Pressure and traction on boundary faces.

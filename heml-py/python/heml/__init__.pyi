@@ -342,6 +342,10 @@ class System:
         """Removes the tets a blade ((3, 3) triangle or (4, 3) swept edge) meets."""
     def remove_tets(self, tets: _Selection) -> dict[str, Any]:
         """Removes the given tets."""
+    def set_material(
+        self, material: Material | str, params: dict[str, float] | None = None, *, region: int | None = None
+    ) -> None:
+        """Replaces a region's law (region: its tag; None: the main material), keeping state and cuts."""
     @property
     def n_tets(self) -> int:
         """Tets left by cuts."""

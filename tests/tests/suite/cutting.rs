@@ -144,8 +144,10 @@ fn scratch_forces(sys: &System, x: &[Vec3]) -> (f64, Vec<Vec3>) {
     (e, f)
 }
 
-#[test]
-fn the_cut_force_field_equals_one_built_on_the_remaining_tets() {
+/// Two regions (neo-Hookean, and Mooney–Rivlin at x > 3 cm) of a 6 × 4 × 3 cm box
+/// with scattered single tets removed (lanes masked inside full batches) and a
+/// blade's cut.
+fn cut_two_region_box() -> System {
     link();
     // two regions (tags by x), a few thousand tets: several blocks per field
     let mesh = box_mesh([0.06, 0.04, 0.03], [12, 8, 6], HexSplit::Six).unwrap();
@@ -179,6 +181,12 @@ fn the_cut_force_field_equals_one_built_on_the_remaining_tets() {
         Vec3::new(0.01, 0.05, 0.011),
     ]))
     .unwrap();
+    sys
+}
+
+#[test]
+fn the_cut_force_field_equals_one_built_on_the_remaining_tets() {
+    let sys = cut_two_region_box();
     let mut rng = ChaCha8Rng::seed_from_u64(19);
     let x = random_deformation(&mut rng, sys.mesh(), 0.8, 1.25, 0.0005);
     let (e0, f0) = scratch_forces(&sys, &x);
@@ -214,6 +222,57 @@ fn the_cut_force_field_equals_one_built_on_the_remaining_tets() {
     // asserted on the clean cut of the bar test)
     let kept: f64 = sys.alive_tets().iter().map(|&t| sys.mesh().tet_volume(t)).sum();
     assert!((sys.surface().enclosed_volume(sys.rest_positions()) - kept).abs() < 1e-12 * kept);
+}
+
+/// A law replaced after cuts (`System::set_material`, a stiffness slider in a
+/// simulator) keeps them: the region's new field covers the remaining tets only and
+/// equals one built on them, the forces are the new law's, and a later cut removes
+/// tets from the new field.
+#[test]
+fn a_law_replaced_after_cuts_keeps_them() {
+    let mut sys = cut_two_region_box();
+    let alive = sys.alive_tets();
+    let surface = sys.surface().triangles().len();
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let x = random_deformation(&mut rng, sys.mesh(), 0.8, 1.25, 0.0005);
+    let (_, f_old) = scratch_forces(&sys, &x);
+    let r = sys.regions().iter().position(|r| r.tag() == Some(1)).unwrap();
+    let stiffer = Params::from([("c10", 4e3), ("c01", 2e3), ("kappa", 8e4)]);
+    sys.set_material(r, heml::material("mooney_rivlin", &stiffer).unwrap())
+        .unwrap();
+    assert_eq!(sys.alive_tets(), alive);
+    assert_eq!(sys.surface().triangles().len(), surface);
+    let mut f = vec![Vec3::zeros(); x.len()];
+    for region in sys.regions() {
+        region.field().add_forces(&x, &mut f).unwrap();
+    }
+    let (_, f_new) = scratch_forces(&sys, &x);
+    // (the same terms in another order, as in the test above: a few ulps of the sums)
+    let scale = f_new.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    let err = f.iter().zip(&f_new).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(err <= 1e-14 * scale, "forces differ by {err:e} of {scale:e}");
+    // the Mooney–Rivlin region's forces are four times the old ones (every parameter
+    // is), so the change shows: far more than round-off
+    let changed = f_new
+        .iter()
+        .zip(&f_old)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(
+        changed > 0.1 * scale,
+        "the law did not change the forces ({changed:e} of {scale:e})"
+    );
+    // a later cut removes from the new field
+    let next = *sys.regions()[r].field().tet_ids().first().unwrap();
+    sys.remove_tets(&[next]).unwrap();
+    let mut ids: Vec<usize> = sys
+        .regions()
+        .iter()
+        .flat_map(|r| r.field().tet_ids().to_vec())
+        .collect();
+    ids.sort_unstable();
+    assert_eq!(ids, sys.alive_tets());
+    assert!(!sys.tet_alive(next));
 }
 
 #[test]

@@ -39,8 +39,13 @@ fn bottom(p: &Vec3) -> bool {
 }
 
 fn builder() -> SystemBuilder {
+    builder_with(5e3)
+}
+
+/// [`builder`] with Young's modulus `e`.
+fn builder_with(e: f64) -> SystemBuilder {
     System::builder(cube())
-        .material("neo_hookean", Params::from([("E", 5e3), ("nu", 0.45)]))
+        .material("neo_hookean", Params::from([("E", e), ("nu", 0.45)]))
         .unwrap()
         .density(1000.0)
         .gravity(Vec3::new(0.0, 0.0, -9.81))
@@ -70,6 +75,8 @@ enum Change {
     Refix,
     /// Gravity turned sideways and a nodal force added.
     Loads,
+    /// The law four times as stiff (`System::set_material`).
+    Stiffen,
 }
 
 fn apply(sys: &mut System, change: Change) {
@@ -86,6 +93,7 @@ fn apply(sys: &mut System, change: Change) {
             let tip = nodes_where(&mesh, far)[0];
             sys.set_nodal_forces(&[(tip, Vec3::new(0.0, 0.01, 0.0))]).unwrap();
         }
+        Change::Stiffen => sys.set_material(0, stiff_law()).unwrap(),
     }
 }
 
@@ -104,6 +112,7 @@ fn rebuilt(change: Change) -> System {
             .fix_where(clamp)
             .gravity(Vec3::new(3.0, 0.0, -9.81))
             .nodal_force(nodes_where(&mesh, far)[0], Vec3::new(0.0, 0.01, 0.0)),
+        Change::Stiffen => builder_with(2e4).fix_where(clamp),
     }
     .build()
     .unwrap()
@@ -143,7 +152,7 @@ fn runs(change: Change, make: &dyn Fn() -> Box<dyn Integrator>, dt: f64, steps: 
 }
 
 /// Runtime changes (move a prescribed group, add and release fixed nodes, change
-/// gravity and nodal forces) made at t = T step exactly like the system built from
+/// gravity and nodal forces, replace the law) made at t = T step exactly like the system built from
 /// scratch with that model and the state at T — bit for bit, for an explicit scheme
 /// that reuses the accepted forces (symplectic Euler), one that reuses the forces of
 /// its last evaluation (velocity Verlet) and Newmark, which keeps the acceleration of
@@ -171,7 +180,7 @@ fn runtime_changes_step_like_a_system_built_at_that_instant() {
         ),
     ];
     for (name, make, dt) in &schemes {
-        for change in [Change::MoveGroup, Change::Refix, Change::Loads] {
+        for change in [Change::MoveGroup, Change::Refix, Change::Loads, Change::Stiffen] {
             let [a, b, u] = runs(change, &**make, *dt, 25);
             assert!(
                 a == b,
@@ -184,6 +193,11 @@ fn runtime_changes_step_like_a_system_built_at_that_instant() {
             );
         }
     }
+}
+
+/// The cube's law at E = 20 kPa.
+fn stiff_law() -> Box<dyn Material> {
+    heml::material("neo_hookean", &Params::from([("E", 2e4), ("nu", 0.45)])).unwrap()
 }
 
 /// What the bad-input test compares before and after each refused call.
@@ -280,6 +294,25 @@ fn bad_control_input_is_refused_and_changes_nothing() {
             "out of range",
             Box::new(move |s| s.set_nodal_forces(&[(1, Vec3::x()), (n, Vec3::x())])),
         ),
+        ("region 1 is out of range", Box::new(|s| s.set_material(1, stiff_law()))),
+        (
+            "region 0 is given twice",
+            Box::new(|s| s.set_materials(vec![(0, stiff_law()), (0, stiff_law())])),
+        ),
+        (
+            // a fibre law without fibre directions builds no field
+            "region 0, law `holzapfel_gasser_ogden`",
+            Box::new(|s| {
+                let params = [
+                    ("c", 1e3),
+                    ("k1", 1e3),
+                    ("k2", 1.0),
+                    ("dispersion", 0.1),
+                    ("kappa", 1e4),
+                ];
+                s.set_material(0, heml::material("holzapfel_gasser_ogden", &Params::from(params))?)
+            }),
+        ),
     ];
     for (expected, call) in &cases {
         let e = call(&mut sys).expect_err(expected).to_string();
@@ -299,6 +332,7 @@ fn bad_control_input_is_refused_and_changes_nothing() {
         Box::new(|s| s.grasp(&[5], Pose::identity(), 1.0, 0.0).map(drop)),
         Box::new(move |s| s.move_grasp(g, Pose::identity())),
         Box::new(move |s| s.release_grasp(g)),
+        Box::new(|s| s.set_material(0, stiff_law())),
     ];
     for call in &calls {
         let e = call(&mut sys).unwrap_err().to_string();

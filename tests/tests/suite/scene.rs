@@ -242,6 +242,39 @@ duration = 0.01
     assert!((sim.system.total_mass() - 3e-3).abs() < 1e-15);
     // `tag = 1` fixes the nodes of the first cube: its 8 corners (five-tet split)
     assert_eq!(sim.system.constraints().fixed.len(), 8);
+
+    // edited parameters reach the running system's matching region (by tag), and
+    // only it; the state stays
+    let mut scene = Scene::from_toml_str(text, &dir).unwrap();
+    let mut sim = scene.build().unwrap();
+    sim.out_dir = dir.join("out");
+    let ten = |p: &heml::scene::Progress| {
+        if p.step >= 10 {
+            std::ops::ControlFlow::Break(())
+        } else {
+            std::ops::ControlFlow::Continue(())
+        }
+    };
+    assert!(sim.run_until(ten).unwrap().stopped);
+    let (x, t) = (sim.system.positions().to_vec(), sim.system.time());
+    let values = |sim: &heml::scene::Simulation, tag| {
+        let r = sim.system.regions().iter().find(|r| r.tag() == tag).unwrap();
+        r.material().param_values()
+    };
+    let neo = values(&sim, None);
+    scene.materials[0].params.set("c10", 4e3);
+    scene.update_laws(&mut sim.system, &[0]).unwrap();
+    assert_eq!(values(&sim, Some(2))[0], 4e3);
+    assert_eq!(values(&sim, None), neo);
+    assert_eq!((sim.system.positions(), sim.system.time()), (&x[..], t));
+    // bad values and entries are errors naming the entry; nothing changes
+    scene.materials[0].params.set("c10", -1.0);
+    let e = scene.update_laws(&mut sim.system, &[1, 0]).unwrap_err().to_string();
+    assert!(e.contains("[[material]] #1") && e.contains("c10"), "{e}");
+    assert_eq!(values(&sim, Some(2))[0], 4e3);
+    assert_eq!(values(&sim, None), neo);
+    let e = scene.update_laws(&mut sim.system, &[2]).unwrap_err().to_string();
+    assert!(e.contains("no [[material]] #3"), "{e}");
     // two untagged materials are an error naming the second
     let e = err_of(&text.replace("tag = 2\n", "").replace("two.vtu", "x.vtu"));
     assert!(e.contains("x.vtu"), "{e}");

@@ -314,7 +314,7 @@ impl Live {
                 self.publish_frame();
                 Ok(format!("t = {} s", self.sim.system.time()))
             }
-            Request::Reset {} => self.rebuild(None).map(|_| "reset".into()),
+            Request::Reset {} => self.rebuild().map(|_| "reset".into()),
             Request::SetParam { name, value } => self.set_param(name, *value),
             Request::Field { field } => {
                 self.field = *field;
@@ -353,10 +353,13 @@ impl Live {
     }
 
     /// `set_param`: the value set in every material of the scene that has the
-    /// parameter, then the system rebuilt with the state carried over.
+    /// parameter, and those materials' laws replaced in the running system
+    /// ([`Scene::update_laws`]): the state, cuts, grasps, tools and viscous history
+    /// stay. The explicit step's adaptive controller follows the new stiffness.
     fn set_param(&mut self, name: &str, value: f64) -> Result<String, String> {
         let old: Vec<Option<f64>> = self.scene.materials.iter().map(|m| m.params.get(name)).collect();
-        if old.iter().all(Option::is_none) {
+        let entries: Vec<usize> = (0..old.len()).filter(|&k| old[k].is_some()).collect();
+        if entries.is_empty() {
             let mut known: Vec<String> = self
                 .scene
                 .materials
@@ -369,45 +372,46 @@ impl Live {
                 "no material of the scene has a parameter {name:?} (it has {known:?})"
             ));
         }
-        for m in self.scene.materials.iter_mut().filter(|m| m.params.get(name).is_some()) {
-            m.params.set(name, value);
-        }
-        let state = (
-            self.sim.system.positions().to_vec(),
-            self.sim.system.velocities().to_vec(),
-            self.sim.system.time(),
-            self.sim.system.step_count(),
-        );
-        match self.rebuild(Some(state)) {
-            Ok(()) => Ok(format!("{name} = {value}")),
-            Err(e) => {
-                for (m, v) in self.scene.materials.iter_mut().zip(old) {
-                    if let Some(v) = v {
-                        m.params.set(name, v);
-                    }
+        let set_all = |scene: &mut Scene, values: &[Option<f64>]| {
+            for (m, v) in scene.materials.iter_mut().zip(values) {
+                if let Some(v) = v {
+                    m.params.set(name, *v);
                 }
-                Err(e)
             }
+        };
+        let new: Vec<Option<f64>> = old.iter().map(|o| o.map(|_| value)).collect();
+        set_all(&mut self.scene, &new);
+        // the laws are set together or not at all: an error leaves the system as it was
+        if let Err(e) = self.scene.update_laws(&mut self.sim.system, &entries) {
+            set_all(&mut self.scene, &old);
+            return Err(e.to_string());
         }
+        if let Err(e) = self.sim.system.compute_forces() {
+            // the new laws cannot take the current state (a non-finite force): back
+            // to the old ones, which could
+            set_all(&mut self.scene, &old);
+            if let Err(e2) = self
+                .scene
+                .update_laws(&mut self.sim.system, &entries)
+                .and_then(|()| self.sim.system.compute_forces())
+            {
+                log::warn!("view: set_param {name}: restoring the old laws failed: {e2}");
+            }
+            return Err(e.to_string());
+        }
+        self.adapt = adaptive_step(&mut self.sim);
+        self.error = None;
+        self.restart_clocks();
+        self.publish_frame();
+        Ok(format!("{name} = {value}"))
     }
 
-    /// Rebuilds the simulation from the scene; with `state`, positions, velocities,
-    /// time and step count are carried over. On failure the old simulation stays.
-    #[allow(clippy::type_complexity)]
-    fn rebuild(&mut self, state: Option<(Vec<heml::Vec3>, Vec<heml::Vec3>, f64, u64)>) -> Result<(), String> {
+    /// Rebuilds the simulation from the scene (a reset): the scene's cuts happen
+    /// again. On failure the old simulation stays.
+    fn rebuild(&mut self) -> Result<(), String> {
         let mut sim = build(&self.scene).map_err(|e| e.to_string())?;
-        if let Some((x, v, t, steps)) = state {
-            if x.len() != sim.system.positions().len() {
-                return Err("the rebuilt system has a different number of nodes".into());
-            }
-            sim.system.positions_mut().copy_from_slice(&x);
-            sim.system.velocities_mut().copy_from_slice(&v);
-            sim.system.set_clock(t, steps).map_err(|e| e.to_string())?;
-            sim.system.compute_forces().map_err(|e| e.to_string())?;
-        } else {
-            self.fields = SurfaceFields::new(&sim.system);
-            self.mesh_version += 1;
-        }
+        self.fields = SurfaceFields::new(&sim.system);
+        self.mesh_version += 1;
         self.adapt = adaptive_step(&mut sim);
         self.sim = sim;
         self.adapter.forget();

@@ -16,7 +16,9 @@
 //! * soft grasps ([`grasp`] module): [`grasp`](super::System::grasp),
 //!   [`move_grasp`](super::System::move_grasp),
 //!   [`release_grasp`](super::System::release_grasp),
-//!   [`grasp_force`](super::System::grasp_force).
+//!   [`grasp_force`](super::System::grasp_force);
+//! * laws ([`laws`] module): [`set_material`](super::System::set_material) replaces
+//!   a region's law (a stiffness slider), keeping cuts, grasps and history.
 //!
 //! Every call checks all of its input before it changes anything: an error (NaN
 //! pose, unknown node, empty node set, unknown grasp, call inside a step) leaves the
@@ -87,6 +89,7 @@
 mod checks;
 pub mod grasp;
 mod kinematics;
+pub mod laws;
 mod loads;
 mod pose;
 

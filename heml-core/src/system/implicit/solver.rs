@@ -20,6 +20,8 @@ struct Shape {
     tets: Vec<usize>,
     constrained: Vec<usize>,
     project: bool,
+    /// The system's laws version: the tangents hold the laws.
+    laws: u64,
 }
 
 impl Shape {
@@ -30,6 +32,7 @@ impl Shape {
             tets: region_tets(sys).collect(),
             constrained: sys.model.constrained_ids.clone(),
             project,
+            laws: sys.model.laws_version,
         }
     }
 
@@ -39,6 +42,7 @@ impl Shape {
     fn fits(&self, sys: &System, project: bool) -> bool {
         self.n_nodes == sys.state.x.len()
             && self.project == project
+            && self.laws == sys.model.laws_version
             && self.constrained == sys.model.constrained_ids
             && self.tets.iter().copied().eq(region_tets(sys))
     }
