@@ -13,6 +13,7 @@
 //! them off the same way. Laws: Holzapfel–Gasser–Ogden (two families) and the
 //! transversely isotropic Mooney–Rivlin (one family).
 
+use super::plot::{draw, Chart, Mark, Series};
 use super::{fmt_num, worst_criterion, CaseReport, Options, Row};
 use heml::heml_core::fibres::Fibres;
 use heml::mesh::generate::{box_mesh, HexSplit};
@@ -206,14 +207,39 @@ fn sweep(
     Ok(out)
 }
 
+/// The closed form (a line over the stretches' range, where it applies) and HEML's
+/// P_zz `p` at `stretches` (points), in kPa, for a chart.
+fn plot_series(law: &str, along: bool, stretches: &[f64], p: &[f64]) -> [Series; 2] {
+    let (lo, hi) = stretches
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &e| (a.min(e), b.max(e)));
+    let which = if along { "along" } else { "across" };
+    let kpa = |v: f64| v / 1e3;
+    let line = (0..=120)
+        .map(|k| lo + (hi - lo) * k as f64 / 120.0)
+        .filter_map(|e| closed_form(law, along, e).map(|(_, pzz)| (e, kpa(pzz))))
+        .collect();
+    [
+        Series::new(format!("{which}, closed form"), line, Mark::Line),
+        Series::new(
+            format!("{which}, HEML"),
+            stretches.iter().zip(p).map(|(&e, &v)| (e, kpa(v))).collect(),
+            Mark::Points,
+        ),
+    ]
+}
+
 pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
     let cells = if opts.quick { 2 } else { 3 };
     let along: Vec<f64> = [0.85, 0.9, 0.95, 1.05, 1.1, 1.15, 1.2].to_vec();
     let across: Vec<f64> = [1.05, 1.1, 1.15, 1.2, 1.3].to_vec();
     let mut worst_res = 0.0;
+    let mut charts = Vec::new();
     for law in ["holzapfel_gasser_ogden", "ti_mooney_rivlin"] {
+        let mut series = Vec::new();
         for (is_along, stretches) in [(true, &along), (false, &across)] {
             let p = sweep(law, is_along, stretches, cells, report, &mut worst_res)?;
+            series.extend(plot_series(law, is_along, stretches, &p));
             let mut worst = (0, 0.0, 0.0);
             let scale = stretches
                 .iter()
@@ -245,6 +271,20 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
                 1e-6,
             ));
         }
+        let title = if law == "holzapfel_gasser_ogden" {
+            "Holzapfel-Gasser-Ogden (two families)"
+        } else {
+            "transversely isotropic Mooney-Rivlin"
+        };
+        charts.push(Chart::xy(title, "stretch along z", "nominal stress P_zz (kPa)", series));
+    }
+    if let Some(path) = opts.plot_path("fibres")? {
+        draw(
+            &path,
+            "fibres: uniaxial along and across the fibres, HEML vs closed forms",
+            &charts,
+        )?;
+        report.plot = Some(path);
     }
     super::fibre_tube::run(opts.quick, report)?;
     report.notes.push(format!(

@@ -79,7 +79,8 @@ fn unknown_case_lists_the_known_ones() {
     }
 }
 
-/// Plots render headless with the bundled font (no system fonts needed).
+/// Plots render headless with the bundled font (no system fonts needed); the fibre
+/// and Ogden cases, which printed their errors only, plot their curves too.
 #[test]
 fn plots_are_written_as_png() {
     let dir = std::env::temp_dir().join(format!("heml-validation-test-{}", std::process::id()));
@@ -87,29 +88,37 @@ fn plots_are_written_as_png() {
         out_dir: Some(dir.clone()),
         ..Options::quick()
     };
-    let report = run_case("prony", &opts).unwrap();
-    let path = report.plot.expect("a plot");
-    let bytes = std::fs::read(&path).unwrap();
-    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
-    assert!(bytes.len() > 5000, "suspiciously small plot: {} bytes", bytes.len());
+    // (case, panels)
+    for (case, panels) in [("prony", 1), ("ogden", 1), ("fibres", 2)] {
+        let report = run_case(case, &opts).unwrap();
+        let path = report.plot.expect("a plot");
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{case}");
+        assert!(
+            bytes.len() > 5000,
+            "{case}: suspiciously small plot: {} bytes",
+            bytes.len()
+        );
 
-    // it decodes: 640 pixels per panel by 520, RGB, a white background, and more
-    // than ten colours (a blank plot has one; axes, anti-aliased text and the series
-    // add many)
-    let mut reader = png::Decoder::new(std::io::Cursor::new(&bytes)).read_info().unwrap();
-    let mut rgb = vec![0; reader.output_buffer_size().expect("a plot's size fits in memory")];
-    let info = reader.next_frame(&mut rgb).unwrap();
-    assert_eq!(info.width % 640, 0, "width {}", info.width);
-    assert_eq!(info.height, 520);
-    assert_eq!(info.color_type, png::ColorType::Rgb);
-    assert_eq!(&rgb[..3], &[255, 255, 255], "white background");
-    let colours: std::collections::HashSet<&[u8]> = rgb.chunks_exact(3).collect();
-    assert!(colours.len() > 10, "only {} colours drawn", colours.len());
-    // written atomically: no temporary left beside it
-    let names: Vec<_> = std::fs::read_dir(path.parent().unwrap())
+        // it decodes: 640 pixels per panel by 520, RGB, a white background, and more
+        // than ten colours (a blank plot has one; axes, anti-aliased text and the
+        // series add many)
+        let mut reader = png::Decoder::new(std::io::Cursor::new(&bytes)).read_info().unwrap();
+        let mut rgb = vec![0; reader.output_buffer_size().expect("a plot's size fits in memory")];
+        let info = reader.next_frame(&mut rgb).unwrap();
+        assert_eq!(info.width, 640 * panels, "{case}: width {}", info.width);
+        assert_eq!(info.height, 520, "{case}");
+        assert_eq!(info.color_type, png::ColorType::Rgb, "{case}");
+        assert_eq!(&rgb[..3], &[255, 255, 255], "{case}: white background");
+        let colours: std::collections::HashSet<&[u8]> = rgb.chunks_exact(3).collect();
+        assert!(colours.len() > 10, "{case}: only {} colours drawn", colours.len());
+    }
+    // written atomically: no temporary left beside them
+    let names: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
         .collect();
     assert!(names.iter().all(|n| !n.contains(".tmp-")), "{names:?}");
+    assert_eq!(names.len(), 3, "{names:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
