@@ -86,6 +86,38 @@ fn remove_earlier_frames(dir: &Path) -> Result<usize> {
     Ok(removed)
 }
 
+/// Where an output folder comes from, for messages.
+const OUT_KEYS: &str = "the scene's [output] dir, or `heml run --out`";
+
+/// Creates the output folder `dir` (and its parents), or says why it cannot: a file
+/// or a dangling symbolic link in its place, or what the system refused (a missing
+/// permission, a read-only file system), naming the folder and where it is set.
+fn check_output_dir(dir: &Path) -> Result<()> {
+    let meta = std::fs::symlink_metadata(dir);
+    if let Ok(m) = &meta {
+        if m.file_type().is_symlink() && !dir.exists() {
+            let target = std::fs::read_link(dir).map_or_else(|_| "?".into(), |t| t.display().to_string());
+            return Err(HemlError::Invalid(format!(
+                "output folder {} is a symbolic link to {target}, which does not exist: create it, or choose \
+                 another folder ({OUT_KEYS})",
+                dir.display()
+            )));
+        }
+    }
+    if dir.exists() && !dir.is_dir() {
+        return Err(HemlError::Invalid(format!(
+            "output folder {} exists and is not a folder: choose another folder ({OUT_KEYS})",
+            dir.display()
+        )));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| {
+        HemlError::Invalid(format!(
+            "cannot create the output folder {}: {e} ({OUT_KEYS})",
+            dir.display()
+        ))
+    })
+}
+
 impl Output {
     /// Creates the directory and the empty series. `node_order` is the renumbering
     /// of `sys`'s nodes ([`super::Simulation::node_order`]), undone in every frame.
@@ -98,13 +130,7 @@ impl Output {
         node_order: Option<&Permutation>,
         tools: Vec<(ToolId, String)>,
     ) -> Result<Output> {
-        if dir.exists() && !dir.is_dir() {
-            return Err(HemlError::Invalid(format!(
-                "output folder {} exists and is not a folder: choose another `out`",
-                dir.display()
-            )));
-        }
-        std::fs::create_dir_all(dir).map_err(|e| HemlError::io(dir, e))?;
+        check_output_dir(dir)?;
         crate::io::atomic::remove_stale_temporaries(dir);
         if vtu {
             remove_earlier_frames(dir)?;

@@ -165,10 +165,13 @@ fn scene_fibre_sources_agree_and_the_switch_shows() {
 
     // the same field in a legacy VTK file (CELL_DATA VECTORS) and a Gmsh 4.1 file
     // ($ElementData; element k + 1 is tet k): the same energy
-    let with_field = |name: &str, zero_at: Option<usize>| {
+    let with_field = |name: &str, bad_at: Option<(usize, &str)>| {
         let path = dir.join(name);
         heml::io::write_mesh(&path, &mesh).unwrap();
-        let v = |k: usize| if Some(k) == zero_at { "0 0 0" } else { "0 0 3" };
+        let v = |k: usize| match bad_at {
+            Some((at, bad)) if at == k => bad,
+            _ => "0 0 3",
+        };
         let extra = if name.ends_with(".vtk") {
             format!(
                 "VECTORS fiber double\n{}\n",
@@ -188,16 +191,24 @@ fn scene_fibre_sources_agree_and_the_switch_shows() {
         assert!((e - along).abs() <= 1e-12 * along, "{name}: {e} vs {along}");
     }
     // a zero vector is an error naming the file, the field and the element
-    let e = with_field("zero.msh", Some(4)).unwrap_err().to_string();
+    let e = with_field("zero.msh", Some((4, "0 0 0"))).unwrap_err().to_string();
     assert!(
         e.contains("zero.msh") && e.contains("'fiber'") && e.contains("element 5: the vector is zero"),
         "{e}"
     );
-    let e = with_field("zero.vtk", Some(4)).unwrap_err().to_string();
+    let e = with_field("zero.vtk", Some((4, "0 0 0"))).unwrap_err().to_string();
     assert!(
         e.contains("zero.vtk") && e.contains("cell 4: the vector is zero"),
         "{e}"
     );
+    // so is a non-finite one
+    for name in ["nan.msh", "nan.vtk"] {
+        let e = with_field(name, Some((2, "nan 0 3"))).unwrap_err().to_string();
+        assert!(
+            e.contains(name) && e.contains("'fiber'") && e.contains("not finite"),
+            "{e}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -682,6 +682,24 @@ fn a_rerun_into_the_same_folder_leaves_only_its_own_frames() {
         Err(e) => e.to_string(),
     };
     assert!(e.contains("exists and is not a folder"), "{e}");
+    // a dangling symbolic link in its place: named with its target (the error was
+    // the system's bare "File exists")
+    #[cfg(unix)]
+    {
+        let link = dir.join("gone");
+        std::os::unix::fs::symlink(dir.join("no-such-folder"), &link).unwrap();
+        let text = format!("{BASE}[output]\ndir = {:?}\n", link.to_string_lossy());
+        let e = Scene::from_toml_str(&text, ".")
+            .and_then(|s| s.build())
+            .and_then(|mut s| s.run(|_| {}))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("is a symbolic link to") && e.contains("no-such-folder") && e.contains("[output] dir"),
+            "{e}"
+        );
+        assert!(!dir.join("no-such-folder").exists());
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
