@@ -7,10 +7,13 @@ use std::path::PathBuf;
 pub type Result<T, E = HemlError> = std::result::Result<T, E>;
 
 /// Everything that can go wrong, with enough context to fix it.
+///
+/// Its message ([`Display`](std::fmt::Display)) shows numbers of more than 24 digits
+/// — what `{}` makes of an `f64` such as 1e300 or 1e-300 in a message — in
+/// scientific notation ([`compact_numbers`]).
 #[derive(Debug, thiserror::Error)]
 pub enum HemlError {
     /// A law or integrator name that the registry does not hold.
-    #[error("unknown {kind} '{name}'{suggestion}; known: {known}")]
     UnknownName {
         /// "material law" or "integrator".
         kind: &'static str,
@@ -22,7 +25,6 @@ pub enum HemlError {
         known: String,
     },
     /// Two registrations share one name.
-    #[error("{kind} '{name}' is registered more than once (by {first} and {second})")]
     DuplicateName {
         /// "material law" or "integrator".
         kind: &'static str,
@@ -34,7 +36,6 @@ pub enum HemlError {
         second: &'static str,
     },
     /// Missing, unknown, non-finite or out-of-range parameters.
-    #[error("material '{law}': {problem}; expected parameters: {expected}")]
     BadParameters {
         /// The law.
         law: String,
@@ -44,10 +45,8 @@ pub enum HemlError {
         expected: String,
     },
     /// An invalid mesh (indices, degenerate elements, non-finite coordinates…).
-    #[error("invalid mesh: {0}")]
     Mesh(String),
     /// Positions or force buffers whose length does not match the mesh.
-    #[error("size mismatch: {what} has {got} entries, expected {expected}")]
     SizeMismatch {
         /// Which buffer.
         what: &'static str,
@@ -57,7 +56,6 @@ pub enum HemlError {
         expected: usize,
     },
     /// A malformed input file, with the position of the problem.
-    #[error("{}:{line}: {msg}", file.display())]
     Parse {
         /// The file.
         file: PathBuf,
@@ -67,13 +65,10 @@ pub enum HemlError {
         msg: String,
     },
     /// Any other invalid input (options, scene values…).
-    #[error("{0}")]
     Invalid(String),
     /// A numerical failure during a simulation.
-    #[error("{0}")]
     Numerical(String),
     /// An I/O failure with the file it concerns.
-    #[error("{}: {source}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -81,6 +76,94 @@ pub enum HemlError {
         #[source]
         source: std::io::Error,
     },
+}
+
+impl std::fmt::Display for HemlError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let text = match self {
+            HemlError::UnknownName {
+                kind,
+                name,
+                suggestion,
+                known,
+            } => format!("unknown {kind} '{name}'{suggestion}; known: {known}"),
+            HemlError::DuplicateName {
+                kind,
+                name,
+                first,
+                second,
+            } => format!("{kind} '{name}' is registered more than once (by {first} and {second})"),
+            HemlError::BadParameters { law, problem, expected } => {
+                format!("material '{law}': {problem}; expected parameters: {expected}")
+            }
+            HemlError::Mesh(msg) => format!("invalid mesh: {msg}"),
+            HemlError::SizeMismatch { what, got, expected } => {
+                format!("size mismatch: {what} has {got} entries, expected {expected}")
+            }
+            HemlError::Parse { file, line, msg } => format!("{}:{line}: {msg}", file.display()),
+            HemlError::Invalid(msg) | HemlError::Numerical(msg) => return f.write_str(&compact_numbers(msg)),
+            HemlError::Io { path, source } => format!("{}: {source}", path.display()),
+        };
+        f.write_str(&compact_numbers(&text))
+    }
+}
+
+/// Digits above which [`compact_numbers`] rewrites a number: more than any integer
+/// id (`u64::MAX` has 20), fewer than `{}` gives an `f64` beyond 1e24 or below 1e-23.
+const MAX_PLAIN_DIGITS: usize = 24;
+
+/// `text` with every number of more than 24 digits (`123…` or `0.000…1`, not part of
+/// a word or a path) in scientific notation: Rust's `{}` writes an `f64` in full, so
+/// a message about `density = -1e300` would otherwise carry 301 digits.
+///
+/// ```
+/// use heml_core::error::compact_numbers;
+/// assert_eq!(compact_numbers(&format!("density = {} is negative", -1e300)), "density = -1e300 is negative");
+/// assert_eq!(compact_numbers(&format!("dt = {}", 1.5e-30)), "dt = 1.5e-30");
+/// // ids, ordinary numbers, words and paths stay
+/// let plain = "node 18446744073709551615 at 0.125 m in run_1234567890123456789012345/x.vtu";
+/// assert_eq!(compact_numbers(plain), plain);
+/// ```
+pub fn compact_numbers(text: &str) -> std::borrow::Cow<'_, str> {
+    let b = text.as_bytes();
+    let digit = |i: usize| b.get(i).is_some_and(u8::is_ascii_digit);
+    let mut out = String::new();
+    let (mut copied, mut i) = (0, 0);
+    while i < b.len() {
+        if !digit(i) || (i > 0 && (b[i - 1].is_ascii_alphanumeric() || matches!(b[i - 1], b'_' | b'/' | b'.'))) {
+            i += 1;
+            continue;
+        }
+        // a number: digits, then at most one '.' followed by digits
+        let start = i;
+        while digit(i) {
+            i += 1;
+        }
+        if b.get(i) == Some(&b'.') && digit(i + 1) {
+            i += 1;
+            while digit(i) {
+                i += 1;
+            }
+        }
+        let word = b.get(i).is_some_and(|c| c.is_ascii_alphanumeric() || *c == b'_');
+        let digits = text[start..i].bytes().filter(u8::is_ascii_digit).count();
+        if digits > MAX_PLAIN_DIGITS && !word {
+            if let Ok(v) = text[start..i].parse::<f64>() {
+                out.push_str(&text[copied..start]);
+                out.push_str(&format!("{v:e}"));
+                copied = i;
+            }
+        }
+        // (the rest of a word or number is skipped by the checks above)
+        while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_') {
+            i += 1;
+        }
+    }
+    if copied == 0 {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    out.push_str(&text[copied..]);
+    std::borrow::Cow::Owned(out)
 }
 
 impl HemlError {

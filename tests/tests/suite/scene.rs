@@ -116,6 +116,24 @@ fn unknown_keys_are_errors_with_line_and_suggestion() {
     assert!(e.contains("did you mean `damping`?"), "{e}");
 }
 
+/// Huge and tiny numbers in messages are written as 1e300, not as the 301 digits
+/// Rust's `{}` gives an `f64` (`HemlError`'s message compacts them).
+#[test]
+fn huge_and_tiny_numbers_in_messages_stay_short() {
+    for (from, to, shown) in [
+        ("duration = 0.01", "duration = -1e300", "duration = -1e300 must be"),
+        ("E = 3e3", "E = -1e300", "E = -1e300 must be"),
+        (
+            "duration = 0.01",
+            "duration = 0.01\ndt = -1e-300",
+            "dt = -1e-300 must be",
+        ),
+    ] {
+        let e = err_of(&BASE.replace(from, to));
+        assert!(e.contains(shown) && e.len() < 300, "{e}");
+    }
+}
+
 #[test]
 fn unknown_law_integrator_and_parameter_names_list_the_known_ones() {
     let e = err_of(&BASE.replace("neo_hookean", "neo_hokean"));
