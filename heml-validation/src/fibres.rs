@@ -13,7 +13,7 @@
 //! them off the same way. Laws: Holzapfel–Gasser–Ogden (two families) and the
 //! transversely isotropic Mooney–Rivlin (one family).
 
-use super::plot::{draw, Chart, Mark, Series};
+use super::plot::{draw, linspace, Chart, Mark, Series};
 use super::{fmt_num, worst_criterion, CaseReport, Options, Row};
 use heml::heml_core::fibres::Fibres;
 use heml::mesh::generate::{box_mesh, HexSplit};
@@ -215,8 +215,8 @@ fn plot_series(law: &str, along: bool, stretches: &[f64], p: &[f64]) -> [Series;
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &e| (a.min(e), b.max(e)));
     let which = if along { "along" } else { "across" };
     let kpa = |v: f64| v / 1e3;
-    let line = (0..=120)
-        .map(|k| lo + (hi - lo) * k as f64 / 120.0)
+    let line = linspace(lo, hi, 120)
+        .into_iter()
         .filter_map(|e| closed_form(law, along, e).map(|(_, pzz)| (e, kpa(pzz))))
         .collect();
     [

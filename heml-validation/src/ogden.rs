@@ -10,7 +10,7 @@
 //! condition. The kernel's route — C from the edge lengths, its eigenvalues in closed
 //! form, the spectral gradient — shares nothing with it.
 
-use super::plot::{draw, Chart, Mark, Series};
+use super::plot::{draw, linspace, Chart, Mark, Series};
 use super::uniaxial::{bisect, closed_form_rows, sweep};
 use super::{fmt_num, CaseReport, Options};
 use heml::{Params, Result};
@@ -88,8 +88,7 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
     let reference: Vec<(f64, f64)> = s.eps.iter().map(|&e| uniaxial(&TRELOAR, kappa, e)).collect();
     closed_form_rows(report, "Ogden", &s, &reference);
     if let Some(path) = opts.plot_path("ogden")? {
-        let (lo, hi) = (s.eps[0], s.eps[s.eps.len() - 1]);
-        let fine: Vec<f64> = (0..=200).map(|k| lo + (hi - lo) * k as f64 / 200.0).collect();
+        let fine = linspace(s.eps[0], s.eps[s.eps.len() - 1], 200);
         let mpa = |v: f64| v / 1e6;
         let chart = Chart::xy(
             "Treloar's rubber, unconstrained uniaxial loading",
@@ -101,11 +100,7 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
                     fine.iter().map(|&e| (e, mpa(uniaxial(&TRELOAR, kappa, e).1))).collect(),
                     Mark::Line,
                 ),
-                Series::new(
-                    "HEML",
-                    s.eps.iter().zip(&s.pzz).map(|(&e, &p)| (e, mpa(p))).collect(),
-                    Mark::Points,
-                ),
+                s.series("HEML", 1e6),
             ],
         );
         draw(&path, "ogden: HEML vs the closed form in principal stretches", &[chart])?;

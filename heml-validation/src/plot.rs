@@ -108,6 +108,11 @@ impl Chart {
     }
 }
 
+/// `n + 1` evenly spaced values from `lo` to `hi`: where a chart draws a closed form.
+pub fn linspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    (0..=n).map(|k| lo + (hi - lo) * k as f64 / n as f64).collect()
+}
+
 const COLORS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),

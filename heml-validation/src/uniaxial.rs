@@ -15,7 +15,7 @@
 //!   stress-free condition μ(a² − 1) + λ ln(a²ε) = 0 is solved for a by bisection,
 //!   then P_zz = μ(ε − 1/ε) + λ ln(a²ε)/ε.
 
-use super::plot::{draw, Chart, Mark, Series};
+use super::plot::{draw, linspace, Chart, Mark, Series};
 use super::{fmt_num, worst_criterion, CaseReport, Options, Row};
 use heml::mesh::generate::{box_mesh, HexSplit};
 use heml::system::{Slider, StaticOptions};
@@ -61,6 +61,14 @@ pub(crate) struct Sweep {
     pub eps: Vec<f64>,
     pub pzz: Vec<f64>,
     pub lateral: Vec<f64>,
+}
+
+impl Sweep {
+    /// Its (stretch, P_zz / `unit`) points as a chart series (`unit` 1e3: kPa).
+    pub(crate) fn series(&self, label: &str, unit: f64) -> Series {
+        let points = self.eps.iter().zip(&self.pzz).map(|(&e, &p)| (e, p / unit)).collect();
+        Series::new(label, points, Mark::Points)
+    }
 }
 
 /// Quasi-static sweep of the cube with law `law` and parameters `params` over
@@ -263,7 +271,7 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
     closed_form_rows(report, "neo-Hookean", &nh, &nh_ref);
 
     if let Some(path) = opts.plot_path("uniaxial")? {
-        let fine: Vec<f64> = (0..=240).map(|k| 0.3 + 1.2 * k as f64 / 240.0).collect();
+        let fine = linspace(0.3, 1.5, 240);
         let kpa = |v: f64| v / 1e3;
         let chart = Chart::xy(
             "Unconstrained uniaxial loading of a cube",
@@ -280,16 +288,8 @@ pub(crate) fn run(opts: &Options, report: &mut CaseReport) -> Result<()> {
                     fine.iter().map(|&e| (e, kpa(nh_uniaxial(e).1))).collect(),
                     Mark::Line,
                 ),
-                Series::new(
-                    "SVK HEML",
-                    svk.eps.iter().zip(&svk.pzz).map(|(&e, &p)| (e, kpa(p))).collect(),
-                    Mark::Points,
-                ),
-                Series::new(
-                    "neo-Hookean HEML",
-                    nh.eps.iter().zip(&nh.pzz).map(|(&e, &p)| (e, kpa(p))).collect(),
-                    Mark::Points,
-                ),
+                svk.series("SVK HEML", 1e3),
+                nh.series("neo-Hookean HEML", 1e3),
             ],
         );
         draw(&path, "uniaxial: HEML vs closed forms (seed Fig. 6)", &[chart])?;

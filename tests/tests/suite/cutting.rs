@@ -125,6 +125,17 @@ fn a_bar_cut_in_two_separates_and_its_free_piece_falls() {
 }
 
 /// The remaining tets of `sys` as a fresh system (same laws and options).
+/// The tets the regions' force fields report, ascending.
+fn field_tets(sys: &System) -> Vec<usize> {
+    let mut ids: Vec<usize> = sys
+        .regions()
+        .iter()
+        .flat_map(|r| r.field().tet_ids().to_vec())
+        .collect();
+    ids.sort_unstable();
+    ids
+}
+
 fn scratch_forces(sys: &System, x: &[Vec3]) -> (f64, Vec<Vec3>) {
     let alive = sys.alive_tets();
     let mut f = vec![Vec3::zeros(); x.len()];
@@ -202,13 +213,7 @@ fn the_cut_force_field_equals_one_built_on_the_remaining_tets() {
     assert!(err <= 1e-14 * scale, "forces differ by {err:e} of {scale:e}");
     assert!((e - e0).abs() <= 1e-14 * e0.abs(), "energy {e} vs {e0}");
     // the fields report the remaining tets only
-    let mut ids: Vec<usize> = sys
-        .regions()
-        .iter()
-        .flat_map(|r| r.field().tet_ids().to_vec())
-        .collect();
-    ids.sort_unstable();
-    assert_eq!(ids, sys.alive_tets());
+    assert_eq!(field_tets(&sys), sys.alive_tets());
     // and the surface is the remaining tets' boundary, closed and outward
     let fresh = BoundarySurface::of_tets(sys.mesh().tets(), |t| sys.tet_alive(t));
     let set = |s: &BoundarySurface| {
@@ -265,13 +270,7 @@ fn a_law_replaced_after_cuts_keeps_them() {
     // a later cut removes from the new field
     let next = *sys.regions()[r].field().tet_ids().first().unwrap();
     sys.remove_tets(&[next]).unwrap();
-    let mut ids: Vec<usize> = sys
-        .regions()
-        .iter()
-        .flat_map(|r| r.field().tet_ids().to_vec())
-        .collect();
-    ids.sort_unstable();
-    assert_eq!(ids, sys.alive_tets());
+    assert_eq!(field_tets(&sys), sys.alive_tets());
     assert!(!sys.tet_alive(next));
 }
 
