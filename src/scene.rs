@@ -40,6 +40,7 @@ use std::path::{Path, PathBuf};
 
 pub use heml_core::scene::*;
 
+use crate::system::System;
 use crate::Result;
 
 /// A parsed scene file (see the [module docs](self)).
@@ -69,6 +70,41 @@ impl Scene {
     pub fn build(&self) -> Result<Simulation> {
         crate::link_members();
         self.0.build()
+    }
+
+    /// Gives the running system `sys`, built from this scene, the laws of the
+    /// `[[material]]` entries `entries` (indices from 0) as the scene now declares
+    /// them, keeping its state, cuts, grasps, tools and history (see the core
+    /// [`update_laws`](heml_core::scene::Scene::update_laws)), with every built-in
+    /// law registered.
+    ///
+    /// ```
+    /// use heml::prelude::*;
+    /// let mut scene = Scene::from_toml_str(
+    ///     r#"
+    ///     [mesh]
+    ///     generate = { kind = "box", size = [0.02, 0.01, 0.01], cells = [4, 2, 2] }
+    ///     [[material]]
+    ///     law = "neo_hookean"
+    ///     params = { E = 3e3, nu = 0.3 }
+    ///     [solver]
+    ///     duration = 0.01
+    ///     "#,
+    ///     ".",
+    /// )?;
+    /// let mut sim = scene.build()?;
+    /// sim.system.remove_tets(&[0, 1, 2])?; // a cut
+    /// let dt = sim.system.stable_dt();
+    /// scene.materials[0].params.set("E", 12e3);
+    /// scene.update_laws(&mut sim.system, &[0])?;
+    /// // four times as stiff: half the stable step, and the cut stays
+    /// assert!((sim.system.stable_dt() / dt - 0.5).abs() < 1e-6);
+    /// assert!(!sim.system.tet_alive(0));
+    /// # Ok::<(), HemlError>(())
+    /// ```
+    pub fn update_laws(&self, sys: &mut System, entries: &[usize]) -> Result<()> {
+        crate::link_members();
+        self.0.update_laws(sys, entries)
     }
 
     /// The core scene.

@@ -570,6 +570,36 @@ fn a_pvd_with_bad_times_is_refused() {
     }
 }
 
+/// A `.pvd` whose frames would decode to more than the playback's 2 GiB is refused
+/// from its first frame's size and its entry count, before any other frame is read
+/// (60 000 entries of a 20³-cell box's 2 402 surface vertices: 60 000 × 2 402 × 16 B
+/// = 2.3 GB).
+#[test]
+fn a_pvd_too_large_to_play_is_refused_before_loading() {
+    use heml::mesh::generate::{box_mesh, HexSplit};
+    let dir = bin::temp_dir("view", "huge-pvd");
+    let mesh = box_mesh([0.1, 0.1, 0.1], [20, 20, 20], HexSplit::Six).unwrap();
+    heml::io::write_mesh(&dir.join("f.vtu"), &mesh).unwrap();
+    let sets: String = (0..60_000)
+        .map(|k| format!("<DataSet timestep=\"{k}\" group=\"\" part=\"0\" file=\"f.vtu\"/>\n"))
+        .collect();
+    let pvd = dir.join("huge.pvd");
+    std::fs::write(
+        &pvd,
+        format!(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n{sets}</Collection>\n</VTKFile>\n"
+        ),
+    )
+    .unwrap();
+    let (ok, err) = view_exits(&pvd);
+    assert!(!ok, "a 2.3 GB playback was accepted");
+    assert!(
+        err.contains("huge.pvd") && err.contains("60000 frames of 2402 surface vertices") && err.contains("2 GiB"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A connection that never finishes its request's headers is closed after a few
 /// seconds (they used to stay open for good).
 #[tokio::test(flavor = "current_thread")]

@@ -130,8 +130,11 @@ impl Output {
         node_order: Option<&Permutation>,
         tools: Vec<(ToolId, String)>,
     ) -> Result<Output> {
-        check_output_dir(dir)?;
-        crate::io::atomic::remove_stale_temporaries(dir);
+        // (a run that writes nothing leaves no empty folder behind)
+        if vtu || csv {
+            check_output_dir(dir)?;
+            crate::io::atomic::remove_stale_temporaries(dir);
+        }
         if vtu {
             remove_earlier_frames(dir)?;
         }

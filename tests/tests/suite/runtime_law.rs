@@ -312,6 +312,10 @@ gravity = [0, 0, -9.81]
 
 [solver]
 duration = 0.01
+
+[output]
+vtu = false
+csv = false
 "#;
 
 /// A scene's `energy = "..."` material steps exactly as the registered law with

@@ -718,6 +718,19 @@ fn a_rerun_into_the_same_folder_leaves_only_its_own_frames() {
         );
         assert!(!dir.join("no-such-folder").exists());
     }
+    // a run that writes nothing creates no folder
+    let none = dir.join("none");
+    let text = format!(
+        "{BASE}[output]\ndir = {:?}\nvtu = false\ncsv = false\n",
+        none.to_string_lossy()
+    );
+    Scene::from_toml_str(&text, ".")
+        .unwrap()
+        .build()
+        .unwrap()
+        .run(|_| {})
+        .unwrap();
+    assert!(!none.exists(), "an empty output folder was created");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
