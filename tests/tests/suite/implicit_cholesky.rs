@@ -277,6 +277,10 @@ integrator = "backward_euler"
 duration = 0.02
 dt = 0.01
 {solver}
+
+[output]
+vtu = false
+csv = false
 "#
         )
     };
