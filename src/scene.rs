@@ -94,6 +94,8 @@ impl Scene {
     /// )?;
     /// let mut sim = scene.build()?;
     /// sim.system.remove_tets(&[0, 1, 2])?; // a cut
+    /// // the same law again: the stable step estimated anew, on the cut body
+    /// scene.update_laws(&mut sim.system, &[0])?;
     /// let dt = sim.system.stable_dt();
     /// scene.materials[0].params.set("E", 12e3);
     /// scene.update_laws(&mut sim.system, &[0])?;

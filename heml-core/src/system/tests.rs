@@ -374,6 +374,103 @@ fn wave_speed_estimate_is_below_the_critical_step() {
     }
 }
 
+/// Where the power iteration does not settle — a structured beam (the example
+/// scene's: 100 × 20 × 20 mm, 20 × 4 × 4 cells, six tets each, clamped at x = 0),
+/// whose symmetric top modes cluster — the Lanczos estimate does, lies above a
+/// power iteration run 40× longer (both approach λ_max from below), and is the
+/// measured limit: undamped symplectic
+/// Euler stays bounded at 0.9× and blows up at 1.1× (the organ mesh test's bar).
+/// The fallback it replaces there, the wave-speed bound, is ~20 % lower.
+/// The largest node speed of undamped symplectic Euler at `dt` over 3000 steps from
+/// the system `build` makes (∞ once a step fails; it stops past 1 m/s): what tells a
+/// stable step from an unstable one in the stable-step tests.
+fn peak_speed(build: &dyn Fn() -> System, dt: f64) -> f64 {
+    let mut sys = build();
+    let mut vmax = 0.0_f64;
+    for _ in 0..3000 {
+        if step(&mut sys, dt).is_err() {
+            return f64::INFINITY;
+        }
+        vmax = vmax.max(sys.velocities().iter().map(|v| v.norm()).fold(0.0, f64::max));
+        if vmax > 1.0 {
+            break;
+        }
+    }
+    vmax
+}
+
+/// The bisection on Sturm counts finds a tridiagonal matrix's largest eigenvalue:
+/// against nalgebra's symmetric eigensolver on random matrices of 1 to 40 rows
+/// (1e-12 of the spectrum's span: the bisection stops at 1e-14 of the Gershgorin
+/// span, a few times wider), and on a matrix with a repeated top eigenvalue.
+#[test]
+fn the_largest_eigenvalue_of_a_tridiagonal_matrix() {
+    use super::stability::tridiagonal_max;
+    let mut next = crate::sampling::uniform(17);
+    for n in 1..=40 {
+        let a: Vec<f64> = (0..n).map(|_| 4.0 * next() - 1.0).collect();
+        let b: Vec<f64> = (1..n).map(|_| 2.0 * next() - 1.0).collect();
+        let t = nalgebra::DMatrix::from_fn(n, n, |i, j| match i.abs_diff(j) {
+            0 => a[i],
+            1 => b[i.min(j)],
+            _ => 0.0,
+        });
+        let eig = t.symmetric_eigenvalues();
+        let (lo, hi) = (eig.min(), eig.max());
+        let got = tridiagonal_max(&a, &b);
+        assert!(
+            (got - hi).abs() <= 1e-12 * (hi - lo).max(hi.abs()),
+            "n {n}: {got} vs {hi}"
+        );
+    }
+    // two decoupled blocks with the same top eigenvalue 3 (a zero off-diagonal)
+    let got = tridiagonal_max(&[2.0, 2.0, 2.0, 2.0], &[1.0, 0.0, 1.0]);
+    assert!((got - 3.0).abs() < 1e-13, "{got}");
+}
+
+#[test]
+fn lanczos_settles_where_the_power_iteration_does_not() {
+    use super::stability::{lanczos, power_iteration, LANCZOS_ITERATIONS, REST_ITERATIONS};
+    let mesh = box_mesh([0.1, 0.02, 0.02], [20, 4, 4], HexSplit::Six).unwrap();
+    let (mu, lambda) = crate::params::lame(5e3, 0.45);
+    let build = || {
+        System::builder(mesh.clone())
+            .material_law(neo(mu, lambda))
+            .fix_where(|p| p.x < 1e-9)
+            .time_step_policy(TimeStepPolicy::Ignore)
+            .initial_velocity(|p| Vec3::new((p.x * 9137.0).sin(), (p.y * 7919.0).sin(), (p.z * 6011.0).sin()) * 1e-4)
+            .build()
+            .unwrap()
+    };
+    let sys = build();
+    let rest = sys.rest_positions().to_vec();
+    let (power, settled) = power_iteration(&sys, &rest, |_| true, REST_ITERATIONS).unwrap();
+    assert!(!settled, "the premise: the power iteration settles here ({power:e})");
+    let (l, settled) = lanczos(&sys, &rest, |_| true, LANCZOS_ITERATIONS).unwrap();
+    assert!(settled, "Lanczos did not settle ({l:e})");
+    // both estimates lie below λ_max, the Ritz value above the power iteration's
+    // Rayleigh quotient even after 40× as many iterations, which creep up to it
+    // (measured: 20 000 iterations end 4.6e-5 below; 1e-4 bounds it)
+    assert!(l >= power * (1.0 - 1e-12), "{l:e} < {power:e}");
+    let (long, _) = power_iteration(&sys, &rest, |_| true, 40 * REST_ITERATIONS).unwrap();
+    assert!(
+        long >= power && l >= long * (1.0 - 1e-12),
+        "Lanczos {l:e}, power iteration ×40 {long:e}"
+    );
+    assert!(l - long <= 1e-4 * l, "Lanczos {l:e}, power iteration ×40 {long:e}");
+    // the system's estimate is it (with the safety factor)
+    let critical = 2.0 / l.sqrt();
+    assert!((sys.stable_dt() / sys.safety() - critical).abs() <= 1e-12 * critical);
+    let wave = wave_speed_time_step(&sys).unwrap();
+    assert!(critical > 1.1 * wave, "critical {critical:e} vs wave bound {wave:e}");
+    let peak = |factor: f64| peak_speed(&build, factor * critical);
+    // initial speeds are ≤ 1.7e-4 m/s (as in the organ mesh test)
+    let below = peak(0.9);
+    let above = peak(1.1);
+    assert!(below < 1e-2, "bounded at 0.9 × the estimate: peak speed {below:e}");
+    assert!(above > 1.0, "must blow up at 1.1 × the estimate: peak speed {above:e}");
+}
+
 #[test]
 fn stable_step_is_the_measured_limit_on_an_organ_mesh() {
     // The estimate is 2/ω_max by power iteration: undamped symplectic Euler from a
@@ -397,20 +494,7 @@ fn stable_step_is_the_measured_limit_on_an_organ_mesh() {
     let critical = sys.stable_dt() / sys.safety();
     let wave = wave_speed_time_step(&sys).unwrap();
     assert!(critical > 1.5 * wave, "critical {critical:e} vs wave bound {wave:e}");
-    let peak = |factor: f64| {
-        let mut sys = build();
-        let mut vmax = 0.0_f64;
-        for _ in 0..3000 {
-            if step(&mut sys, factor * critical).is_err() {
-                return f64::INFINITY;
-            }
-            vmax = vmax.max(sys.velocities().iter().map(|v| v.norm()).fold(0.0, f64::max));
-            if vmax > 1.0 {
-                break;
-            }
-        }
-        vmax
-    };
+    let peak = |factor: f64| peak_speed(&build, factor * critical);
     // initial speeds are ≤ 1.7e-4 m/s; a stable run keeps that order, an unstable
     // one grows by e^(steps·growth) past 1 m/s
     let below = peak(0.9);

@@ -55,7 +55,9 @@ impl System {
     ///     .material_law(Box::new(Link(Spring { k: 50.0 })))
     ///     .fix_where(|p| p.x < 1e-9)
     ///     .build()?;
-    /// sys.remove_tets(&[0, 1])?;
+    /// sys.remove_tets(&[0, 1])?; // a cut
+    /// // the same law again: the stable step estimated anew, on the cut body
+    /// sys.set_material(0, Box::new(Link(Spring { k: 50.0 })))?;
     /// let dt = sys.stable_dt();
     /// // four times as stiff: half the stable step, and the cut stays
     /// sys.set_material(0, Box::new(Link(Spring { k: 200.0 })))?;
