@@ -533,6 +533,19 @@ fn view_exits(pvd: &std::path::Path) -> (bool, String) {
     (out.status.success(), String::from_utf8_lossy(&out.stderr).into())
 }
 
+/// Writes a `.pvd` collection at `path` listing (timestep text, file) entries as
+/// written, however wrong.
+fn write_pvd(path: &std::path::Path, entries: &[(String, String)]) {
+    let sets: String = entries
+        .iter()
+        .map(|(t, f)| format!("<DataSet timestep=\"{t}\" group=\"\" part=\"0\" file=\"{f}\"/>\n"))
+        .collect();
+    let text = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n{sets}</Collection>\n</VTKFile>\n"
+    );
+    std::fs::write(path, text).unwrap();
+}
+
 /// A `.pvd` whose times are not finite or do not increase is refused, naming the
 /// file and the entry (the player used to spin on them).
 #[test]
@@ -545,18 +558,12 @@ fn a_pvd_with_bad_times_is_refused() {
     }
     let pvd = |name: &str, times: [&str; 3]| {
         let path = dir.join(name);
-        let sets: String = times
+        let entries: Vec<(String, String)> = times
             .iter()
             .enumerate()
-            .map(|(k, t)| format!("<DataSet timestep=\"{t}\" group=\"\" part=\"0\" file=\"f{k}.vtu\"/>\n"))
+            .map(|(k, t)| (t.to_string(), format!("f{k}.vtu")))
             .collect();
-        std::fs::write(
-            &path,
-            format!(
-                "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n{sets}</Collection>\n</VTKFile>\n"
-            ),
-        )
-        .unwrap();
+        write_pvd(&path, &entries);
         path
     };
     for (name, times, entry) in [
@@ -580,17 +587,9 @@ fn a_pvd_too_large_to_play_is_refused_before_loading() {
     let dir = bin::temp_dir("view", "huge-pvd");
     let mesh = box_mesh([0.1, 0.1, 0.1], [20, 20, 20], HexSplit::Six).unwrap();
     heml::io::write_mesh(&dir.join("f.vtu"), &mesh).unwrap();
-    let sets: String = (0..60_000)
-        .map(|k| format!("<DataSet timestep=\"{k}\" group=\"\" part=\"0\" file=\"f.vtu\"/>\n"))
-        .collect();
     let pvd = dir.join("huge.pvd");
-    std::fs::write(
-        &pvd,
-        format!(
-            "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n{sets}</Collection>\n</VTKFile>\n"
-        ),
-    )
-    .unwrap();
+    let entries: Vec<(String, String)> = (0..60_000).map(|k| (k.to_string(), "f.vtu".to_string())).collect();
+    write_pvd(&pvd, &entries);
     let (ok, err) = view_exits(&pvd);
     assert!(!ok, "a 2.3 GB playback was accepted");
     assert!(
