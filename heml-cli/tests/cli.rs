@@ -116,6 +116,36 @@ fn info_keeps_the_default_of_the_modulus_not_given() {
     assert!(!ok && err.contains("--param E is given twice"), "{err}");
 }
 
+/// `heml info` of an OpenSurgSim `.ply` reports its node set and material and takes
+/// that material for the stable step (E, nu, density each overridable), which then
+/// matches the step of the same law given on the command line.
+#[test]
+fn info_uses_the_material_a_ply_file_states() {
+    let ply = concat!(env!("CARGO_MANIFEST_DIR"), "/../heml-core/tests/data/tiny_surgsim.ply");
+    let dt = |out: &str| -> f64 {
+        let line = out.lines().find(|l| l.starts_with("stable dt")).unwrap();
+        line.split_whitespace().nth(2).unwrap().parse().unwrap()
+    };
+    let (ok, out, err) = heml(&["info", ply]);
+    assert!(ok, "{err}");
+    assert!(out.contains("node set 'boundary_condition' (3 nodes)"), "{out}");
+    assert!(out.contains("neo_hookean E=75000 nu=0.45, density 1000 kg/m³"), "{out}");
+    let (ok, given, err) = heml(&[
+        "info",
+        ply,
+        "--param",
+        "E=75000",
+        "--param",
+        "nu=0.45",
+        "--density",
+        "1000",
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(dt(&out), dt(&given), "{out}\n{given}");
+    let (ok, out, err) = heml(&["info", ply, "--density", "4000"]);
+    assert!(ok && out.contains("E=75000 nu=0.45, density 4000"), "{out}{err}");
+}
+
 /// `heml bench` on a small generated box: the table names the mesh it measured
 /// (the same box the library generates), both thread counts, HEML and P1 side by side
 /// with positive rates, and the memory of both fields.

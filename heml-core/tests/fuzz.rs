@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use heml_core::io::{gmsh, medit, tetgen, vtk_legacy, vtu, MeshData};
+use heml_core::io::{gmsh, medit, ply, tetgen, vtk_legacy, vtu, MeshData};
 use heml_core::scene::Scene;
 use heml_core::TetMesh;
 use rand::{Rng, SeedableRng};
@@ -173,7 +173,8 @@ fn writer_seed_dir() -> PathBuf {
         write_mesh_as(&dir.join("w1.msh"), &m, MeshFormat::Gmsh1).unwrap();
         write_mesh_as(&dir.join("wb22.msh"), &m, MeshFormat::Gmsh22Binary).unwrap();
         write_mesh_as(&dir.join("wb41.msh"), &m, MeshFormat::Gmsh41Binary).unwrap();
-        for f in ["w41.msh", "w.vtk", "w.mesh", "w.node"] {
+        write_mesh_as(&dir.join("wb.ply"), &m, MeshFormat::PlyBinary).unwrap();
+        for f in ["w41.msh", "w.vtk", "w.mesh", "w.node", "w.ply"] {
             write_mesh(&dir.join(f), &m).unwrap();
         }
         for (f, enc) in [
@@ -307,6 +308,10 @@ fn target(name: &str) -> Target {
         "medit" => Target {
             seeds: single(&[".mesh"]),
             run: |b, t| check_data(medit::parse(Path::new(INPUT), &b[0]), t),
+        },
+        "ply" => Target {
+            seeds: single(&[".ply"]),
+            run: |b, t| check_data(ply::parse(Path::new(INPUT), &b[0]).map(|(d, _)| d), t),
         },
         "tetgen" => {
             // pair every .node seed with its .ele sibling
@@ -616,6 +621,11 @@ fn fuzz_medit() {
 }
 
 #[test]
+fn fuzz_ply() {
+    fuzz("ply");
+}
+
+#[test]
 fn fuzz_scene() {
     fuzz("scene");
 }
@@ -700,7 +710,9 @@ fn binary_gmsh_counts_are_bounded_by_the_file_size() {
 #[test]
 fn header_counts_do_not_drive_allocation() {
     // counts up to 2^64 in every format: at most a few times the file's size
-    let cases: [(&str, &str); 5] = [
+    let cases: [(&str, &str); 7] = [
+        ("ply", "ply\nformat ascii 1.0\nelement vertex 18446744073709551615\nproperty double x\nproperty double y\nproperty double z\nend_header\n0 0 0\n"),
+        ("ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty uchar x\nproperty uchar y\nproperty uchar z\nelement 3d_element 4611686018427387904\nproperty list uchar uint vertex_indices\nend_header\n\0\0\0\x04"),
         ("gmsh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n18446744073709551615\n1 0 0 0\n"),
         ("vtk_legacy", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 6148914691236517205 double\n0 0 0\n"),
         ("medit", "MeshVersionFormatted 2\nDimension 3\nVertices 4611686018427387904\n0 0 0 0\n"),

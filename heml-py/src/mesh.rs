@@ -100,6 +100,19 @@ impl Mesh {
         PyArray1::from_slice(py, self.inner.tags())
     }
 
+    /// The mesh file's named node sets, as a dict of name → sorted node ids ((k,)
+    /// int64 arrays, copies): an OpenSurgSim `.ply` gives its boundary conditions as
+    /// `"boundary_condition"` (pass them as a system's `fixed`). Empty for other files.
+    #[getter]
+    fn node_sets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (name, ids) in self.inner.node_sets() {
+            let ids: Vec<i64> = ids.iter().map(|&i| i as i64).collect();
+            d.set_item(name, PyArray1::from_vec(py, ids))?;
+        }
+        Ok(d)
+    }
+
     /// Number of nodes.
     #[getter]
     fn n_nodes(&self) -> usize {
@@ -227,7 +240,7 @@ fn import_meshio(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
 }
 
 /// Reads a mesh file, choosing the reader by extension (`.msh`, `.vtk`, `.vtu`,
-/// `.node`/`.ele`, `.mesh`), and validates it. Errors (`HemlError`) name the file
+/// `.node`/`.ele`, `.mesh`, `.ply`), and validates it. Errors (`HemlError`) name the file
 /// and line. Non-tet elements are skipped.
 #[pyfunction]
 pub fn read_mesh(path: PathBuf) -> PyResult<Mesh> {
@@ -235,7 +248,7 @@ pub fn read_mesh(path: PathBuf) -> PyResult<Mesh> {
 }
 
 /// Writes `mesh` in the format of `path`'s extension (`.msh` as Gmsh 4.1 ASCII,
-/// `.vtu` zlib-compressed, `.vtk`, `.node`/`.ele`, `.mesh`), atomically.
+/// `.vtu` zlib-compressed, `.vtk`, `.node`/`.ele`, `.mesh`, `.ply` as ASCII), atomically.
 #[pyfunction]
 pub fn write_mesh(path: PathBuf, mesh: &Mesh) -> PyResult<()> {
     heml::io::write_mesh(&path, &mesh.inner).py()

@@ -47,12 +47,31 @@ def test_system_surface_follows_the_positions():
 
 def test_file_round_trip(tmp_path):
     m = heml.box_mesh([0.3, 0.2, 0.1], [3, 2, 1])
-    for ext in ("msh", "vtu", "vtk", "mesh"):
+    for ext in ("msh", "vtu", "vtk", "mesh", "ply"):
         path = tmp_path / f"box.{ext}"
         heml.write_mesh(path, m)
         back = heml.read_mesh(path)
         assert np.array_equal(back.tets, m.tets), ext
         assert np.allclose(back.nodes, m.nodes, rtol=0, atol=1e-15), ext
+
+
+def test_ply_boundary_conditions_fix_a_system():
+    """An OpenSurgSim-style .ply (heml-core's fixture: two tets, boundary conditions
+    2, 0, 1, 1) gives its boundary nodes as a node set, which fixes a system's
+    nodes: under gravity they stay exactly at rest while the others fall."""
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "heml-core" / "tests" / "data" / "tiny_surgsim.ply"
+    m = heml.read_mesh(path)
+    assert list(m.node_sets) == ["boundary_condition"]
+    held = m.node_sets["boundary_condition"]
+    assert held.dtype == np.int64 and list(held) == [0, 1, 2]
+    assert heml.box_mesh([1, 1, 1], [1, 1, 1]).node_sets == {}
+    sys = heml.System(m, heml.material("neo_hookean", E=3e3, nu=0.45), gravity=[0, 0, -9.81], fixed=held)
+    sys.step("symplectic_euler", dt=0.1 * sys.stable_dt, n=5)
+    d = sys.displacements
+    assert np.all(d[held] == 0.0)
+    assert np.all(d[[3, 4], 2] < 0)
 
 
 def test_meshio_round_trip_in_memory():

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 /// Arguments of `heml info`.
 #[derive(Args, Debug)]
 pub struct InfoArgs {
-    /// Mesh file (.msh, .vtk, .vtu, .node/.ele, .mesh).
+    /// Mesh file (.msh, .vtk, .vtu, .node/.ele, .mesh, .ply).
     pub mesh: PathBuf,
     /// Multiply coordinates by this factor (e.g. 0.001 for a mesh in millimetres).
     #[arg(long, default_value_t = 1.0)]
@@ -19,13 +19,14 @@ pub struct InfoArgs {
     /// Law for the stable time step (registry name, see `heml materials`).
     #[arg(long, default_value = "neo_hookean")]
     pub law: String,
-    /// Law parameter NAME=VALUE (repeatable). Default for laws set by E and nu: E=3000,
-    /// nu=0.45 (either given alone keeps the other's default).
+    /// Law parameter NAME=VALUE (repeatable). Default for laws set by E and nu: the
+    /// material the mesh file states (OpenSurgSim .ply), else E=3000, nu=0.45 (either
+    /// given alone keeps the other's default).
     #[arg(long = "param", value_name = "NAME=VALUE")]
     pub params: Vec<String>,
-    /// Mass density (kg/m³).
-    #[arg(long, default_value_t = 1000.0)]
-    pub density: f64,
+    /// Mass density (kg/m³). Default: the mesh file's material, else 1000.
+    #[arg(long)]
+    pub density: Option<f64>,
 }
 
 /// Parses `NAME=VALUE` pairs into [`Params`].
@@ -130,8 +131,12 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
         .as_ref()
         .is_some_and(|s| s.fields.len() == entry.params.len());
     // (each of E and nu the user leaves out keeps its default, as the help says)
+    let (e, nu, rho) = report.material.map_or((3000.0, 0.45, 1000.0), |m| {
+        (m.young_modulus, m.poisson_ratio, m.density)
+    });
+    let density = args.density.unwrap_or(rho);
     if from_moduli && params.0.keys().all(|k| k == "E" || k == "nu") {
-        for (name, value) in [("E", 3000.0), ("nu", 0.45)] {
+        for (name, value) in [("E", e), ("nu", nu)] {
             if params.get(name).is_none() {
                 params.set(name, value);
             }
@@ -140,7 +145,7 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
     let shown: Vec<String> = params.0.iter().map(|(k, v)| format!("{k}={v}")).collect();
     let sys = heml::system(mesh)
         .material(&args.law, &params)?
-        .density(args.density)
+        .density(density)
         .pin_unreferenced()
         .build()?;
     outln!(
@@ -149,7 +154,7 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
         stable_time_step(&sys),
         args.law,
         shown.join(" "),
-        args.density
+        density
     );
     Ok(())
 }

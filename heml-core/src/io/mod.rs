@@ -11,6 +11,7 @@
 //! | `.vtu` | VTK XML UnstructuredGrid: ascii, base64 or appended (raw/base64); uncompressed, zlib or lzma | ✓ | base64 + zlib (default), base64, ascii |
 //! | `.node` + `.ele` | TetGen | ✓ | ✓ |
 //! | `.mesh` | Medit / INRIA, ASCII | ✓ | ✓ |
+//! | `.ply` | PLY volume mesh as OpenSurgSim writes it (`3d_element`, `boundary_condition`, `material`), ASCII or binary | ✓ | ASCII (default), binary |
 //!
 //! Binary Gmsh files are read in either byte order (the integer 1 after
 //! `$MeshFormat` tells the writer's); binary writers write little-endian. The
@@ -42,6 +43,7 @@ pub mod gmsh;
 mod gmsh_binary;
 mod gmsh_data;
 pub mod medit;
+pub mod ply;
 pub mod pvd;
 pub mod tetgen;
 mod vtk_binary;
@@ -94,6 +96,26 @@ pub struct MeshData {
     /// Per-tet weights and covers when tets overlap (hexahedra split
     /// [`HexSplit::Ten`]); `None`: every tet weight 1, cover 0.
     pub overlap: Option<crate::mesh::overlap::Overlap>,
+    /// Named node sets of the file (ids into `nodes`, sorted, no repeats): e.g.
+    /// the boundary conditions of an OpenSurgSim `.ply` ([`ply::BOUNDARY_SET`]).
+    /// A scene's `node_set = "name"` selects one.
+    pub node_sets: BTreeMap<String, Vec<usize>>,
+    /// The material the file declares, when it declares one (OpenSurgSim `.ply`).
+    pub material: Option<FileMaterial>,
+}
+
+/// A material stated in a mesh file (OpenSurgSim's `material` element): HEML does
+/// not take it as the law by itself — a scene or program chooses the law — but
+/// reports it ([`ReadReport::material`]), and `heml info` estimates its stable step
+/// with it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FileMaterial {
+    /// Mass density (kg/m³ in SI files).
+    pub density: f64,
+    /// Young's modulus E (Pa in SI files).
+    pub young_modulus: f64,
+    /// Poisson's ratio ν.
+    pub poisson_ratio: f64,
 }
 
 impl MeshData {
@@ -105,6 +127,9 @@ impl MeshData {
         let mut mesh = TetMesh::with_tags(self.nodes, self.tets, self.tags)?;
         for (name, v) in self.cell_vectors {
             mesh = mesh.with_cell_vectors(name, v)?;
+        }
+        for (name, ids) in self.node_sets {
+            mesh = mesh.with_node_set(name, ids)?;
         }
         match self.overlap {
             Some(o) => mesh.with_overlap(o),
@@ -175,6 +200,7 @@ impl MeshData {
             tets: mesh.tets().iter().map(|t| t.map(|i| i as usize)).collect(),
             tags: mesh.tags().to_vec(),
             overlap: mesh.overlap().cloned(),
+            node_sets: mesh.node_sets().clone(),
             ..MeshData::default()
         }
     }
@@ -206,6 +232,10 @@ pub enum MeshFormat {
     TetGen,
     /// Medit / INRIA `.mesh` (ASCII).
     Medit,
+    /// PLY `.ply` volume mesh (OpenSurgSim's `3d_element`), ASCII.
+    Ply,
+    /// PLY `.ply` volume mesh, binary (either byte order).
+    PlyBinary,
 }
 
 impl fmt::Display for MeshFormat {
@@ -220,12 +250,14 @@ impl fmt::Display for MeshFormat {
             MeshFormat::Vtu => "VTK XML (vtu)",
             MeshFormat::TetGen => "TetGen node/ele",
             MeshFormat::Medit => "Medit mesh",
+            MeshFormat::Ply => "PLY ASCII",
+            MeshFormat::PlyBinary => "PLY binary",
         })
     }
 }
 
 /// File extensions understood by [`read_mesh`] and [`write_mesh`].
-pub const SUPPORTED_EXTENSIONS: &[&str] = &["msh", "vtk", "vtu", "node", "ele", "mesh"];
+pub const SUPPORTED_EXTENSIONS: &[&str] = &["msh", "vtk", "vtu", "node", "ele", "mesh", "ply"];
 
 /// How [`read_mesh_with`] turns a file into a mesh.
 ///
@@ -264,6 +296,10 @@ pub struct ReadReport {
     pub unreferenced_nodes: usize,
     /// Hexahedra split into tets at load (their tets are counted in `n_tets`).
     pub hexes_split: usize,
+    /// The file's named node sets and their sizes.
+    pub node_sets: BTreeMap<String, usize>,
+    /// The material the file declares, if any.
+    pub material: Option<FileMaterial>,
 }
 
 impl fmt::Display for ReadReport {
@@ -288,6 +324,16 @@ impl fmt::Display for ReadReport {
         }
         if self.unreferenced_nodes > 0 {
             write!(f, ", {} unreferenced nodes", self.unreferenced_nodes)?;
+        }
+        for (name, n) in &self.node_sets {
+            write!(f, ", node set '{name}' ({n} nodes)")?;
+        }
+        if let Some(m) = self.material {
+            write!(
+                f,
+                ", material in the file: density {}, E {}, nu {}",
+                m.density, m.young_modulus, m.poisson_ratio
+            )?;
         }
         Ok(())
     }
@@ -371,6 +417,7 @@ pub fn read_mesh_data(path: &Path) -> Result<(MeshData, MeshFormat)> {
         "vtu" => vtu::read(path).map(|d| (d, MeshFormat::Vtu)),
         "node" | "ele" => tetgen::read(path).map(|d| (d, MeshFormat::TetGen)),
         "mesh" => medit::read(path).map(|d| (d, MeshFormat::Medit)),
+        "ply" => ply::read(path).map(|(d, binary)| (d, if binary { MeshFormat::PlyBinary } else { MeshFormat::Ply })),
         _ => Err(unknown_extension(path, "read")),
     }
 }
@@ -406,6 +453,8 @@ pub fn read_mesh_with(path: &Path, options: &ReadOptions) -> Result<(TetMesh, Re
     };
     let hexes_split = data.split_hexes(options.hex_split).map_err(in_file)?;
     let skipped = data.skipped.clone();
+    let material = data.material;
+    let node_sets = data.node_sets.iter().map(|(k, v)| (k.clone(), v.len())).collect();
     let mesh = data.into_mesh().map_err(in_file)?;
     let report = ReadReport {
         path: path.to_path_buf(),
@@ -416,13 +465,15 @@ pub fn read_mesh_with(path: &Path, options: &ReadOptions) -> Result<(TetMesh, Re
         reoriented: mesh.reoriented_count(),
         unreferenced_nodes: mesh.unreferenced_nodes().len(),
         hexes_split,
+        node_sets,
+        material,
     };
     Ok((mesh, report))
 }
 
 /// Writes `mesh` in the format given by the extension of `path` (`.msh` is written
-/// as Gmsh 4.1 ASCII, `.vtu` as zlib-compressed base64; `.node`/`.ele` write both TetGen
-/// files).
+/// as Gmsh 4.1 ASCII, `.vtu` as zlib-compressed base64, `.ply` as ASCII; `.node`/`.ele`
+/// write both TetGen files).
 pub fn write_mesh(path: &Path, mesh: &TetMesh) -> Result<()> {
     let format = match extension(path).as_str() {
         "msh" => MeshFormat::Gmsh41,
@@ -430,6 +481,7 @@ pub fn write_mesh(path: &Path, mesh: &TetMesh) -> Result<()> {
         "vtu" => MeshFormat::Vtu,
         "node" | "ele" => MeshFormat::TetGen,
         "mesh" => MeshFormat::Medit,
+        "ply" => MeshFormat::Ply,
         _ => return Err(unknown_extension(path, "write")),
     };
     write_mesh_as(path, mesh, format)
@@ -447,6 +499,8 @@ pub fn write_mesh_as(path: &Path, mesh: &TetMesh, format: MeshFormat) -> Result<
         MeshFormat::Vtu => write_vtu(path, &VtuFrame::from_mesh(mesh)),
         MeshFormat::TetGen => tetgen::write(path, mesh),
         MeshFormat::Medit => medit::write(path, mesh),
+        MeshFormat::Ply => ply::write(path, mesh),
+        MeshFormat::PlyBinary => ply::write_binary(path, mesh),
     }
 }
 

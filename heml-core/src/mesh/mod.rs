@@ -29,6 +29,9 @@ pub struct TetMesh {
     cell_vectors: std::collections::BTreeMap<String, Vec<Vec3>>,
     /// Per-tet weights and covers when tets overlap (see [`overlap`]).
     overlap: Option<overlap::Overlap>,
+    /// Named node sets of the mesh file (sorted ids, no repeats): a scene's
+    /// `node_set = "name"` selects one.
+    node_sets: std::collections::BTreeMap<String, Vec<usize>>,
 }
 
 impl TetMesh {
@@ -141,6 +144,7 @@ impl TetMesh {
             reoriented,
             cell_vectors: Default::default(),
             overlap: None,
+            node_sets: Default::default(),
         })
     }
 
@@ -239,6 +243,7 @@ impl TetMesh {
         out.reoriented = self.reoriented;
         out.cell_vectors = self.cell_vectors.clone();
         out.overlap = self.overlap.clone();
+        out.node_sets = self.node_sets.clone();
         Ok(out)
     }
 
@@ -258,6 +263,41 @@ impl TetMesh {
             });
         }
         self.cell_vectors.insert(name.into(), values);
+        Ok(self)
+    }
+
+    /// The named node sets of the mesh file (e.g. the `boundary_condition` nodes of
+    /// an OpenSurgSim `.ply`), each sorted without repeats.
+    pub fn node_sets(&self) -> &std::collections::BTreeMap<String, Vec<usize>> {
+        &self.node_sets
+    }
+
+    /// The node set `name`, if the mesh has it.
+    pub fn node_set(&self, name: &str) -> Option<&[usize]> {
+        self.node_sets.get(name).map(Vec::as_slice)
+    }
+
+    /// The mesh with the node set `name` (node ids; sorted and deduplicated here).
+    /// An id outside the mesh is an error naming it.
+    ///
+    /// ```
+    /// use heml_core::mesh::generate::{box_mesh, HexSplit};
+    /// let mesh = box_mesh([1.0; 3], [1, 1, 1], HexSplit::Six).unwrap();
+    /// let mesh = mesh.with_node_set("base", vec![3, 0, 1, 2, 0]).unwrap();
+    /// assert_eq!(mesh.node_set("base"), Some(&[0, 1, 2, 3][..]));
+    /// assert!(mesh.clone().with_node_set("far", vec![8]).is_err()); // 8 nodes: ids 0..7
+    /// ```
+    pub fn with_node_set(mut self, name: impl Into<String>, mut ids: Vec<usize>) -> Result<Self> {
+        let name = name.into();
+        if let Some(&bad) = ids.iter().find(|&&i| i >= self.n_nodes()) {
+            return Err(HemlError::Mesh(format!(
+                "node set '{name}' names node {bad}, but the mesh has {} nodes",
+                self.n_nodes()
+            )));
+        }
+        ids.sort_unstable();
+        ids.dedup();
+        self.node_sets.insert(name, ids);
         Ok(self)
     }
 

@@ -158,7 +158,7 @@ pub fn morton_node_order(mesh: &TetMesh) -> Permutation {
 impl TetMesh {
     /// The same mesh with nodes renumbered by `nodes` and tets reordered by `tets`
     /// (e.g. [`morton_node_order`], [`morton_order`]); tags, cell vectors and
-    /// weights follow their tets.
+    /// weights follow their tets, node sets their nodes.
     /// Node `i` of `self` is node `nodes.old_to_new[i]` of the result.
     pub fn renumbered(&self, nodes: &Permutation, tets: &Permutation) -> Result<TetMesh> {
         if nodes.len() != self.n_nodes() || tets.len() != self.n_tets() {
@@ -177,6 +177,9 @@ impl TetMesh {
         let mut out = TetMesh::with_tags(new_nodes, new_tets, tets.apply(self.tags()))?;
         for (name, v) in self.cell_vectors() {
             out = out.with_cell_vectors(name.clone(), tets.apply(v))?;
+        }
+        for (name, ids) in self.node_sets() {
+            out = out.with_node_set(name.clone(), ids.iter().map(|&i| nodes.old_to_new[i]).collect())?;
         }
         if let Some(o) = self.overlap() {
             out = out.with_overlap(super::overlap::Overlap {

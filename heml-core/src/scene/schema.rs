@@ -227,6 +227,9 @@ pub struct FixSpec {
     pub plane: Option<PlaneSpec>,
     /// Nodes of the tets with this mesh tag.
     pub tag: Option<i32>,
+    /// The mesh file's node set of this name (e.g. `"boundary_condition"` of an
+    /// OpenSurgSim `.ply`).
+    pub node_set: Option<String>,
 }
 
 /// `[[prescribe]]`: nodes moved by `displacement` following `ramp`, or along
@@ -243,6 +246,9 @@ pub struct PrescribeSpec {
     pub plane: Option<PlaneSpec>,
     /// Nodes of the tets with this mesh tag.
     pub tag: Option<i32>,
+    /// The mesh file's node set of this name (e.g. `"boundary_condition"` of an
+    /// OpenSurgSim `.ply`).
+    pub node_set: Option<String>,
     /// Full displacement (metres), reached when the ramp reaches 1. With `ramp`;
     /// exclusive with `keyframes`.
     #[serde(default, deserialize_with = "super::exact::opt_vec3")]
@@ -271,6 +277,9 @@ pub struct NodalLoadSpec {
     pub plane: Option<PlaneSpec>,
     /// Nodes of the tets with this mesh tag.
     pub tag: Option<i32>,
+    /// The mesh file's node set of this name (e.g. `"boundary_condition"` of an
+    /// OpenSurgSim `.ply`).
+    pub node_set: Option<String>,
     /// Total force (newtons), split equally over the selected nodes.
     #[serde(deserialize_with = "super::exact::vec3")]
     pub force: [f64; 3],

@@ -17,16 +17,19 @@ pub enum Selection {
     Plane(PlaneSpec),
     /// Nodes of the tets carrying a mesh tag.
     Tag(i32),
+    /// A named node set of the mesh file ([`TetMesh::node_set`]).
+    NodeSet(String),
 }
 
 impl Selection {
-    /// Short name of the selector (`nodes`, `box`, `plane`, `tag`).
+    /// Short name of the selector (`nodes`, `box`, `plane`, `tag`, `node_set`).
     pub fn kind(&self) -> &'static str {
         match self {
             Selection::Nodes(_) => "nodes",
             Selection::Box(_) => "box",
             Selection::Plane(_) => "plane",
             Selection::Tag(_) => "tag",
+            Selection::NodeSet(_) => "node_set",
         }
     }
 
@@ -38,6 +41,7 @@ impl Selection {
         bbox: &Option<BoxSpec>,
         plane: &Option<PlaneSpec>,
         tag: &Option<i32>,
+        node_set: &Option<String>,
     ) -> Result<Selection> {
         let mut found = Vec::new();
         if let Some(n) = nodes {
@@ -52,11 +56,14 @@ impl Selection {
         if let Some(t) = tag {
             found.push(Selection::Tag(*t));
         }
+        if let Some(name) = node_set {
+            found.push(Selection::NodeSet(name.clone()));
+        }
         match found.len() {
             1 => Ok(found.remove(0)),
             0 => Err(HemlError::Invalid(format!(
                 "{what}: no selector; give exactly one of nodes = [ids], box = {{ min, max }}, \
-                 plane = {{ point, normal, tolerance }}, tag = N"
+                 plane = {{ point, normal, tolerance }}, tag = N, node_set = \"name\""
             ))),
             _ => Err(HemlError::Invalid(format!(
                 "{what}: several selectors ({}); give exactly one",
@@ -119,6 +126,21 @@ impl Selection {
                     .flat_map(|&t| mesh.tets()[t].iter().map(|&i| i as usize))
                     .collect()
             }
+            Selection::NodeSet(name) => match mesh.node_set(name) {
+                Some(ids) => ids.to_vec(),
+                None if mesh.node_sets().is_empty() => {
+                    return Err(err(format!(
+                        "names the node set '{name}', but the mesh file has no node sets (an OpenSurgSim .ply \
+                         gives its boundary_condition nodes as \"boundary_condition\")"
+                    )))
+                }
+                None => {
+                    return Err(err(format!(
+                        "names the node set '{name}'; the mesh file's node sets are {:?}",
+                        mesh.node_sets().keys().collect::<Vec<_>>()
+                    )))
+                }
+            },
         };
         ids.sort_unstable();
         ids.dedup();
@@ -135,20 +157,20 @@ impl Selection {
 impl FixSpec {
     /// The selection of this entry.
     pub fn selection(&self, what: &str) -> Result<Selection> {
-        Selection::from_keys(what, &self.nodes, &self.bbox, &self.plane, &self.tag)
+        Selection::from_keys(what, &self.nodes, &self.bbox, &self.plane, &self.tag, &self.node_set)
     }
 }
 
 impl PrescribeSpec {
     /// The selection of this entry.
     pub fn selection(&self, what: &str) -> Result<Selection> {
-        Selection::from_keys(what, &self.nodes, &self.bbox, &self.plane, &self.tag)
+        Selection::from_keys(what, &self.nodes, &self.bbox, &self.plane, &self.tag, &self.node_set)
     }
 }
 
 impl NodalLoadSpec {
     /// The selection of this entry.
     pub fn selection(&self, what: &str) -> Result<Selection> {
-        Selection::from_keys(what, &self.nodes, &self.bbox, &self.plane, &self.tag)
+        Selection::from_keys(what, &self.nodes, &self.bbox, &self.plane, &self.tag, &self.node_set)
     }
 }

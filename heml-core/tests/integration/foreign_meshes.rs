@@ -474,3 +474,33 @@ np.asarray(np.concatenate(phys), dtype='<i4').tofile(out + '.tags')
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+// ------------------------------------------------------------- OpenSurgSim, PLY
+
+/// OpenSurgSim's arm wound (`original/surgsim_wound_deformable.ply`, its deformable
+/// PLY layout) reads to the nodes and tets of its converted copies, with its 407
+/// surface faces skipped, its 79 boundary-condition nodes as a node set (all on the
+/// body's boundary surface) and its material.
+#[test]
+fn opensurgsim_ply_reads_like_its_converted_copies() {
+    let Some(shared) = shared_meshes("opensurgsim_ply_reads_like_its_converted_copies") else {
+        return;
+    };
+    let path = shared.join("original/surgsim_wound_deformable.ply");
+    let (mesh, report) = read_mesh(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(report.format, MeshFormat::Ply);
+    assert_eq!((report.n_nodes, report.n_tets), (391, 1476));
+    assert_eq!(report.skipped.get("face"), Some(&407));
+    let m = report.material.expect("the file's material");
+    assert_eq!((m.density, m.poisson_ratio, m.young_modulus), (1000.0, 0.45, 7.5e4));
+    let set = mesh.node_set("boundary_condition").expect("the boundary conditions");
+    assert_eq!(set.len(), 79);
+    let surface = heml_core::mesh::surface::BoundarySurface::of_tet_mesh(&mesh);
+    assert!(set.iter().all(|&i| surface.nodes().contains(&(i as u32))));
+    for copy in ["msh/surgsim_arm_wound.msh", "vtu/surgsim_arm_wound.vtu"] {
+        let (other, _) = read_mesh(&shared.join(copy)).unwrap();
+        assert_eq!(mesh.nodes(), other.nodes(), "{copy}: nodes");
+        assert_eq!(mesh.tets(), other.tets(), "{copy}: tets");
+        assert_eq!(mesh.reoriented_count(), other.reoriented_count(), "{copy}");
+    }
+}

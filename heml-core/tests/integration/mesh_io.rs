@@ -77,6 +77,19 @@ fn every_fixture_format_reads_the_tiny_mesh() {
             BTreeMap::from([("corners".into(), 2), ("triangles".into(), 1)]),
             0,
         ),
+        // OpenSurgSim's layout (make_ply_fixtures.py), ASCII and big-endian binary
+        (
+            "tiny_surgsim.ply",
+            MeshFormat::Ply,
+            BTreeMap::from([("face".into(), 2)]),
+            0,
+        ),
+        (
+            "tiny_surgsim_be.ply",
+            MeshFormat::PlyBinary,
+            BTreeMap::from([("face".into(), 2)]),
+            0,
+        ),
     ];
     for (file, format, skipped, reoriented) in cases {
         let path = data(file);
@@ -93,6 +106,23 @@ fn every_fixture_format_reads_the_tiny_mesh() {
         assert_eq!(mesh.tags(), [1, 2], "{file}");
         assert!((mesh.total_volume() - 0.5).abs() < 1e-15, "{file}");
         assert!(report.to_string().contains(file), "{report}");
+    }
+    // the PLY fixtures' boundary conditions (2, 0, 1, 1: a set) and material
+    for file in ["tiny_surgsim.ply", "tiny_surgsim_be.ply"] {
+        let (mesh, report) = read_mesh(&data(file)).unwrap();
+        assert_eq!(mesh.node_set("boundary_condition"), Some(&[0, 1, 2][..]), "{file}");
+        assert_eq!(
+            report.node_sets,
+            BTreeMap::from([("boundary_condition".into(), 3)]),
+            "{file}"
+        );
+        let m = report.material.unwrap_or_else(|| panic!("{file}: no material"));
+        assert_eq!(
+            (m.density, m.young_modulus, m.poisson_ratio),
+            (1000.0, 75000.0, 0.45),
+            "{file}"
+        );
+        assert!(report.to_string().contains("E 75000, nu 0.45"), "{report}");
     }
     // one-based TetGen without attributes: tags default to 0
     let (mesh, _) = read_mesh(&data("tiny_one_based.ele")).unwrap();
@@ -241,6 +271,8 @@ fn every_writer_round_trips_nodes_tets_and_tags() {
         ("m.vtu", None, MeshFormat::Vtu),
         ("m.node", None, MeshFormat::TetGen),
         ("m.mesh", None, MeshFormat::Medit),
+        ("m.ply", None, MeshFormat::Ply),
+        ("mb.ply", Some(MeshFormat::PlyBinary), MeshFormat::PlyBinary),
     ];
     for (file, explicit, expected) in cases {
         let path = dir.join(file);
@@ -251,6 +283,32 @@ fn every_writer_round_trips_nodes_tets_and_tags() {
         let (back, report) = read_mesh(&path).unwrap_or_else(|e| panic!("{file}: {e}"));
         assert_eq!(report.format, expected, "{file}");
         assert_same_mesh(&mesh, &back, file);
+    }
+    // a node set named boundary_condition goes out and back through both PLY
+    // encodings (and survives the renumbering at load)
+    let z0 = mesh.nodes().iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    let bottom: Vec<usize> = (0..mesh.n_nodes()).filter(|&i| mesh.nodes()[i].z == z0).collect();
+    assert!(bottom.len() > 3);
+    let with_set = mesh
+        .clone()
+        .with_node_set("boundary_condition", bottom.clone())
+        .unwrap();
+    for (file, format) in [("s.ply", MeshFormat::Ply), ("sb.ply", MeshFormat::PlyBinary)] {
+        let path = dir.join(file);
+        write_mesh_as(&path, &with_set, format).unwrap();
+        let (back, _) = read_mesh(&path).unwrap();
+        assert_eq!(back.node_set("boundary_condition"), Some(&bottom[..]), "{file}");
+        let p = heml_core::mesh::reorder::morton_node_order(&back);
+        let moved = back
+            .renumbered(&p, &heml_core::mesh::reorder::Permutation::identity(back.n_tets()))
+            .unwrap();
+        let mut expect: Vec<usize> = bottom.iter().map(|&i| p.old_to_new[i]).collect();
+        expect.sort_unstable();
+        assert_eq!(
+            moved.node_set("boundary_condition"),
+            Some(&expect[..]),
+            "{file}: renumbered"
+        );
     }
     // TetGen: the .ele sibling was written too, and can be given instead
     let (back, _) = read_mesh(&dir.join("m.ele")).unwrap();
@@ -381,6 +439,20 @@ fn broken_files_give_errors_with_file_and_line() {
         ("medit_unknown.mesh", Parse(9, "SubDomainFromMesh")),
         ("medit_truncated.mesh", Parse(0, "end of file")),
         ("medit_bad_index.mesh", Parse(21, "vertex number 0")),
+        ("ply_not_ply.ply", Parse(1, "not a PLY file")),
+        ("ply_bad_version.ply", Parse(2, "version '2.0'")),
+        (
+            "ply_truncated.ply",
+            Parse(13, "announces 5 vertex records, the file ends after 3"),
+        ),
+        ("ply_five_vertices.ply", Parse(16, "3d_element 1: 5 vertices")),
+        ("ply_bad_index.ply", Parse(16, "3d_element 1: vertex 9 is outside 0..5")),
+        ("ply_tetra_element.ply", Parse(7, "element 'tetra' lists vertices")),
+        ("ply_no_z.ply", Parse(3, "no scalar property z")),
+        (
+            "ply_extra_records.ply",
+            Parse(17, "after the records the header announces"),
+        ),
     ];
     for (file, want) in cases {
         let path = data("broken").join(file);
@@ -432,10 +504,12 @@ fn truncated_and_corrupted_files_never_panic() {
     let mesh = box_mesh([1.0, 2.0, 1.5], [2, 2, 1], HexSplit::TwentyFour).unwrap();
     // good inputs: the writers' output in every format and encoding, plus the fixtures
     let mut good: Vec<PathBuf> = Vec::new();
-    for f in ["w22.msh", "w41.msh", "w.vtk", "w.mesh", "w.vtu"] {
+    for f in ["w22.msh", "w41.msh", "w.vtk", "w.mesh", "w.vtu", "w.ply", "wb.ply"] {
         let p = dir.join(format!("good-{f}"));
         if f == "w22.msh" {
             write_mesh_as(&p, &mesh, MeshFormat::Gmsh22).unwrap();
+        } else if f == "wb.ply" {
+            write_mesh_as(&p, &mesh, MeshFormat::PlyBinary).unwrap();
         } else {
             write_mesh(&p, &mesh).unwrap();
         }
@@ -504,6 +578,16 @@ fn huge_counts_in_headers_do_not_allocate_or_panic() {
         ("d.vtk", "# vtk DataFile Version 3.0\nx\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 99999999999 double\n\0\0\0\0"),
         ("e.mesh", "MeshVersionFormatted 2\nDimension 3\nTriangles 18446744073709551615\n1 2 3 4\n"),
         ("f.node", "99999999999999 3 0 0\n1 0 0 0\n"),
+        (
+            "g.ply",
+            "ply\nformat ascii 1.0\nelement vertex 18446744073709551615\nproperty float x\nproperty float y\n\
+             property float z\nend_header\n0 0 0\n",
+        ),
+        (
+            "h.ply",
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 1\nproperty list uint uint vertex_indices\nend_header\n0 0 0\n4294967295 1 2\n",
+        ),
     ];
     for (name, text) in cases {
         let p = dir.join(name);

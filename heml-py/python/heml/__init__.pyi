@@ -61,7 +61,7 @@ def material_from_energy(
     declares its volumetric energy U(J) for the anti-locking formulations."""
 
 def read_mesh(path: _Path) -> Mesh:
-    """Reads a .msh/.vtk/.vtu/.node/.ele/.mesh file and validates it."""
+    """Reads a .msh/.vtk/.vtu/.node/.ele/.mesh/.ply file and validates it."""
 
 def write_mesh(path: _Path, mesh: Mesh) -> None:
     """Writes `mesh` in the format of the extension, atomically."""
@@ -114,6 +114,9 @@ class Mesh:
     @property
     def tags(self) -> npt.NDArray[np.int32]:
         """Region tag per tet (m,), a copy."""
+    @property
+    def node_sets(self) -> dict[str, npt.NDArray[np.int64]]:
+        """The file's named node sets (e.g. an OpenSurgSim .ply's "boundary_condition")."""
     @property
     def n_nodes(self) -> int:
         """Number of nodes."""

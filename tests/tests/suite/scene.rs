@@ -1172,3 +1172,61 @@ fn a_run_stops_when_its_callback_says_so() {
     assert!((last - summary.time).abs() < 1e-12);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A mesh file's node set (an OpenSurgSim `.ply`'s boundary conditions) is a
+/// selection: `node_set = "boundary_condition"` fixes exactly those nodes (by the
+/// file's ids, whatever the internal renumbering), and a name the file lacks is an
+/// error listing the file's sets (or saying it has none).
+#[test]
+fn node_sets_of_the_mesh_file_are_selections() {
+    link();
+    let dir = temp_dir("node-set");
+    let mesh =
+        heml::mesh::generate::box_mesh([0.04, 0.01, 0.01], [8, 2, 2], heml::mesh::generate::HexSplit::Six).unwrap();
+    let end: Vec<usize> = (0..mesh.n_nodes()).filter(|&i| mesh.nodes()[i].x == 0.0).collect();
+    assert_eq!(end.len(), 9);
+    let ply = mesh.clone().with_node_set("boundary_condition", end.clone()).unwrap();
+    write_mesh(&dir.join("body.ply"), &ply).unwrap();
+    write_mesh(&dir.join("body.msh"), &mesh).unwrap();
+    let scene = |file: &str, set: &str| {
+        format!(
+            "[mesh]\nfile = \"{file}\"\n[[material]]\nlaw = \"neo_hookean\"\nparams = {{ E = 3e3, nu = 0.45 }}\n\
+             [[fix]]\nnode_set = \"{set}\"\n[loads]\ngravity = [0.0, 0.0, -9.81]\n[solver]\nduration = 0.02\n[output]\nvtu = false\ncsv = false\n"
+        )
+    };
+    let mut sim = Scene::from_toml_str(&scene("body.ply", "boundary_condition"), &dir)
+        .unwrap()
+        .build()
+        .unwrap();
+    let file_id = |internal: usize| sim.node_order.as_ref().map_or(internal, |p| p.new_to_old[internal]);
+    let mut held: Vec<usize> = (0..mesh.n_nodes())
+        .filter(|&i| !sim.system.is_free(i))
+        .map(file_id)
+        .collect();
+    held.sort_unstable();
+    assert_eq!(held, end);
+    sim.run(|_| {}).unwrap();
+    let x = file_positions(&sim);
+    // held nodes stay at rest exactly; the free end sags under gravity
+    assert!(end.iter().all(|&i| x[i] == mesh.nodes()[i]));
+    let tip = (0..mesh.n_nodes()).find(|&i| mesh.nodes()[i].x == 0.04).unwrap();
+    assert!(
+        x[tip].z < mesh.nodes()[tip].z - 1e-6,
+        "the tip did not sag: {:?}",
+        x[tip]
+    );
+
+    let e = err_of_in(&scene("body.ply", "clamp"), &dir);
+    assert!(
+        e.contains("[[fix]]") && e.contains("node set 'clamp'") && e.contains("[\"boundary_condition\"]"),
+        "{e}"
+    );
+    let e = err_of_in(&scene("body.msh", "boundary_condition"), &dir);
+    assert!(e.contains("the mesh file has no node sets"), "{e}");
+    let e = err_of_in(
+        &scene("body.ply", "boundary_condition").replace("node_set", "tag = 0\nnode_set"),
+        &dir,
+    );
+    assert!(e.contains("several selectors (tag, node_set)"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
