@@ -25,9 +25,12 @@
 //! `vertex`, `3d_element` with a `tag` property (which OpenSurgSim ignores), and
 //! the node set `"boundary_condition"` of the mesh when it has one.
 //!
-//! Hand-written like the other readers (see [`super`]): the PLY crates give
-//! neither the line of an ASCII record nor the byte offset of a binary one in
-//! their errors.
+//! Hand-written like the other readers (see [`super`]). The `ply-rs` crate (0.1.3)
+//! was considered: it reads every record into a map from property names to values
+//! (a map per tet), its binary errors carry no byte offset, and a negative list
+//! count of a signed type is cast into a huge one; reading straight into the mesh
+//! arrays with the other readers' cursor keeps a record at a few numbers and every
+//! error at its line (ASCII) or byte offset (binary).
 
 use std::io::Write;
 use std::path::Path;
