@@ -284,6 +284,17 @@ dt_policy = \"refuse\"
         "{err}"
     );
     assert!(!out.exists(), "a refused run writes nothing");
+    // a non-ASCII letter before a key of a malformed inline table: an error with the
+    // line (the key lookup of the message used to cut the letter and panic)
+    let accent = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../heml-core/tests/fuzz_seeds/repro_key_after_accent.toml"
+    );
+    let (ok, _, err) = heml(&["run", accent, "--out", out.to_str().unwrap()]);
+    assert!(
+        !ok && err.contains("repro_key_after_accent.toml:6") && !err.contains("panicked"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -101,8 +101,10 @@ impl Mesh {
     }
 
     /// The mesh file's named node sets, as a dict of name → sorted node ids ((k,)
-    /// int64 arrays, copies): an OpenSurgSim `.ply` gives its boundary conditions as
-    /// `"boundary_condition"` (pass them as a system's `fixed`). Empty for other files.
+    /// int64 arrays, copies): a Gmsh file's physical points, curves and surfaces by
+    /// name (`"surface 7"` without one), an OpenSurgSim `.ply`'s
+    /// `"boundary_condition"` nodes (pass them as a system's `fixed`). Empty for
+    /// other files.
     #[getter]
     fn node_sets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);

@@ -74,6 +74,18 @@ def test_ply_boundary_conditions_fix_a_system():
     assert np.all(d[[3, 4], 2] < 0)
 
 
+def test_gmsh_physical_surfaces_are_node_sets():
+    """A file written by Gmsh (heml-core's fixture, a unit cube) gives its physical
+    points, curves and surfaces as node sets by name: "clamp" is the face z = 0."""
+    from pathlib import Path
+
+    m = heml.read_mesh(Path(__file__).parents[2] / "heml-core" / "tests" / "data" / "gmsh_groups_b41.msh")
+    sets = m.node_sets
+    assert sorted(sets) == ["clamp", "edge", "point 9", "surface 7"]
+    assert np.array_equal(sets["clamp"], np.flatnonzero(np.abs(m.nodes[:, 2]) < 1e-12))
+    assert len(sets["point 9"]) == 1 and np.allclose(m.nodes[sets["point 9"][0]], [1, 1, 1], atol=1e-12)
+
+
 def test_meshio_round_trip_in_memory():
     """Mesh → meshio.Mesh → Mesh keeps nodes, tets and tags exactly."""
     pytest.importorskip("meshio")

@@ -26,7 +26,9 @@
 //!   allocation); errors in binary data name the line and the byte offset.
 //! * `$ElementData` blocks of 3 components (fibre directions) become cell vector
 //!   fields by their name (the first string tag), see `gmsh_data`.
-//! * Unknown sections (`$PhysicalNames`, `$NodeData`, …) are skipped.
+//! * Physical groups of points, curves and surfaces become node sets named by
+//!   `$PhysicalNames` (or `"surface 7"`, …), see `gmsh_groups`.
+//! * Unknown sections (`$NodeData`, `$Periodic`, …) are skipped.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -37,6 +39,7 @@ use super::atomic::write_atomic;
 use super::cursor::{capacity, coordinates_line, finite_point_on_line, parse_at, shorten, Cursor, NodeLine};
 use super::gmsh_binary::Binary;
 use super::gmsh_data::{ElementData, ElementIds};
+use super::gmsh_groups::{dimension, BoundaryGroups, GroupOf};
 use super::{no_tets_message, read_bytes, MeshData, MeshFormat};
 use crate::error::{HemlError, Result};
 use crate::mesh::TetMesh;
@@ -195,6 +198,8 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
     // element numbers of the tets and hexes, and the `$ElementData` blocks
     let mut ids = ElementIds::default();
     let mut element_data: Vec<ElementData> = Vec::new();
+    // physical groups of points, curves and surfaces: node sets
+    let mut groups = BoundaryGroups::default();
 
     while let Some((line, ln)) = c.next_line()? {
         let name = line.split_ascii_whitespace().next().unwrap_or("");
@@ -230,7 +235,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                     if have_elements {
                         return Err(c.err_at(ln, "second $ELM section (only one is supported)"));
                     }
-                    read_element_lines(&mut c, &mut data, &mut ids, &node_index, true)?;
+                    read_element_lines(&mut c, &mut data, &mut ids, &mut groups, &node_index, true)?;
                     expect_end(&mut c, "$ENDELM")?;
                     have_elements = true;
                 }
@@ -257,8 +262,8 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
             }
             ("$Entities", Some(Dialect::V41)) => {
                 volume_physical = Some(match bin {
-                    Some(b) => read_entities_bin(&mut c, b)?,
-                    None => read_entities(&mut c)?,
+                    Some(b) => read_entities_bin(&mut c, b, &mut groups)?,
+                    None => read_entities(&mut c, &mut groups)?,
                 });
                 expect_end(&mut c, "$EndEntities")?;
             }
@@ -282,14 +287,19 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
                 if have_elements {
                     return Err(c.err_at(ln, "second $Elements section (only one is supported)"));
                 }
+                let (data, ids, groups, map) = (&mut data, &mut ids, &mut groups, &node_index);
                 match (d, bin) {
-                    (Dialect::V41, Some(b)) => read_elements_v41_bin(&mut c, b, &mut data, &mut ids, &node_index)?,
-                    (Dialect::V41, None) => read_elements_v41(&mut c, &mut data, &mut ids, &node_index)?,
-                    (_, Some(b)) => read_elements_v2_bin(&mut c, b, &mut data, &mut ids, &node_index)?,
-                    (_, None) => read_element_lines(&mut c, &mut data, &mut ids, &node_index, false)?,
+                    (Dialect::V41, Some(b)) => read_elements_v41_bin(&mut c, b, data, ids, groups, map)?,
+                    (Dialect::V41, None) => read_elements_v41(&mut c, data, ids, groups, map)?,
+                    (_, Some(b)) => read_elements_v2_bin(&mut c, b, data, ids, groups, map)?,
+                    (_, None) => read_element_lines(&mut c, data, ids, groups, map, false)?,
                 }
                 expect_end(&mut c, "$EndElements")?;
                 have_elements = true;
+            }
+            ("$PhysicalNames", Some(Dialect::V2 | Dialect::V41)) => {
+                groups.read_names(&mut c)?;
+                expect_end(&mut c, "$EndPhysicalNames")?;
             }
             ("$ElementData", Some(Dialect::V2 | Dialect::V41)) => {
                 element_data.push(ElementData::read(&mut c, bin, ln)?);
@@ -324,6 +334,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, MeshFormat)> {
         }
     }
     super::gmsh_data::attach(&mut data, &ids, element_data);
+    data.node_sets = groups.into_node_sets();
     let format = match (header.dialect, header.binary.is_some()) {
         (Dialect::V1, _) => MeshFormat::Gmsh1,
         (Dialect::V2, false) => MeshFormat::Gmsh22,
@@ -574,6 +585,7 @@ fn read_element_lines(
     c: &mut Cursor<'_>,
     data: &mut MeshData,
     ids: &mut ElementIds,
+    groups: &mut BoundaryGroups,
     map: &HashMap<u64, usize>,
     v1: bool,
 ) -> Result<()> {
@@ -614,7 +626,14 @@ fn read_element_lines(
         }
         match kind(ty) {
             k @ (Kind::Tet | Kind::Hex) => store(data, ids, k, &element_nodes(c, ln, f, map, k)?, tag, number),
-            Kind::Skip(name) => data.skip(name),
+            Kind::Skip(name) => {
+                data.skip(name);
+                let g = groups.groups(dimension(name), GroupOf::Physical(tag));
+                if !g.is_empty() {
+                    let nodes = f.map(|tok| node_of(c, ln, tok, map)).collect::<Result<Vec<_>>>()?;
+                    groups.add(&g, &nodes);
+                }
+            }
             // refused by check_type above
             Kind::Volume(_) | Kind::Unknown => {}
         }
@@ -626,6 +645,7 @@ fn read_elements_v41(
     c: &mut Cursor<'_>,
     data: &mut MeshData,
     ids: &mut ElementIds,
+    groups: &mut BoundaryGroups,
     map: &HashMap<u64, usize>,
 ) -> Result<()> {
     let header_line = c.line_of_next_token();
@@ -635,13 +655,17 @@ fn read_elements_v41(
     c.parse::<u64>("the maximum element tag")?;
     let mut seen = 0usize;
     for _ in 0..blocks {
-        c.parse::<i64>("the entity dimension of an element block")?;
+        let dim = c.parse::<i64>("the entity dimension of an element block")?;
         let entity = c.parse::<i32>("the entity tag of an element block")?;
         let ty = c.parse::<i64>("the element type of a block")?;
         let ln = c.line_of_next_token();
         check_type(c, ln, ty)?;
         let n = count(c, "the number of elements in a block")?;
         let k = kind(ty);
+        let g = match k {
+            Kind::Skip(name) => groups.groups(dimension(name), entity_of(dim, entity)),
+            _ => Vec::new(),
+        };
         for _ in 0..n {
             let (line, ln) = c.expect_line("an element line")?;
             let mut f = line.split_ascii_whitespace();
@@ -649,7 +673,13 @@ fn read_elements_v41(
             let number = parse_at::<u64>(c.file(), ln, id, "an element tag")?;
             match k {
                 Kind::Tet | Kind::Hex => store(data, ids, k, &element_nodes(c, ln, f, map, k)?, entity, number),
-                Kind::Skip(name) => data.skip(name),
+                Kind::Skip(name) => {
+                    data.skip(name);
+                    if !g.is_empty() {
+                        let nodes = f.map(|tok| node_of(c, ln, tok, map)).collect::<Result<Vec<_>>>()?;
+                        groups.add(&g, &nodes);
+                    }
+                }
                 Kind::Volume(_) | Kind::Unknown => {}
             }
         }
@@ -698,21 +728,33 @@ fn store_binary_element(
     r: &Record,
     data: &mut MeshData,
     ids: &mut ElementIds,
+    (groups, of): (&mut BoundaryGroups, GroupOf),
     map: &HashMap<u64, usize>,
 ) -> Result<()> {
+    let nodes = || {
+        r.nodes
+            .iter()
+            .map(|&(tag, off)| node_of_tag(c, off, tag, r.number, map))
+            .collect::<Result<Vec<usize>>>()
+    };
     match kind(ty) {
-        k @ (Kind::Tet | Kind::Hex) => {
-            let nodes = r
-                .nodes
-                .iter()
-                .map(|&(tag, off)| node_of_tag(c, off, tag, r.number, map))
-                .collect::<Result<Vec<usize>>>()?;
-            store(data, ids, k, &nodes, r.tag, r.number);
+        k @ (Kind::Tet | Kind::Hex) => store(data, ids, k, &nodes()?, r.tag, r.number),
+        Kind::Skip(name) => {
+            data.skip(name);
+            let g = groups.groups(dimension(name), of);
+            if !g.is_empty() {
+                groups.add(&g, &nodes()?);
+            }
         }
-        Kind::Skip(name) => data.skip(name),
         Kind::Volume(_) | Kind::Unknown => {}
     }
     Ok(())
+}
+
+/// The 4.1 entity of an element block of dimension `dim` (from the file: a value
+/// outside 0–2 names no boundary entity).
+fn entity_of(dim: i64, entity: i32) -> GroupOf {
+    GroupOf::Entity(usize::try_from(dim).unwrap_or(usize::MAX), entity)
 }
 
 /// The node count of a binary element type, which is needed to find the next
@@ -749,6 +791,7 @@ fn read_elements_v2_bin(
     b: Binary,
     data: &mut MeshData,
     ids: &mut ElementIds,
+    groups: &mut BoundaryGroups,
     map: &HashMap<u64, usize>,
 ) -> Result<()> {
     let n = count(c, "the number of elements")?;
@@ -787,7 +830,8 @@ fn read_elements_v2_bin(
                 let off = c.offset();
                 nodes.push((b.uint(c, "a node number of an element")?, off));
             }
-            store_binary_element(c, ty, &Record { number, tag, nodes }, data, ids, map)?;
+            let of = GroupOf::Physical(tag);
+            store_binary_element(c, ty, &Record { number, tag, nodes }, data, ids, (groups, of), map)?;
         }
         read += follow;
     }
@@ -850,6 +894,7 @@ fn read_elements_v41_bin(
     b: Binary,
     data: &mut MeshData,
     ids: &mut ElementIds,
+    groups: &mut BoundaryGroups,
     map: &HashMap<u64, usize>,
 ) -> Result<()> {
     let header_line = c.line();
@@ -860,7 +905,7 @@ fn read_elements_v41_bin(
     b.check_room(c, blocks, 12 + b.size_t, "element entity blocks")?;
     let mut seen = 0usize;
     for _ in 0..blocks {
-        b.int(c, "the entity dimension of an element block")?;
+        let dim = b.int(c, "the entity dimension of an element block")?;
         let entity = b.int(c, "the entity tag of an element block")?;
         let off = c.offset();
         let ty = i64::from(b.int(c, "the element type of a block")?);
@@ -879,15 +924,16 @@ fn read_elements_v41_bin(
                 tag: entity,
                 nodes,
             };
-            store_binary_element(c, ty, &r, data, ids, map)?;
+            store_binary_element(c, ty, &r, data, ids, (&mut *groups, entity_of(dim.into(), entity)), map)?;
         }
         seen = seen.saturating_add(n);
     }
     check_total(c, header_line, "$Elements", total, seen, "elements")
 }
 
-/// Binary 4.1 `$Entities`: volume tag → its first physical tag.
-fn read_entities_bin(c: &mut Cursor<'_>, b: Binary) -> Result<HashMap<i32, Option<i32>>> {
+/// Binary 4.1 `$Entities`: volume tag → its first physical tag; the physical tags
+/// of points, curves and surfaces go to `groups`.
+fn read_entities_bin(c: &mut Cursor<'_>, b: Binary, groups: &mut BoundaryGroups) -> Result<HashMap<i32, Option<i32>>> {
     let mut counts = [0usize; 4];
     for (k, what) in ["points", "curves", "surfaces", "volumes"].iter().enumerate() {
         counts[k] = b.count(c, &format!("the number of {what}"))?;
@@ -908,10 +954,9 @@ fn read_entities_bin(c: &mut Cursor<'_>, b: Binary) -> Result<HashMap<i32, Optio
             }
             let nphys = b.count(c, "the number of physical tags")?;
             b.check_room(c, nphys, 4, "physical tags")?;
-            let mut phys = None;
+            let mut phys = Vec::with_capacity(nphys);
             for _ in 0..nphys {
-                let p = b.int(c, "a physical tag")?;
-                phys.get_or_insert(p);
+                phys.push(b.int(c, "a physical tag")?);
             }
             if dim > 0 {
                 let nb = b.count(c, "the number of bounding entities")?;
@@ -919,15 +964,18 @@ fn read_entities_bin(c: &mut Cursor<'_>, b: Binary) -> Result<HashMap<i32, Optio
                 c.bytes(nb * 4, "bounding entity tags")?;
             }
             if dim == 3 {
-                volumes.insert(tag, phys);
+                volumes.insert(tag, phys.first().copied());
+            } else {
+                groups.set_entity(dim, tag, phys);
             }
         }
     }
     Ok(volumes)
 }
 
-/// `$Entities` of v4.1: volume tag → its first physical tag.
-fn read_entities(c: &mut Cursor<'_>) -> Result<HashMap<i32, Option<i32>>> {
+/// `$Entities` of v4.1: volume tag → its first physical tag; the physical tags of
+/// points, curves and surfaces go to `groups`.
+fn read_entities(c: &mut Cursor<'_>, groups: &mut BoundaryGroups) -> Result<HashMap<i32, Option<i32>>> {
     let counts = [
         count(c, "the number of points")?,
         count(c, "the number of curves")?,
@@ -948,13 +996,15 @@ fn read_entities(c: &mut Cursor<'_>) -> Result<HashMap<i32, Option<i32>>> {
             };
             let tag: i32 = parse_at(c.file(), ln, get(0)?, "an entity tag")?;
             let nphys: usize = parse_at(c.file(), ln, get(1 + skip)?, "the number of physical tags")?;
-            let phys = if nphys > 0 {
-                Some(parse_at::<i32>(c.file(), ln, get(2 + skip)?, "a physical tag")?)
-            } else {
-                None
-            };
+            // (a count beyond the line's length fails at its first missing tag)
+            let mut phys = Vec::with_capacity(nphys.min(f.len()));
+            for k in 0..nphys {
+                phys.push(parse_at::<i32>(c.file(), ln, get(2 + skip + k)?, "a physical tag")?);
+            }
             if dim == 3 {
-                volumes.insert(tag, phys);
+                volumes.insert(tag, phys.first().copied());
+            } else {
+                groups.set_entity(dim, tag, phys);
             }
         }
     }

@@ -42,6 +42,7 @@ mod cursor;
 pub mod gmsh;
 mod gmsh_binary;
 mod gmsh_data;
+mod gmsh_groups;
 pub mod medit;
 pub mod ply;
 pub mod pvd;
@@ -96,9 +97,11 @@ pub struct MeshData {
     /// Per-tet weights and covers when tets overlap (hexahedra split
     /// [`HexSplit::Ten`]); `None`: every tet weight 1, cover 0.
     pub overlap: Option<crate::mesh::overlap::Overlap>,
-    /// Named node sets of the file (ids into `nodes`, sorted, no repeats): e.g.
-    /// the boundary conditions of an OpenSurgSim `.ply` ([`ply::BOUNDARY_SET`]).
-    /// A scene's `node_set = "name"` selects one.
+    /// Named node sets of the file (ids into `nodes`, sorted, no repeats): the
+    /// physical points, curves and surfaces of a Gmsh file (by their
+    /// `$PhysicalNames` name, else e.g. `"surface 7"`), the boundary conditions of
+    /// an OpenSurgSim `.ply` ([`ply::BOUNDARY_SET`]). A scene's `node_set = "name"`
+    /// selects one.
     pub node_sets: BTreeMap<String, Vec<usize>>,
     /// The material the file declares, when it declares one (OpenSurgSim `.ply`).
     pub material: Option<FileMaterial>,

@@ -174,6 +174,15 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<(MeshData, bool)> {
     let mut cell_tags: Vec<i32> = Vec::new();
     let mut boundary: Option<Vec<u64>> = None;
     for el in &elements {
+        let needs_props = matches!(el.name.as_str(), "vertex" | "3d_element" | "boundary_condition");
+        if el.props.is_empty() && !needs_props {
+            // records without properties hold no bytes: nothing to read however
+            // large the count (looping over 4·10⁹ empty records took seconds)
+            if el.count > 0 {
+                *data.skipped.entry(el.name.clone()).or_insert(0) += el.count;
+            }
+            continue;
+        }
         match el.name.as_str() {
             "vertex" => read_vertices(&mut src, el, &mut data)?,
             "3d_element" => {
@@ -781,5 +790,23 @@ mod tests {
         bin.extend_from_slice(&[0u8; 30]);
         let e = parse(Path::new("b.ply"), &bin).unwrap_err().to_string();
         assert!(e.contains("b.ply:0: ") && e.contains("file truncated"), "{e}");
+    }
+
+    /// An element without properties holds no bytes: a count of 2⁶⁴ − 1 is skipped
+    /// at once (it was a loop of that many empty records), and a vertex or
+    /// 3d_element without its properties is an error at its declaration.
+    #[test]
+    fn elements_without_properties_are_not_looped_over() {
+        let text = header(&format!("element camera 18446744073709551615\n{VERTEX}{CELLS}"))
+            + CUBE_NODES
+            + "8 0 1 2 3 4 5 6 7\n";
+        let (data, _) = parse(Path::new("c.ply"), text.as_bytes()).unwrap();
+        assert_eq!(data.skipped["camera"], usize::MAX);
+        let bare = header("element 3d_element 18446744073709551615\n");
+        let e = parse(Path::new("c.ply"), bare.as_bytes()).unwrap_err().to_string();
+        assert!(
+            e.starts_with("c.ply:3: element 3d_element has no list property vertex_indices"),
+            "{e}"
+        );
     }
 }

@@ -56,9 +56,13 @@ pub(crate) fn suggestion(msg: &str) -> Option<String> {
 pub(crate) fn key_before(text: &str, pos: usize) -> Option<&str> {
     let before = text.get(..pos)?.trim_end();
     let before = before.strip_suffix('=')?.trim_end();
+    // (past the whole character: a multi-byte one, e.g. the U+FFFD that replaces an
+    // invalid byte, made `i + 1` cut it and the slice panic — found by fuzzing)
     let start = before
-        .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.'))
-        .map_or(0, |i| i + 1);
+        .char_indices()
+        .rev()
+        .find(|&(_, c)| !(c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.'))
+        .map_or(0, |(i, c)| i + c.len_utf8());
     let key = &before[start..];
     (!key.is_empty()).then_some(key)
 }
@@ -99,6 +103,19 @@ pub(crate) fn table_line(text: &str, table: &str) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The key before a value, also after a multi-byte character (which used to
+    /// panic: the key started inside the character).
+    #[test]
+    fn key_before_stops_at_whole_characters() {
+        assert_eq!(key_before("a = 1", 4), Some("a"));
+        // the fuzzer's input: an invalid byte read as U+FFFD (3 bytes) before a key
+        let text = "{ E = 3,\u{fffd}x-= 1";
+        assert_eq!(key_before(text, text.find("= 1").unwrap() + 1), Some("x-"));
+        assert_eq!(key_before("é= 1", 3), None);
+        assert_eq!(key_before("ék = 1", 5), Some("k"));
+        assert_eq!(key_before("x é k = 1", 8), Some("k"));
+    }
 
     #[test]
     fn suggests_the_closest_expected_name() {

@@ -130,8 +130,9 @@ impl Selection {
                 Some(ids) => ids.to_vec(),
                 None if mesh.node_sets().is_empty() => {
                     return Err(err(format!(
-                        "names the node set '{name}', but the mesh file has no node sets (an OpenSurgSim .ply \
-                         gives its boundary_condition nodes as \"boundary_condition\")"
+                        "names the node set '{name}', but the mesh file has no node sets (Gmsh files give \
+                         their physical points, curves and surfaces by name; an OpenSurgSim .ply its \
+                         \"boundary_condition\" nodes)"
                     )))
                 }
                 None => {

@@ -422,6 +422,10 @@ fn broken_files_give_errors_with_file_and_line() {
         ("msh_tet10.msh", Parse(13, "type 11")),
         ("msh_unclosed.msh", Parse(4, "not closed")),
         ("msh_degenerate.msh", Mesh("degenerate")),
+        (
+            "msh_bad_physical_name.msh",
+            Parse(7, "expected a \"quoted\" name, found 'tumour'"),
+        ),
         ("vtk_truncated.vtk", Parse(0, "end of file")),
         // the line of the bad cell (8), not of the CELLS header (7) as it used to be
         ("vtk_bad_index.vtk", Parse(8, "node 7")),
@@ -603,4 +607,60 @@ fn huge_counts_in_headers_do_not_allocate_or_panic() {
         );
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Physical groups of points, curves and surfaces in files written by Gmsh itself
+/// (4.15.2, `make_gmsh_fixtures.py`: a unit cube, 4.1 and 2.2, ASCII and binary)
+/// become node sets: named ones by their `$PhysicalNames` name, the others as
+/// "surface 7", "point 9". Each holds exactly the nodes on its face, edge or corner
+/// (coordinates compared to 1e-12: Gmsh places them on the CAD entities), the same
+/// in all four files; the volume group stays the tets' tag.
+#[test]
+fn gmsh_physical_groups_become_node_sets() {
+    let files = [
+        ("gmsh_groups_v41.msh", MeshFormat::Gmsh41),
+        ("gmsh_groups_b41.msh", MeshFormat::Gmsh41Binary),
+        ("gmsh_groups_v22.msh", MeshFormat::Gmsh22),
+        ("gmsh_groups_b22.msh", MeshFormat::Gmsh22Binary),
+    ];
+    let mut first: Option<TetMesh> = None;
+    for (file, format) in files {
+        let (mesh, report) = read_mesh(&data(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert_eq!(report.format, format, "{file}");
+        assert!(mesh.n_tets() > 10 && mesh.tags().iter().all(|&t| t == 1), "{file}");
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        let on = |test: &dyn Fn(&Vec3) -> bool| -> Vec<usize> {
+            (0..mesh.n_nodes()).filter(|&i| test(&mesh.nodes()[i])).collect()
+        };
+        let expect = BTreeMap::from([
+            ("clamp".to_string(), on(&|p| near(p.z, 0.0))),
+            ("surface 7".to_string(), on(&|p| near(p.z, 1.0))),
+            ("edge".to_string(), on(&|p| near(p.x, 0.0) && near(p.y, 0.0))),
+            (
+                "point 9".to_string(),
+                on(&|p| near(p.x, 1.0) && near(p.y, 1.0) && near(p.z, 1.0)),
+            ),
+        ]);
+        assert!(
+            expect["clamp"].len() >= 4 && expect["edge"].len() >= 2,
+            "{file}: {expect:?}"
+        );
+        assert_eq!(expect["point 9"].len(), 1, "{file}");
+        assert_eq!(mesh.node_sets(), &expect, "{file}");
+        assert_eq!(report.node_sets["clamp"], expect["clamp"].len(), "{file}");
+        match &first {
+            None => first = Some(mesh),
+            Some(m) => {
+                // Gmsh prints 16 significant digits in ASCII: the same nodes to round-off
+                let gap = m
+                    .nodes()
+                    .iter()
+                    .zip(mesh.nodes())
+                    .map(|(p, q)| (p - q).norm())
+                    .fold(0.0, f64::max);
+                assert!(gap < 1e-15, "{file}: nodes differ by {gap:e}");
+                assert_eq!(m.node_sets(), mesh.node_sets(), "{file}");
+            }
+        }
+    }
 }

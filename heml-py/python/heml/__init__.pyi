@@ -116,7 +116,7 @@ class Mesh:
         """Region tag per tet (m,), a copy."""
     @property
     def node_sets(self) -> dict[str, npt.NDArray[np.int64]]:
-        """The file's named node sets (e.g. an OpenSurgSim .ply's "boundary_condition")."""
+        """The file's named node sets (Gmsh physical groups, an OpenSurgSim .ply's "boundary_condition")."""
     @property
     def n_nodes(self) -> int:
         """Number of nodes."""

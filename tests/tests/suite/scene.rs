@@ -1228,5 +1228,21 @@ fn node_sets_of_the_mesh_file_are_selections() {
         &dir,
     );
     assert!(e.contains("several selectors (tag, node_set)"), "{e}");
+    // a Gmsh physical surface by its name (a file written by Gmsh 4.15.2: the unit
+    // cube's face z = 0 is the group "clamp")
+    let gmsh = Path::new(env!("CARGO_MANIFEST_DIR")).join("../heml-core/tests/data/gmsh_groups_v41.msh");
+    let text = scene(gmsh.to_str().unwrap(), "clamp");
+    let sim = Scene::from_toml_str(&text, &dir).unwrap().build().unwrap();
+    let (cube, _) = heml::io::read_mesh(&gmsh).unwrap();
+    let file_id = |internal: usize| sim.node_order.as_ref().map_or(internal, |p| p.new_to_old[internal]);
+    let mut held: Vec<usize> = (0..cube.n_nodes())
+        .filter(|&i| !sim.system.is_free(i))
+        .map(file_id)
+        .collect();
+    held.sort_unstable();
+    let bottom: Vec<usize> = (0..cube.n_nodes())
+        .filter(|&i| cube.nodes()[i].z.abs() < 1e-12)
+        .collect();
+    assert_eq!(held, bottom);
     std::fs::remove_dir_all(&dir).unwrap();
 }
