@@ -1173,6 +1173,15 @@ fn a_run_stops_when_its_callback_says_so() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The held (not free) nodes of a built scene by the file's ids, sorted.
+fn held_file_ids(sim: &heml::scene::Simulation) -> Vec<usize> {
+    let file_id = |internal: usize| sim.node_order.as_ref().map_or(internal, |p| p.new_to_old[internal]);
+    let n = sim.system.positions().len();
+    let mut held: Vec<usize> = (0..n).filter(|&i| !sim.system.is_free(i)).map(file_id).collect();
+    held.sort_unstable();
+    held
+}
+
 /// A mesh file's node set (an OpenSurgSim `.ply`'s boundary conditions) is a
 /// selection: `node_set = "boundary_condition"` fixes exactly those nodes (by the
 /// file's ids, whatever the internal renumbering), and a name the file lacks is an
@@ -1198,13 +1207,7 @@ fn node_sets_of_the_mesh_file_are_selections() {
         .unwrap()
         .build()
         .unwrap();
-    let file_id = |internal: usize| sim.node_order.as_ref().map_or(internal, |p| p.new_to_old[internal]);
-    let mut held: Vec<usize> = (0..mesh.n_nodes())
-        .filter(|&i| !sim.system.is_free(i))
-        .map(file_id)
-        .collect();
-    held.sort_unstable();
-    assert_eq!(held, end);
+    assert_eq!(held_file_ids(&sim), end);
     sim.run(|_| {}).unwrap();
     let x = file_positions(&sim);
     // held nodes stay at rest exactly; the free end sags under gravity
@@ -1234,15 +1237,9 @@ fn node_sets_of_the_mesh_file_are_selections() {
     let text = scene(gmsh.to_str().unwrap(), "clamp");
     let sim = Scene::from_toml_str(&text, &dir).unwrap().build().unwrap();
     let (cube, _) = heml::io::read_mesh(&gmsh).unwrap();
-    let file_id = |internal: usize| sim.node_order.as_ref().map_or(internal, |p| p.new_to_old[internal]);
-    let mut held: Vec<usize> = (0..cube.n_nodes())
-        .filter(|&i| !sim.system.is_free(i))
-        .map(file_id)
-        .collect();
-    held.sort_unstable();
     let bottom: Vec<usize> = (0..cube.n_nodes())
         .filter(|&i| cube.nodes()[i].z.abs() < 1e-12)
         .collect();
-    assert_eq!(held, bottom);
+    assert_eq!(held_file_ids(&sim), bottom);
     std::fs::remove_dir_all(&dir).unwrap();
 }
