@@ -5,7 +5,6 @@ use clap::Args;
 use heml::io::read_mesh;
 use heml::mesh::quality::mesh_quality;
 use heml::prelude::*;
-use heml::system::stable_time_step;
 use std::path::PathBuf;
 
 /// Arguments of `heml info`.
@@ -151,7 +150,7 @@ pub fn run(args: InfoArgs) -> heml::Result<()> {
     outln!(
         "{:<16}{:.4e} s  ({} {}, density {} kg/m³, safety factor included)",
         "stable dt",
-        stable_time_step(&sys),
+        sys.stable_dt(),
         args.law,
         shown.join(" "),
         density
