@@ -102,7 +102,8 @@ impl Mesh {
 
     /// The mesh file's named node sets, as a dict of name → sorted node ids ((k,)
     /// int64 arrays, copies): a Gmsh file's physical points, curves and surfaces by
-    /// name (`"surface 7"` without one), an OpenSurgSim `.ply`'s
+    /// name (`"surface 7"` without one), a Medit file's boundary references
+    /// (`"surface 3"`), an OpenSurgSim `.ply`'s
     /// `"boundary_condition"` nodes (pass them as a system's `fixed`). Empty for
     /// other files.
     #[getter]

@@ -6,6 +6,12 @@
 //! are skipped and counted; other volume elements (`Hexahedra`, `Prisms`,
 //! `Pyramids`, P2 tets) are refused. A keyword whose layout is unknown cannot be
 //! skipped safely in a token stream, so it is an error naming it.
+//!
+//! The references of boundary elements (the labels MMG and FreeFem++ give the
+//! faces and edges of a boundary) become node sets, named as Gmsh's unnamed
+//! groups: the nodes of the triangles and quadrilaterals with reference N are
+//! `"surface N"`, those of the edges `"curve N"` (reference 0, the usual "none",
+//! gives no set). A scene selects one with `node_set = "surface 3"`.
 
 use std::io::Write;
 use std::path::Path;
@@ -16,11 +22,16 @@ use super::{read_bytes, MeshData};
 use crate::error::Result;
 use crate::mesh::TetMesh;
 
+/// Boundary sections whose references become node sets: keyword, vertices per
+/// item (a reference follows them) and the set's dimension word.
+const LABELLED: &[(&str, usize, &str)] = &[
+    ("edges", 2, "curve"),
+    ("triangles", 3, "surface"),
+    ("quadrilaterals", 4, "surface"),
+];
+
 /// Skippable sections: keyword (lowercase) and the number of tokens per item.
 const SKIPPED: &[(&str, usize)] = &[
-    ("edges", 3),
-    ("triangles", 4),
-    ("quadrilaterals", 5),
     ("corners", 1),
     ("ridges", 1),
     ("requiredvertices", 1),
@@ -48,6 +59,8 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let mut c = Cursor::new(path, bytes, Some(b'#'));
     let mut data = MeshData::default();
     let mut raw_tets: Vec<([usize; 4], usize)> = Vec::new();
+    // labelled boundary elements: set name, 1-based vertices, line
+    let mut labelled: Vec<(String, Vec<usize>, usize)> = Vec::new();
     let mut have_vertices = false;
     let mut have_end = false;
     let mut have_version = false;
@@ -105,7 +118,23 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 break;
             }
             k => {
-                if let Some(&(name, per)) = SKIPPED.iter().find(|(n, _)| *n == k) {
+                if let Some(&(name, nv, word)) = LABELLED.iter().find(|(n, _, _)| *n == k) {
+                    let n: usize = c.parse(&format!("the number of {name}"))?;
+                    let header = c.line();
+                    for i in 0..n {
+                        let (first, line) = c.record_number::<usize>(i, n, name, header)?;
+                        let mut vs = vec![first];
+                        for _ in 1..nv {
+                            vs.push(c.parse("a vertex number (1-based)")?);
+                        }
+                        let r: i64 = c.parse(&format!("an integer reference of the {name}"))?;
+                        if r != 0 {
+                            labelled.push((format!("{word} {r}"), vs, line));
+                        }
+                    }
+                    *data.skipped.entry(name.to_string()).or_insert(0) += n;
+                    last_section = Some((name, header));
+                } else if let Some(&(name, per)) = SKIPPED.iter().find(|(n, _)| *n == k) {
                     let n: usize = c.parse(&format!("the number of {name}"))?;
                     let total = n.checked_mul(per).ok_or_else(|| c.err_at(ln, "count overflows"))?;
                     let header = c.line();
@@ -149,13 +178,25 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
         );
     }
     let n = data.nodes.len();
+    let vertex = |v: usize, line: usize| {
+        v.checked_sub(1)
+            .filter(|&i| i < n)
+            .ok_or_else(|| c.err_at(line, format!("vertex number {v} is outside 1..={n}")))
+    };
+    for (name, vs, line) in labelled {
+        let set = data.node_sets.entry(name).or_default();
+        for v in vs {
+            set.push(vertex(v, line)?);
+        }
+    }
+    for set in data.node_sets.values_mut() {
+        set.sort_unstable();
+        set.dedup();
+    }
     for (t, line) in raw_tets {
         let mut tet = [0usize; 4];
         for (k, &v) in t.iter().enumerate() {
-            tet[k] = v
-                .checked_sub(1)
-                .filter(|&i| i < n)
-                .ok_or_else(|| c.err_at(line, format!("vertex number {v} is outside 1..={n}")))?;
+            tet[k] = vertex(v, line)?;
         }
         data.tets.push(tet);
     }

@@ -99,8 +99,9 @@ pub struct MeshData {
     pub overlap: Option<crate::mesh::overlap::Overlap>,
     /// Named node sets of the file (ids into `nodes`, sorted, no repeats): the
     /// physical points, curves and surfaces of a Gmsh file (by their
-    /// `$PhysicalNames` name, else e.g. `"surface 7"`), the boundary conditions of
-    /// an OpenSurgSim `.ply` ([`ply::BOUNDARY_SET`]). A scene's `node_set = "name"`
+    /// `$PhysicalNames` name, else e.g. `"surface 7"`), the boundary references of
+    /// a Medit file (`"surface 3"`, `"curve 2"`), the boundary conditions of an
+    /// OpenSurgSim `.ply` ([`ply::BOUNDARY_SET`]). A scene's `node_set = "name"`
     /// selects one.
     pub node_sets: BTreeMap<String, Vec<usize>>,
     /// The material the file declares, when it declares one (OpenSurgSim `.ply`).

@@ -131,8 +131,8 @@ impl Selection {
                 None if mesh.node_sets().is_empty() => {
                     return Err(err(format!(
                         "names the node set '{name}', but the mesh file has no node sets (Gmsh files give \
-                         their physical points, curves and surfaces by name; an OpenSurgSim .ply its \
-                         \"boundary_condition\" nodes)"
+                         their physical points, curves and surfaces by name, Medit files their boundary \
+                         references as \"surface N\", an OpenSurgSim .ply its \"boundary_condition\" nodes)"
                     )))
                 }
                 None => {

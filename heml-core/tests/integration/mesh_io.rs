@@ -664,3 +664,33 @@ fn gmsh_physical_groups_become_node_sets() {
         }
     }
 }
+
+/// Medit boundary references (MMG's and FreeFem++'s face and edge labels) become
+/// node sets named as Gmsh's unnamed groups: "surface N" for triangles and
+/// quadrilaterals, "curve N" for edges; reference 0 gives none; a boundary vertex
+/// out of range is an error at its line.
+#[test]
+fn medit_boundary_references_become_node_sets() {
+    let (mesh, report) = read_mesh(&data("tiny.mesh")).unwrap();
+    assert_eq!(
+        mesh.node_sets(),
+        &BTreeMap::from([("surface 7".to_string(), vec![0, 1, 2])])
+    );
+    assert_eq!(report.node_sets, BTreeMap::from([("surface 7".to_string(), 3)]));
+    let text = "MeshVersionFormatted 2\nDimension 3\nVertices\n5\n0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n1 1 1 0\n\
+                Edges\n2\n1 2 4\n4 5 4\nTriangles\n2\n1 2 3 0\n2 3 5 3\nQuadrilaterals\n1\n1 2 5 4 3\n\
+                Tetrahedra\n2\n1 2 3 4 1\n2 3 4 5 2\nEnd\n";
+    let dir = scratch("medit-refs");
+    let path = dir.join("refs.mesh");
+    std::fs::write(&path, text).unwrap();
+    let (mesh, _) = read_mesh(&path).unwrap();
+    let want = BTreeMap::from([
+        ("curve 4".to_string(), vec![0, 1, 3, 4]),
+        ("surface 3".to_string(), vec![0, 1, 2, 3, 4]),
+    ]);
+    assert_eq!(mesh.node_sets(), &want);
+    std::fs::write(&path, text.replace("2 3 5 3", "2 3 9 3")).unwrap();
+    let e = read_mesh(&path).unwrap_err().to_string();
+    assert!(e.contains("refs.mesh:17: vertex number 9 is outside 1..=5"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
