@@ -304,6 +304,33 @@ fn sofa_gmsh1_meshes_read_like_their_converted_copies() {
             assert_eq!(mesh.reoriented_count(), other.reoriented_count(), "{orig} vs {copy}");
         }
     }
+    // the truth cylinder's physical surfaces (its Gmsh 1 physical regions): the two
+    // end caps (1 at y = -17.78, 3 at y = 17.78) and the side (2): node sets a scene
+    // clamps by name
+    let (mesh, _) = read_mesh(&shared.join("original/sofa_truthcylinder1.msh")).unwrap();
+    let sizes: Vec<(&str, usize)> = mesh.node_sets().iter().map(|(k, v)| (k.as_str(), v.len())).collect();
+    assert_eq!(
+        sizes,
+        [
+            ("curve 1", 36),
+            ("curve 2", 36),
+            ("surface 1", 54),
+            ("surface 2", 318),
+            ("surface 3", 55)
+        ]
+    );
+    let y = |set: &str| -> Vec<f64> { mesh.node_sets()[set].iter().map(|&i| mesh.nodes()[i].y).collect() };
+    let (lo, hi) = mesh.bounding_box();
+    assert!(
+        y("surface 1").iter().all(|&v| (v - lo.y).abs() < 1e-6),
+        "{:?}",
+        y("surface 1")
+    );
+    assert!(
+        y("surface 3").iter().all(|&v| (v - hi.y).abs() < 1e-6),
+        "{:?}",
+        y("surface 3")
+    );
 }
 
 // ------------------------------------------------------------------- errors
