@@ -478,6 +478,16 @@ fn renumbered_scenes_name_nodes_by_file_id() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Builds and runs a scene text (paths relative to the working folder) to its end.
+fn run_text(text: &str) -> heml::scene::RunSummary {
+    Scene::from_toml_str(text, ".")
+        .unwrap()
+        .build()
+        .unwrap()
+        .run(|_| {})
+        .unwrap()
+}
+
 fn err_of_in(text: &str, dir: &Path) -> String {
     match Scene::from_toml_str(text, dir).and_then(|s| s.build()) {
         Ok(_) => panic!("expected an error for:\n{text}"),
@@ -724,12 +734,7 @@ fn a_rerun_into_the_same_folder_leaves_only_its_own_frames() {
         "{BASE}[output]\ndir = {:?}\nvtu = false\ncsv = false\n",
         none.to_string_lossy()
     );
-    Scene::from_toml_str(&text, ".")
-        .unwrap()
-        .build()
-        .unwrap()
-        .run(|_| {})
-        .unwrap();
+    run_text(&text);
     assert!(!none.exists(), "an empty output folder was created");
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -935,12 +940,7 @@ fn a_killed_writer_leaves_no_temporary_for_the_next_run() {
     let stale = dir.join(".frame_00002.vtu.tmp-4194305-0");
     std::fs::write(&stale, b"").unwrap();
     let text = format!("{BASE}dt = 1e-3\n[output]\ndir = {:?}\n", dir.to_string_lossy());
-    Scene::from_toml_str(&text, ".")
-        .unwrap()
-        .build()
-        .unwrap()
-        .run(|_| {})
-        .unwrap();
+    run_text(&text);
     if Path::new("/proc/self").exists() {
         assert!(!stale.exists(), "stale temporary kept");
     }
